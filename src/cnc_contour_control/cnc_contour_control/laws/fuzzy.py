@@ -1,0 +1,399 @@
+"""Fuzzy logic servo law of paper 000 (PD-type FLC plus an integral term).
+
+The law is ``u(k) = u_scale * F[e_scale * e(k), de_scale * de(k)] + u_I(k)``
+with ``de(k) = e(k) - e(k-1)`` and ``u_I(k) = u_I(k-1) + ki * e(k)`` clamped to
+``+-integral_limit`` (paper 000, Eqs. 3-8). ``F`` uses seven fuzzy sets per
+variable (NL NM NS ZR PS PM PL): triangles whose feet sit at the neighbours'
+centres, shoulders beyond NL and PL, Mamdani min inference and the simplified
+centre-of-area defuzzification of Eq. 8. Because neighbouring triangles form a
+partition of unity, each input lies in at most two sets and at most four rules
+fire; ``F`` locates the two active sets by bisection and never loops over the
+49 rules.
+
+Units: the error is in the law's length unit (BLU = 10 um for paper 000), the
+output in drive units (DAC). The law is defined per sample: ``de`` is the
+change over one sample and ``ki`` the gain per sample, so the paper's centres
+and gains assume its sample time T = 0.01 s.
+
+Run ``python -m cnc_contour_control.laws.fuzzy --bench`` for the cost per step
+and ``--gains`` for the equivalent gains of every registered rule base beside
+the paper's Table 4.
+"""
+from __future__ import annotations
+
+if __name__ == "__main__":
+    # ``python -m`` imports the package first, which imports this module and
+    # registers the law; run that module's CLI instead of registering twice.
+    from cnc_contour_control.laws.fuzzy import main as _main
+
+    raise SystemExit(_main())
+
+import argparse
+import dataclasses
+import math
+import timeit
+from bisect import bisect_right
+from collections.abc import Mapping, Sequence
+from typing import Any, Union
+
+from cnc_contour_control.config import build_config, require_finite, require_non_negative, require_positive
+from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.laws.registry import LAWS, register_law
+
+#: Names of the seven fuzzy sets, from most negative to most positive.
+SET_NAMES: tuple[str, ...] = ("NL", "NM", "NS", "ZR", "PS", "PM", "PL")
+N_SETS = len(SET_NAMES)
+
+RuleBase = tuple[tuple[str, ...], ...]
+RuleBaseSpec = Union[str, Sequence[Sequence[str]]]
+
+
+def _rows(*rows: str) -> RuleBase:
+    return tuple(tuple(row.split()) for row in rows)
+
+
+#: Rule bases of paper 000, Table 1 (rows e = NL..PL, columns de = NL..PL).
+#: The extraction lost the de = NL column of the non-constant rows; see
+#: docs/fuzzy_rule_base.md for the reconstruction and the alternatives.
+RULE_BASES: dict[str, RuleBase] = {
+    # Lost column de = NL, filled so that C(-e, -de) = -C(e, de) (preferred).
+    "paper000": _rows(
+        "NL NL NL NL NL NL NL",
+        "NL NL NM NM NS NS NS",
+        "NL NM NM NS NS NS ZR",
+        "ZR ZR ZR ZR ZR ZR ZR",
+        "ZR PS PS PS PM PM PL",
+        "PS PS PS PM PM PL PL",
+        "PL PL PL PL PL PL PL",
+    ),
+    # Lost column de = NL, filled by repeating each row's first survivor.
+    "paper000_alt_a": _rows(
+        "NL NL NL NL NL NL NL",
+        "NL NL NM NM NS NS NS",
+        "NM NM NM NS NS NS ZR",
+        "ZR ZR ZR ZR ZR ZR ZR",
+        "PS PS PS PS PM PM PL",
+        "PS PS PS PM PM PL PL",
+        "PL PL PL PL PL PL PL",
+    ),
+    # Lost column de = ZR, filled with the row's own set (C(e, ZR) = e).
+    "paper000_alt_b": _rows(
+        "NL NL NL NL NL NL NL",
+        "NL NM NM NM NS NS NS",
+        "NM NM NS NS NS NS ZR",
+        "ZR ZR ZR ZR ZR ZR ZR",
+        "PS PS PS PS PM PM PL",
+        "PS PS PM PM PM PL PL",
+        "PL PL PL PL PL PL PL",
+    ),
+    # Lost column de = PL (the survivors are the first six), last entry repeated.
+    # Its equivalent P gain (3.0) contradicts Table 4 (2.4); kept for sensitivity.
+    "paper000_alt_c": _rows(
+        "NL NL NL NL NL NL NL",
+        "NL NM NM NS NS NS NS",
+        "NM NM NS NS NS ZR ZR",
+        "ZR ZR ZR ZR ZR ZR ZR",
+        "PS PS PS PM PM PL PL",
+        "PS PS PM PM PL PL PL",
+        "PL PL PL PL PL PL PL",
+    ),
+}
+
+
+def _check_rule_base(value: RuleBaseSpec) -> RuleBase:
+    """Return ``value`` as a 7x7 tuple of set names, or raise naming the bad row or entry."""
+    if isinstance(value, str):
+        if value not in RULE_BASES:
+            raise ConfigError(f"rule_base must be one of {sorted(RULE_BASES)} or a 7x7 table, got {value!r}")
+        return RULE_BASES[value]
+    if not isinstance(value, Sequence) or len(value) != N_SETS:
+        shape = len(value) if isinstance(value, Sequence) else type(value).__name__
+        raise ConfigError(f"rule_base must have {N_SETS} rows (e = NL..PL), got {shape}")
+    return tuple(_check_rule_row(i, row) for i, row in enumerate(value))
+
+
+def _check_rule_row(i: int, row: Any) -> tuple[str, ...]:
+    where = f"rule_base row {i} (e = {SET_NAMES[i]})"
+    if isinstance(row, str) or not isinstance(row, Sequence) or len(row) != N_SETS:
+        shape = len(row) if isinstance(row, Sequence) and not isinstance(row, str) else repr(row)
+        raise ConfigError(f"{where} must have {N_SETS} entries (de = NL..PL), got {shape}")
+    for j, name in enumerate(row):
+        if name not in SET_NAMES:
+            raise ConfigError(
+                f"rule_base[{i}][{j}] (e = {SET_NAMES[i]}, de = {SET_NAMES[j]}) must be one of "
+                f"{list(SET_NAMES)}, got {name!r}"
+            )
+    return tuple(row)
+
+
+def _check_centres(name: str, value: Sequence[float]) -> tuple[float, ...]:
+    """Return ``value`` as 7 strictly increasing finite floats, or raise naming the index."""
+    if isinstance(value, str) or not isinstance(value, Sequence) or len(value) != N_SETS:
+        raise ConfigError(f"{name} must have {N_SETS} values (NL..PL), got {value!r}")
+    centres = tuple(require_finite(f"{name}[{k}]", v) for k, v in enumerate(value))
+    for k in range(1, N_SETS):
+        if not centres[k] > centres[k - 1]:
+            raise ConfigError(
+                f"{name} must be strictly increasing: {name}[{k}] = {centres[k]} "
+                f"must be > {name}[{k - 1}] = {centres[k - 1]}"
+            )
+    return centres
+
+
+@dataclasses.dataclass(frozen=True)
+class FuzzyConfig:
+    """Configuration of the FLC of paper 000 (defaults: Tables 1, 3 and 4).
+
+    Attributes
+    ----------
+    e_centres : tuple of 7 float
+        Centres of NL..PL for the error, in law length units (BLU).
+    de_centres : tuple of 7 float
+        Centres for the change of error per sample, in BLU.
+    u_centres : tuple of 7 float
+        Centres of the output sets, in drive units (DAC).
+    rule_base : 7x7 tuple of set names, or a key of ``RULE_BASES``
+        Output set of each rule; rows e = NL..PL, columns de = NL..PL.
+    e_scale, de_scale : float
+        Input scaling factors (> 0): ``F`` sees ``e_scale * e`` and ``de_scale * de``.
+    u_scale : float
+        Output scaling factor (> 0) applied to ``F``.
+    ki : float
+        Integral gain per sample, DAC per BLU (Eq. 3; Table 4: 0.1).
+    integral_limit : float
+        Anti-windup clamp of the integral term, DAC (>= 0).
+    """
+
+    e_centres: tuple[float, ...] = (-21.0, -14.0, -7.0, 0.0, 7.0, 14.0, 21.0)
+    de_centres: tuple[float, ...] = (-4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5)
+    u_centres: tuple[float, ...] = (-55.0, -35.0, -15.0, 0.0, 15.0, 35.0, 55.0)
+    rule_base: RuleBaseSpec = "paper000"
+    e_scale: float = 1.0
+    de_scale: float = 1.0
+    u_scale: float = 1.0
+    ki: float = 0.1
+    integral_limit: float = 127.0
+
+    def __post_init__(self) -> None:
+        for name in ("e_centres", "de_centres", "u_centres"):
+            object.__setattr__(self, name, _check_centres(name, getattr(self, name)))
+        object.__setattr__(self, "rule_base", _check_rule_base(self.rule_base))
+        for name in ("e_scale", "de_scale", "u_scale"):
+            object.__setattr__(self, name, require_positive(name, getattr(self, name)))
+        object.__setattr__(self, "ki", require_non_negative("ki", self.ki))
+        object.__setattr__(self, "integral_limit", require_non_negative("integral_limit", self.integral_limit))
+
+    def output_table(self) -> tuple[tuple[float, ...], ...]:
+        """Return the 7x7 output centres C_ij (DAC, before ``u_scale``) of the rule base."""
+        index = {name: k for k, name in enumerate(SET_NAMES)}
+        return tuple(tuple(self.u_centres[index[name]] for name in row) for row in self.rule_base)  # type: ignore[union-attr]
+
+
+def _inverse_widths(centres: Sequence[float]) -> tuple[float, ...]:
+    return tuple(1.0 / (centres[k + 1] - centres[k]) for k in range(N_SETS - 1))
+
+
+def memberships(x: float, centres: Sequence[float]) -> tuple[float, ...]:
+    """Return the degrees of membership of ``x`` in the seven sets (reference code, slow).
+
+    Parameters
+    ----------
+    x : float
+        Input, in the unit of ``centres``.
+    centres : sequence of 7 float
+        Strictly increasing set centres.
+
+    Returns
+    -------
+    tuple of 7 float
+        Triangles with feet at the neighbours' centres, shoulders below the
+        first and above the last centre. They sum to 1 for every finite ``x``.
+    """
+    degrees = []
+    for k, c in enumerate(centres):
+        if x <= c:
+            left = centres[k - 1] if k > 0 else None
+            degrees.append(1.0 if left is None else max(0.0, (x - left) / (c - left)))
+        else:
+            right = centres[k + 1] if k < N_SETS - 1 else None
+            degrees.append(1.0 if right is None else max(0.0, (right - x) / (right - c)))
+    return tuple(degrees)
+
+
+def _locate(x: float, centres: Sequence[float], inverse_widths: Sequence[float]) -> tuple[int, float]:
+    """Return ``(i, m)``: ``x`` belongs to set ``i + 1`` with degree ``m`` and to set ``i`` with ``1 - m``."""
+    i = bisect_right(centres, x) - 1
+    if i < 0:
+        return 0, 0.0
+    if i > N_SETS - 2:
+        return N_SETS - 2, 1.0
+    return i, (x - centres[i]) * inverse_widths[i]
+
+
+def _infer(cell: tuple[float, float, float, float], a: float, b: float) -> float:
+    """Eq. 8 over the four rules of ``cell`` (outputs c00, c01, c10, c11) with Mamdani min weights."""
+    w00, w01, w10, w11 = min(1.0 - a, 1.0 - b), min(1.0 - a, b), min(a, 1.0 - b), min(a, b)
+    # The largest weight is >= 0.5 (the min of the two larger degrees), so never 0/0.
+    return (w00 * cell[0] + w01 * cell[1] + w10 * cell[2] + w11 * cell[3]) / (w00 + w01 + w10 + w11)
+
+
+class FuzzySurface:
+    """The PD part ``u_scale * F[e_scale * e, de_scale * de]`` of the FLC, in DAC.
+
+    This is the readable reference of the map; :meth:`FuzzyLaw.step` inlines
+    the same arithmetic for speed (the tests check that they agree). The
+    scales are folded into the tables: the input centres are divided by the
+    input scales and the output centres multiplied by ``u_scale``. Inputs
+    beyond the outermost centres saturate (shoulders), so every output lies in
+    ``u_scale * [min(u_centres), max(u_centres)]``.
+
+    Attributes
+    ----------
+    e_points : tuple of 7 float
+        Error centres in BLU of unscaled error (``e_centres / e_scale``).
+    de_points : tuple of 7 float
+        Change-of-error centres in BLU (``de_centres / de_scale``).
+    cells : 6x6 tuple of 4-tuples of float
+        Output centres (DAC, times ``u_scale``) of the rules of each cell:
+        ``cells[i][j] = (C[i][j], C[i][j+1], C[i+1][j], C[i+1][j+1])``.
+    """
+
+    def __init__(self, config: FuzzyConfig) -> None:
+        self.e_points = tuple(c / config.e_scale for c in config.e_centres)
+        self.de_points = tuple(c / config.de_scale for c in config.de_centres)
+        self.e_inverse_widths = _inverse_widths(self.e_points)
+        self.de_inverse_widths = _inverse_widths(self.de_points)
+        t = [[config.u_scale * c for c in row] for row in config.output_table()]
+        self.cells = tuple(
+            tuple((t[i][j], t[i][j + 1], t[i + 1][j], t[i + 1][j + 1]) for j in range(N_SETS - 1))
+            for i in range(N_SETS - 1)
+        )
+
+    def __call__(self, e: float, de: float) -> float:
+        """Return the PD part (DAC) for the error ``e`` and its change ``de`` over one sample (BLU)."""
+        i, a = _locate(e, self.e_points, self.e_inverse_widths)
+        j, b = _locate(de, self.de_points, self.de_inverse_widths)
+        return _infer(self.cells[i][j], a, b)
+
+
+class FuzzyLaw:
+    """The FLC servo law ``u = u_scale * F[e_scale * e, de_scale * de] + u_I`` (paper 000, Eq. 3).
+
+    ``step`` returns the feedback command in DAC, unsaturated; the servo
+    controller adds the feedforward, saturates and quantises it.
+    """
+
+    def __init__(self, config: FuzzyConfig) -> None:
+        self.config = config
+        self.surface = FuzzySurface(config)
+        s = self.surface
+        self._e_c, self._de_c, self._cells = s.e_points, s.de_points, s.cells
+        self._e_inv, self._de_inv = s.e_inverse_widths, s.de_inverse_widths
+        self._ki = config.ki
+        self._limit = config.integral_limit
+        self._prev_error = 0.0
+        self._integral = 0.0
+
+    @property
+    def integral(self) -> float:
+        """The integral term u_I(k) of the last step, DAC."""
+        return self._integral
+
+    def reset(self) -> None:
+        """Forget the past: e(k-1) = 0 and u_I = 0 (as the incremental PID of Eq. 14)."""
+        self._prev_error = 0.0
+        self._integral = 0.0
+
+    def step(self, error: float, dt_s: float) -> float:
+        """Return the command (DAC) for the error ``error`` (BLU, a float) of this sample.
+
+        ``dt_s`` is accepted for the law interface and not used: the FLC is
+        defined per sample (its centres and ``ki`` include the sample time).
+        The body is :class:`FuzzySurface` inlined (this runs at up to 1 kHz per axis).
+
+        Raises
+        ------
+        FaultError
+            If ``error`` is NaN or infinite (the state is left unchanged).
+        """
+        if error - error != 0.0:  # NaN or +-inf, cheaper than math.isfinite
+            raise FaultError(f"fuzzy law: error must be finite, got {error!r}")
+        de = error - self._prev_error
+        self._prev_error = error
+        integral = self._integral + self._ki * error
+        limit = self._limit
+        integral = limit if integral > limit else (-limit if integral < -limit else integral)
+        self._integral = integral
+        c = self._e_c
+        i = bisect_right(c, error) - 1
+        if i < 0:
+            i, a = 0, 0.0
+        elif i > 5:
+            i, a = 5, 1.0
+        else:
+            a = (error - c[i]) * self._e_inv[i]
+        c = self._de_c
+        j = bisect_right(c, de) - 1
+        if j < 0:
+            j, b = 0, 0.0
+        elif j > 5:
+            j, b = 5, 1.0
+        else:
+            b = (de - c[j]) * self._de_inv[j]
+        c00, c01, c10, c11 = self._cells[i][j]
+        a0 = 1.0 - a
+        b0 = 1.0 - b
+        w00 = a0 if a0 < b0 else b0
+        w01 = a0 if a0 < b else b
+        w10 = a if a < b0 else b0
+        w11 = a if a < b else b
+        return (w00 * c00 + w01 * c01 + w10 * c10 + w11 * c11) / (w00 + w01 + w10 + w11) + integral
+
+
+@register_law("fuzzy")
+def make_fuzzy_law(params: Mapping[str, Any]) -> FuzzyLaw:
+    """Build a :class:`FuzzyLaw` from a mapping of :class:`FuzzyConfig` keys."""
+    return FuzzyLaw(build_config(FuzzyConfig, params, "fuzzy"))
+
+
+def _bench_law(law: Any, n_steps: int) -> float:
+    """Return the mean cost of ``law.step`` in microseconds over a sweep of errors."""
+    errors = [25.0 * math.sin(0.05 * k) + 0.3 * math.sin(1.7 * k) for k in range(1000)]
+    step = law.step
+
+    def run() -> None:
+        for e in errors:
+            step(e, 0.01)
+
+    repeats = max(1, n_steps // len(errors))
+    best = min(timeit.repeat(run, number=repeats, repeat=5))
+    return best / (repeats * len(errors)) * 1e6
+
+
+def bench(n_steps: int = 200_000) -> dict[str, float]:
+    """Return microseconds per step of the fuzzy law and, if registered, the PID law."""
+    result = {"fuzzy": _bench_law(make_fuzzy_law({}), n_steps)}
+    if "pid" in LAWS:
+        result["pid"] = _bench_law(LAWS["pid"]({}), n_steps)
+    return result
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line: ``--bench`` prints the cost per step, ``--gains`` the equivalent gains."""
+    parser = argparse.ArgumentParser(prog="python -m cnc_contour_control.laws.fuzzy", description="Fuzzy servo law of paper 000.")
+    parser.add_argument("--bench", action="store_true", help="print microseconds per step (FLC, PID, ratio)")
+    parser.add_argument("--gains", action="store_true", help="print equivalent gains beside Table 4")
+    parser.add_argument("--steps", type=int, default=200_000, help="steps per benchmark run")
+    args = parser.parse_args(argv)
+    if args.gains or not args.bench:
+        from cnc_contour_control.laws.fuzzy_gains import format_gains_table
+
+        print(format_gains_table())
+    if args.bench:
+        cost = bench(args.steps)
+        for name, us in cost.items():
+            print(f"{name:6s} {us:7.3f} us/step")
+        if "pid" in cost:
+            print(f"ratio  {cost['fuzzy'] / cost['pid']:7.2f} (goal <= 3)")
+    return 0
+
