@@ -136,7 +136,7 @@ def _add_word(block: _Block, letter: str, value_text: str) -> None:
         code = int(value) if value == int(value) else -1
         group = G_CODES.get(code)
         if group is None:
-            raise block.error(f"unsupported word {raw} (supported: {sorted(f'G{c}' for c in G_CODES)})")
+            raise block.error(f"unsupported word {raw} (supported: {[f'G{c}' for c in sorted(G_CODES)]})")
         if group in block.g_codes:
             raise block.error(f"G{block.g_codes[group]} and {raw} on one line (same modal group)")
         block.g_codes[group] = code
@@ -208,8 +208,9 @@ def _feed_m_s(block: _Block, state: _State) -> float:
 def _line(block: _Block, state: _State, target: FloatArray) -> LineSegment | None:
     if float(np.linalg.norm(target - state.position_mm)) < _MIN_MOVE_MM:
         return None
+    feed_m_s = _feed_m_s(block, state)
     try:
-        return LineSegment(mm_to_m(state.position_mm), mm_to_m(target), _feed_m_s(block, state))
+        return LineSegment(mm_to_m(state.position_mm), mm_to_m(target), feed_m_s)
     except ProgramError as err:
         raise block.error(str(err)) from err
 
@@ -231,8 +232,9 @@ def _arc(block: _Block, state: _State, target: FloatArray, offsets: dict[str, tu
     scale = MM_PER_INCH if state.inch else 1.0
     for letter, (value, _) in offsets.items():
         center[state.axis_index[OFFSETS[letter]]] += value * scale
+    feed_m_s = _feed_m_s(block, state)
     try:
         return ArcSegment(mm_to_m(state.position_mm), mm_to_m(target), mm_to_m(center),
-                          clockwise=state.motion == 2, plane=plane, feed_m_s=_feed_m_s(block, state))
+                          clockwise=state.motion == 2, plane=plane, feed_m_s=feed_m_s)
     except ProgramError as err:
         raise block.error(str(err)) from err

@@ -200,5 +200,7 @@ class ServoController:
     def _raise_bad_input(self, values: tuple[float, ...]) -> None:
         for name, value in zip(_INPUT_NAMES, values):
             if not math.isfinite(value):
-                raise FaultError(f"servo {self.config.axis_name}: {name} must be finite, got {value!r}")
+                raise FaultError(
+                    f"servo {self.config.axis_name}: {name} must be finite, got {value!r}"
+                )
         raise FaultError(f"servo {self.config.axis_name}: dt_s must be > 0, got {values[0]!r}")

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from cnc_contour_control.config import build_config, require_positive
+from cnc_contour_control.config import build_config, require_non_negative, require_positive
 from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.units import M_PER_BLU_PAPER000, M_PER_MM
 
@@ -88,8 +88,7 @@ class AxisConfig:
         require_positive("gain_blu_s_per_dac", self.gain_blu_s_per_dac)
         require_positive("time_constant_s", self.time_constant_s)
         require_positive("blu_m", self.blu_m)
-        if self.friction_scale is None or not self.friction_scale >= 0.0:
-            raise ConfigError(f"friction_scale must be >= 0, got {self.friction_scale!r}")
+        require_non_negative("friction_scale", self.friction_scale)
         _require_int_at_least("substeps", self.substeps, 1)
         if self.command_limit_dac is not None:
             require_positive("command_limit_dac", self.command_limit_dac)

@@ -233,7 +233,7 @@ class Plant:
         """
         self._check_length("commands", commands)
         for axis, command in zip(self.axes, commands):
-            if not math.isfinite(command):
+            if not _is_finite_number(command):
                 raise FaultError(f"axis {axis.name}: command must be finite, got {command!r}")
         if not (math.isfinite(dt_s) and dt_s > 0.0):
             raise FaultError(f"plant: dt_s must be finite and > 0, got {dt_s!r}")
@@ -268,6 +268,13 @@ class Plant:
             "variation": dataclasses.asdict(self.config.variation),
             "axes": {a.name: _describe_axis(a, n) for a, n in zip(self.axes, self.nominal_configs)},
         }
+
+
+def _is_finite_number(value: Any) -> bool:
+    try:
+        return math.isfinite(value)
+    except TypeError:
+        return False
 
 
 def _describe_axis(axis: FeedDriveAxis, nominal: AxisConfig) -> dict[str, Any]:

@@ -36,7 +36,12 @@ from bisect import bisect_right
 from collections.abc import Mapping, Sequence
 from typing import Any, Union
 
-from cnc_contour_control.config import build_config, require_finite, require_non_negative, require_positive
+from cnc_contour_control.config import (
+    build_config,
+    require_finite,
+    require_non_negative,
+    require_positive,
+)
 from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.laws.registry import LAWS, register_law
 
@@ -104,7 +109,9 @@ def _check_rule_base(value: RuleBaseSpec) -> RuleBase:
     """Return ``value`` as a 7x7 tuple of set names, or raise naming the bad row or entry."""
     if isinstance(value, str):
         if value not in RULE_BASES:
-            raise ConfigError(f"rule_base must be one of {sorted(RULE_BASES)} or a 7x7 table, got {value!r}")
+            raise ConfigError(
+                f"rule_base must be one of {sorted(RULE_BASES)} or a 7x7 table, got {value!r}"
+            )
         return RULE_BASES[value]
     if not isinstance(value, Sequence) or len(value) != N_SETS:
         shape = len(value) if isinstance(value, Sequence) else type(value).__name__
@@ -180,13 +187,14 @@ class FuzzyConfig:
         object.__setattr__(self, "rule_base", _check_rule_base(self.rule_base))
         for name in ("e_scale", "de_scale", "u_scale"):
             object.__setattr__(self, name, require_positive(name, getattr(self, name)))
-        object.__setattr__(self, "ki", require_non_negative("ki", self.ki))
-        object.__setattr__(self, "integral_limit", require_non_negative("integral_limit", self.integral_limit))
+        for name in ("ki", "integral_limit"):
+            object.__setattr__(self, name, require_non_negative(name, getattr(self, name)))
 
     def output_table(self) -> tuple[tuple[float, ...], ...]:
         """Return the 7x7 output centres C_ij (DAC, before ``u_scale``) of the rule base."""
         index = {name: k for k, name in enumerate(SET_NAMES)}
-        return tuple(tuple(self.u_centres[index[name]] for name in row) for row in self.rule_base)  # type: ignore[union-attr]
+        rows: RuleBase = self.rule_base  # type: ignore[assignment]  # normalised in __post_init__
+        return tuple(tuple(self.u_centres[index[name]] for name in row) for row in rows)
 
 
 def _inverse_widths(centres: Sequence[float]) -> tuple[float, ...]:
@@ -220,8 +228,10 @@ def memberships(x: float, centres: Sequence[float]) -> tuple[float, ...]:
     return tuple(degrees)
 
 
-def _locate(x: float, centres: Sequence[float], inverse_widths: Sequence[float]) -> tuple[int, float]:
-    """Return ``(i, m)``: ``x`` belongs to set ``i + 1`` with degree ``m`` and to set ``i`` with ``1 - m``."""
+def _locate(
+    x: float, centres: Sequence[float], inverse_widths: Sequence[float]
+) -> tuple[int, float]:
+    """Return ``(i, m)``: ``x`` is in set ``i + 1`` to degree ``m``, in set ``i`` to ``1 - m``."""
     i = bisect_right(centres, x) - 1
     if i < 0:
         return 0, 0.0
@@ -231,10 +241,13 @@ def _locate(x: float, centres: Sequence[float], inverse_widths: Sequence[float])
 
 
 def _infer(cell: tuple[float, float, float, float], a: float, b: float) -> float:
-    """Eq. 8 over the four rules of ``cell`` (outputs c00, c01, c10, c11) with Mamdani min weights."""
-    w00, w01, w10, w11 = min(1.0 - a, 1.0 - b), min(1.0 - a, b), min(a, 1.0 - b), min(a, b)
+    """Eq. 8 over the four rules of ``cell`` (outputs c00, c01, c10, c11), Mamdani min weights.
+
+    ``a`` is the degree of the upper error set, ``b`` that of the upper de set.
+    """
+    weights = (min(1.0 - a, 1.0 - b), min(1.0 - a, b), min(a, 1.0 - b), min(a, b))
     # The largest weight is >= 0.5 (the min of the two larger degrees), so never 0/0.
-    return (w00 * cell[0] + w01 * cell[1] + w10 * cell[2] + w11 * cell[3]) / (w00 + w01 + w10 + w11)
+    return sum(w * c for w, c in zip(weights, cell)) / sum(weights)
 
 
 class FuzzySurface:
@@ -270,7 +283,7 @@ class FuzzySurface:
         )
 
     def __call__(self, e: float, de: float) -> float:
-        """Return the PD part (DAC) for the error ``e`` and its change ``de`` over one sample (BLU)."""
+        """Return the PD part (DAC) for the error ``e`` and its change ``de`` (BLU per sample)."""
         i, a = _locate(e, self.e_points, self.e_inverse_widths)
         j, b = _locate(de, self.de_points, self.de_inverse_widths)
         return _infer(self.cells[i][j], a, b)
@@ -309,7 +322,8 @@ class FuzzyLaw:
 
         ``dt_s`` is accepted for the law interface and not used: the FLC is
         defined per sample (its centres and ``ki`` include the sample time).
-        The body is :class:`FuzzySurface` inlined (this runs at up to 1 kHz per axis).
+        The body is :class:`FuzzySurface` inlined: this runs every sample of
+        every axis, and a function call costs a fifth of the step.
 
         Raises
         ------
@@ -328,7 +342,7 @@ class FuzzyLaw:
         i = bisect_right(c, error) - 1
         if i < 0:
             i, a = 0, 0.0
-        elif i > 5:
+        elif i > 5:  # N_SETS - 2, the last cell
             i, a = 5, 1.0
         else:
             a = (error - c[i]) * self._e_inv[i]
@@ -380,9 +394,12 @@ def bench(n_steps: int = 200_000) -> dict[str, float]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: ``--bench`` prints the cost per step, ``--gains`` the equivalent gains."""
-    parser = argparse.ArgumentParser(prog="python -m cnc_contour_control.laws.fuzzy", description="Fuzzy servo law of paper 000.")
-    parser.add_argument("--bench", action="store_true", help="print microseconds per step (FLC, PID, ratio)")
-    parser.add_argument("--gains", action="store_true", help="print equivalent gains beside Table 4")
+    parser = argparse.ArgumentParser(
+        prog="python -m cnc_contour_control.laws.fuzzy",
+        description="Fuzzy servo law of paper 000.",
+    )
+    parser.add_argument("--bench", action="store_true", help="print us/step of FLC, PID, ratio")
+    parser.add_argument("--gains", action="store_true", help="print equivalent gains, Table 4")
     parser.add_argument("--steps", type=int, default=200_000, help="steps per benchmark run")
     args = parser.parse_args(argv)
     if args.gains or not args.bench:

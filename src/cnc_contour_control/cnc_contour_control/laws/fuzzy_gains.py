@@ -12,14 +12,14 @@ The paper does not say where the sectors are evaluated. We take
 ``u_1 = F[e, 0]`` and ``u_2 = F[e, de] - F[e, 0]`` on the rule grid (every
 pair of centres), where ``F`` equals the rule's output centre exactly. With
 Table 3 and the reconstructed Table 1 this gives K_P = 2.38 and K_D = 6.67,
-which round to Table 4's 2.4 and 6.7. (A sup over the continuous plane would
-give K2_max about 26.7 because Mamdani min inference steepens ``F`` in thin
-strips next to the grid lines; the paper's numbers rule that reading out.)
+which round to Table 4's 2.4 and 6.7. (Bounds over the continuous plane would
+give K2 in about [-13, 26], because Mamdani min inference bends ``F`` in thin
+strips next to the grid lines; the paper's K2_min = 0 rules that reading out.)
 """
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Mapping
+from collections.abc import Sequence
 
 from cnc_contour_control.laws.fuzzy import RULE_BASES, FuzzyConfig, FuzzySurface
 
@@ -68,6 +68,7 @@ def sector_slopes(config: FuzzyConfig) -> tuple[list[float], list[float]]:
         ``u_scale * (F[e_i, de_j] - F[e_i, 0]) / de_j`` for every pair with ``de_j != 0``.
     """
     u = FuzzySurface(config)
+    # ``+ 0.0`` turns the -0.0 of a flat rule row into 0.0 for printing.
     k1 = [u(e, 0.0) / e + 0.0 for e in u.e_points if e != 0.0]
     k2 = [(u(e, de) - u(e, 0.0)) / de + 0.0 for e in u.e_points for de in u.de_points if de != 0.0]
     return k1, k2
@@ -79,9 +80,12 @@ def equivalent_gains(config: FuzzyConfig) -> EquivalentGains:
     return EquivalentGains(min(k1), max(k1), min(k2), max(k2), config.ki)
 
 
-def format_gains_table(rule_bases: Mapping[str, object] | None = None) -> str:
-    """Return a text table of the equivalent gains of each rule base beside Table 4."""
-    names = list(rule_bases or RULE_BASES)
+def format_gains_table(names: Sequence[str] | None = None) -> str:
+    """Return a text table of the equivalent gains of the named rule bases beside Table 4.
+
+    ``names`` are keys of ``RULE_BASES`` (default: all), with Table 3's centres.
+    """
+    names = list(names or RULE_BASES)
     paper = TABLE4_GAINS
     lines = [
         "Equivalent FLC gains (paper 000, Eqs. 11-13) with Table 3 centres",

@@ -1,0 +1,161 @@
+"""What every node of the suite shares: QoS, stamps, parameters, faults, diagnostics, main().
+
+Nodes only translate: they declare parameters, convert messages with the
+package's ``conversions`` module and call the ROS-free core.
+"""
+from __future__ import annotations
+
+import sys
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import rclpy
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+
+from cnc_contour_control.errors import CncError, FaultError
+from cnc_contour_control.lockstep import NS_PER_S
+
+#: Lockstep data: reliable and deep, so nothing is dropped while a stage is busy.
+LOCKSTEP_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1000,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.VOLATILE,
+)
+#: Latched data (the program's path): late joiners get the last message.
+LATCHED_QOS = QoSProfile(
+    history=HistoryPolicy.KEEP_LAST,
+    depth=1,
+    reliability=ReliabilityPolicy.RELIABLE,
+    durability=DurabilityPolicy.TRANSIENT_LOCAL,
+)
+#: Exit code of a node that stopped on a fault (bad data, missing input).
+EXIT_FAULT = 3
+
+
+def stamp_to_ns(stamp: Time) -> int:
+    """builtin_interfaces/Time to integer nanoseconds."""
+    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+
+
+def ns_to_stamp(stamp_ns: int) -> Time:
+    """Integer nanoseconds to builtin_interfaces/Time."""
+    return Time(sec=stamp_ns // NS_PER_S, nanosec=stamp_ns % NS_PER_S)
+
+
+def describe(
+    text: str,
+    low: float | None = None,
+    high: float | None = None,
+    read_only: bool = False,
+    integer: bool = False,
+) -> ParameterDescriptor:
+    """A parameter descriptor with an optional numeric range."""
+    descriptor = ParameterDescriptor(description=text, read_only=read_only)
+    if low is not None and high is not None:
+        if integer:
+            descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=0)]
+        else:
+            descriptor.floating_point_range = [
+                FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)
+            ]
+    return descriptor
+
+
+class SuiteNode(Node):
+    """A node that reports faults on ``/diagnostics`` and stops on them."""
+
+    def __init__(self, name: str, **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        self.fault_message: str | None = None
+        self.finished = False
+        self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+
+    def declare(self, name: str, default: Any, descriptor: ParameterDescriptor) -> Any:
+        """Declare a parameter and return its value."""
+        return self.declare_parameter(name, default, descriptor).value
+
+    def report(self, level: bytes, message: str, values: dict[str, str] | None = None) -> None:
+        """Publish one status of this node on /diagnostics."""
+        status = DiagnosticStatus(
+            level=level,
+            name=self.get_fully_qualified_name(),
+            message=message,
+            hardware_id="cnc_contour",
+            values=[KeyValue(key=k, value=v) for k, v in (values or {}).items()],
+        )
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()
+        self._diagnostics.publish(array)
+
+    def fault(self, message: str) -> None:
+        """Report a fault on /diagnostics and the log, and stop the node."""
+        if self.fault_message is None:
+            self.fault_message = message
+            self.get_logger().error(f"FAULT: {message}")
+            self.report(DiagnosticStatus.ERROR, message)
+        self.finished = True
+
+    def guarded(self, callback: Callable[..., None]) -> Callable[..., None]:
+        """Wrap a callback so a suite error becomes a fault, not a traceback."""
+
+        def run(*args: Any) -> None:
+            if self.finished:
+                return
+            try:
+                callback(*args)
+            except CncError as err:
+                self.fault(str(err))
+
+        return run
+
+
+def wall_time_s() -> float:
+    """Monotonic wall time, for watchdogs only (never for the control laws)."""
+    return time.monotonic()
+
+
+def spin_node(factory: Callable[[], SuiteNode], args: Sequence[str] | None = None) -> int:
+    """Run a node until it finishes, faults or is interrupted; return the exit code."""
+    rclpy.init(args=args)
+    node: SuiteNode | None = None
+    code = 0
+    try:
+        node = factory()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        while rclpy.ok() and not node.finished:
+            executor.spin_once(timeout_sec=0.1)
+        code = EXIT_FAULT if node.fault_message else 0
+    except (KeyboardInterrupt, ExternalShutdownException):
+        code = 0
+    except CncError as err:
+        print(f"FAULT: {err}", file=sys.stderr, flush=True)
+        code = EXIT_FAULT
+    finally:
+        if node is not None:
+            _flush_and_destroy(node)
+        rclpy.try_shutdown()
+    return code
+
+
+def _flush_and_destroy(node: SuiteNode) -> None:
+    """Give published diagnostics a moment to leave, then destroy the node."""
+    if node.fault_message:
+        print(f"FAULT: {node.fault_message}", file=sys.stderr, flush=True)
+        deadline = time.monotonic() + 0.5
+        while time.monotonic() < deadline and rclpy.ok():
+            rclpy.spin_once(node, timeout_sec=0.05)
+    node.destroy_node()
+
+
+def require(condition: bool, message: str) -> None:
+    """Raise a :class:`FaultError` with ``message`` unless ``condition`` holds."""
+    if not condition:
+        raise FaultError(message)

@@ -1,0 +1,126 @@
+"""Messages to arrays and back for the control nodes (the package's one conversions module)."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import NoReturn
+
+from cnc_contour_interfaces.msg import AxisCommand, Path, PathSegment, Reference
+from sensor_msgs.msg import JointState
+
+from cnc_contour_control.errors import FaultError
+from cnc_contour_control.geometry import ArcSegment, Program
+from cnc_contour_control.interpolation import ReferenceSample
+from cnc_contour_control.lockstep import require_finite_values, require_same_axes
+from cnc_contour_control.nodes.common import ns_to_stamp
+from cnc_contour_control.servo import ServoOutput
+
+
+def reference_to_msg(sample: ReferenceSample, axes: Sequence[str], stamp_ns: int, frame_id: str) -> Reference:
+    """A core reference sample to a Reference message."""
+    msg = Reference()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.axis_names = list(axes)
+    msg.position_m = sample.position_m.tolist()
+    msg.velocity_m_s = sample.velocity_m_s.tolist()
+    msg.acceleration_m_s2 = sample.acceleration_m_s2.tolist()
+    msg.path_length_m = float(sample.path_length_m)
+    msg.segment_index = int(sample.segment_index)
+    msg.feed_m_s = float(sample.feed_m_s)
+    msg.programmed_feed_m_s = float(sample.programmed_feed_m_s)
+    msg.feed_override_ratio = float(sample.feed_override_ratio)
+    msg.done = bool(sample.done)
+    return msg
+
+
+def reference_axis(msg: Reference, axis: str) -> tuple[float, float, float]:
+    """Position, velocity, acceleration of one axis from a Reference; faults on bad data."""
+    if axis not in msg.axis_names:
+        raise_missing_axis("reference", axis, msg.axis_names)
+    index = list(msg.axis_names).index(axis)
+    values = (msg.position_m[index], msg.velocity_m_s[index], msg.acceleration_m_s2[index])
+    require_finite_values(values, f"reference[{axis}] (position_m, velocity_m_s, acceleration_m_s2)")
+    return values
+
+
+def joint_positions(msg: JointState, axes: Sequence[str]) -> tuple[list[float], list[float]]:
+    """Positions [m] and velocities [m/s] of ``axes`` from a JointState; faults on bad data."""
+    require_same_axes(msg.name, axes, "joint_states")
+    positions = list(msg.position)
+    velocities = list(msg.velocity) if len(msg.velocity) else [0.0] * len(axes)
+    if len(positions) != len(axes) or len(velocities) != len(axes):
+        raise_missing_axis("joint_states", ",".join(axes), msg.name)
+    require_finite_values(positions, "joint_states.position")
+    require_finite_values(velocities, "joint_states.velocity")
+    return positions, velocities
+
+
+def joint_position(msg: JointState, axis: str) -> float:
+    """Position [m] of one axis from a JointState; faults on bad data."""
+    if axis not in msg.name:
+        raise_missing_axis("joint_states", axis, msg.name)
+    value = msg.position[list(msg.name).index(axis)]
+    require_finite_values((value,), f"joint_states.position[{axis}]")
+    return float(value)
+
+
+def raise_missing_axis(what: str, axis: str, present: Sequence[str]) -> NoReturn:
+    """Fault: a message lacks an axis."""
+    raise FaultError(f"{what} has no axis {axis!r} (axes present: {list(present)})")
+
+
+def command_to_msg(output: ServoOutput, axis: str, law: str, unit: str, stamp_ns: int) -> AxisCommand:
+    """A core servo output to an AxisCommand message."""
+    msg = AxisCommand()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = axis
+    msg.axis_name = axis
+    msg.law = law
+    msg.command_unit = unit
+    msg.command = float(output.command)
+    msg.feedback = float(output.feedback)
+    msg.feedforward = float(output.feedforward)
+    msg.compensation = float(output.compensation)
+    msg.disturbance_estimate = float(output.disturbance_estimate)
+    msg.saturated = bool(output.saturated)
+    msg.error_m = float(output.error_m)
+    return msg
+
+
+def program_to_path(program: Program, stamp_ns: int, frame_id: str, duration_s: float) -> Path:
+    """A core program to a Path message."""
+    msg = Path()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.program_name = program.name
+    msg.axis_names = list(program.axis_names)
+    msg.segments = [_segment_msg(segment) for segment in program.segments]
+    msg.total_length_m = float(program.total_length_m)
+    msg.planned_duration_s = float(duration_s)
+    return msg
+
+
+def _segment_msg(segment: object) -> PathSegment:
+    msg = PathSegment()
+    msg.start_m = [float(v) for v in segment.start_m]  # type: ignore[attr-defined]
+    msg.end_m = [float(v) for v in segment.end_m]  # type: ignore[attr-defined]
+    msg.feed_m_s = float(segment.feed_m_s)  # type: ignore[attr-defined]
+    msg.length_m = float(segment.length_m)  # type: ignore[attr-defined]
+    if isinstance(segment, ArcSegment):
+        msg.kind = PathSegment.ARC_CW if segment.clockwise else PathSegment.ARC_CCW
+        msg.center_m = [float(v) for v in segment.center_m]
+        msg.plane_axes = list(segment.plane)
+    else:
+        msg.kind = PathSegment.LINE
+        msg.plane_axes = [0, 1]
+    return msg
+
+
+def compensation_for(msg: object, axis: str) -> float:
+    """The correction of one axis from a Compensation message; faults on bad data."""
+    names = list(msg.axis_names)  # type: ignore[attr-defined]
+    if axis not in names:
+        raise_missing_axis("compensation", axis, names)
+    value = float(msg.correction[names.index(axis)])  # type: ignore[attr-defined]
+    require_finite_values((value,), f"compensation.correction[{axis}]")
+    return value

@@ -1,0 +1,36 @@
+"""Messages to arrays and back for the plant node (the package's one conversions module)."""
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from cnc_contour_interfaces.msg import AxisCommand
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+
+from cnc_contour_control.errors import FaultError
+from cnc_contour_control.lockstep import require_finite_values
+from cnc_contour_control.nodes.common import ns_to_stamp
+
+
+def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float], velocities_m_s: Sequence[float], stamp_ns: int) -> JointState:
+    """Axis positions [m] and velocities [m/s] to a JointState stamped ``stamp_ns``."""
+    msg = JointState()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = "machine"
+    msg.name = list(axes)
+    msg.position = [float(v) for v in positions_m]
+    msg.velocity = [float(v) for v in velocities_m_s]
+    return msg
+
+
+def clock_msg(stamp_ns: int) -> Clock:
+    """Simulation time to a /clock message."""
+    return Clock(clock=ns_to_stamp(stamp_ns))
+
+
+def command_value(msg: AxisCommand, axis: str) -> float:
+    """The command of ``axis``; faults on a wrong axis or a non-finite value (never applied)."""
+    if msg.axis_name != axis:
+        raise FaultError(f"servo/{axis}/command carries axis {msg.axis_name!r}")
+    require_finite_values((msg.command,), f"servo/{axis}/command.command")
+    return float(msg.command)

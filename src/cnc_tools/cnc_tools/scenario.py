@@ -1,0 +1,171 @@
+"""Scenarios: one YAML file fixes a run (plant, program, limits, per-axis servo, T, duration, seed).
+
+Every section is validated by the core config it builds, so a bad scenario is
+refused before anything starts, with the key, the bound and the value.
+"""
+from __future__ import annotations
+
+import copy
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from cnc_contour_control.config import build_config, require_choice, require_non_negative, require_positive
+from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.geometry import Program
+from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.lockstep import seconds_to_ns
+from cnc_contour_control.program import load_program
+from cnc_contour_control.servo import ServoConfig
+from cnc_contour_control.units import mm_min_to_m_s, mm_s2_to_m_s2
+from cnc_plant_sim.plant import PlantConfig
+
+MODES = ("lockstep", "realtime")
+_TOP_KEYS = ("name", "description", "sample_time_s", "duration_s", "settle_s", "seed", "mode",
+             "plant", "limits", "program", "servo", "interpolator", "paper")
+_LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario. ``raw`` keeps the mapping it was built from (for the run record)."""
+
+    name: str
+    description: str
+    sample_time_s: float
+    duration_s: float
+    seed: int
+    mode: str
+    plant: PlantConfig
+    program: Program
+    limits: AxisLimits
+    interpolator: InterpolatorConfig
+    servos: tuple[ServoConfig, ...]
+    raw: Mapping[str, Any] = field(repr=False, compare=False)
+    source: Path | None = None
+
+    @property
+    def axes(self) -> tuple[str, ...]:
+        """Axis names, in order."""
+        return self.plant.axes
+
+    def make_interpolator(self) -> Interpolator:
+        """A fresh interpolator of this scenario's program."""
+        return Interpolator(self.program, self.limits, self.interpolator)
+
+
+def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """Read and validate the scenario in ``path`` (with optional top-level overrides)."""
+    file = Path(path)
+    if not file.is_file():
+        raise ConfigError(f"scenario file {str(file)!r} does not exist")
+    try:
+        raw = yaml.safe_load(file.read_text())
+    except yaml.YAMLError as err:
+        raise ConfigError(f"scenario {str(file)!r} is not valid YAML: {err}") from err
+    if not isinstance(raw, dict):
+        raise ConfigError(f"scenario {str(file)!r} must hold a mapping")
+    raw = merge(raw, overrides or {})
+    raw.setdefault("name", file.stem)
+    return build_scenario(raw, base_dir=file.parent, source=file)
+
+
+def merge(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """Deep-merge ``overrides`` into a copy of ``base`` (mappings merge, other values replace)."""
+    result = copy.deepcopy(dict(base))
+    for key, value in overrides.items():
+        if isinstance(value, Mapping) and isinstance(result.get(key), Mapping):
+            result[key] = merge(result[key], value)
+        else:
+            result[key] = copy.deepcopy(value)
+    return result
+
+
+def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source: Path | None = None) -> Scenario:
+    """Validate a scenario mapping section by section."""
+    _refuse_unknown(raw, _TOP_KEYS, "scenario")
+    name = str(raw.get("name", "scenario"))
+    sample_time_s = require_positive("sample_time_s", raw.get("sample_time_s", 0.01), "scenario")
+    seconds_to_ns(sample_time_s)
+    plant = PlantConfig.from_mapping({"seed": int(raw.get("seed", 0)), **dict(raw.get("plant", {}))}, "scenario.plant")
+    program = load_program(_section(raw, "program"), name=name, base_dir=base_dir)
+    if tuple(program.axis_names) != plant.axes:
+        raise ConfigError(f"scenario.program.axes {list(program.axis_names)} differ from scenario.plant.axes {list(plant.axes)}")
+    limits = _limits(raw.get("limits", {}), len(plant.axes))
+    interpolator = _interpolator_config(raw.get("interpolator", {}))
+    planned_s = Interpolator(program, limits, interpolator).duration_s
+    return Scenario(
+        name=name,
+        description=str(raw.get("description", "")),
+        sample_time_s=sample_time_s,
+        duration_s=_duration(raw, planned_s),
+        seed=int(raw.get("seed", 0)),
+        mode=require_choice("mode", str(raw.get("mode", "lockstep")), MODES, "scenario"),
+        plant=plant,
+        program=program,
+        limits=limits,
+        interpolator=interpolator,
+        servos=_servos(raw.get("servo", {}), plant.axes),
+        raw=dict(raw),
+        source=source,
+    )
+
+
+def _section(raw: Mapping[str, Any], key: str) -> dict[str, Any]:
+    value = raw.get(key)
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"scenario.{key} must be a mapping, got {value!r}")
+    return dict(value)
+
+
+def _refuse_unknown(mapping: Mapping[str, Any], valid: tuple[str, ...], context: str) -> None:
+    unknown = sorted(set(mapping) - set(valid))
+    if unknown:
+        raise ConfigError(f"{context}.{unknown[0]}: unknown key; valid keys are {sorted(valid)}")
+
+
+def _duration(raw: Mapping[str, Any], planned_s: float) -> float:
+    if raw.get("duration_s") is not None:
+        return require_positive("duration_s", raw["duration_s"], "scenario")
+    return planned_s + require_non_negative("settle_s", raw.get("settle_s", 0.5), "scenario")
+
+
+def _limits(section: Any, n_axes: int) -> AxisLimits:
+    if not isinstance(section, Mapping):
+        raise ConfigError(f"scenario.limits must be a mapping, got {section!r}")
+    _refuse_unknown(section, _LIMIT_KEYS, "scenario.limits")
+    velocity = _per_axis(section.get("max_velocity_mm_min", 6000.0), n_axes, "scenario.limits.max_velocity_mm_min")
+    accel = _per_axis(section.get("max_acceleration_mm_s2", 1000.0), n_axes, "scenario.limits.max_acceleration_mm_s2")
+    return AxisLimits(
+        max_velocity_m_s=tuple(mm_min_to_m_s(require_positive("max_velocity_mm_min", v, "scenario.limits")) for v in velocity),
+        max_acceleration_m_s2=tuple(mm_s2_to_m_s2(require_positive("max_acceleration_mm_s2", a, "scenario.limits")) for a in accel),
+    )
+
+
+def _per_axis(value: Any, n_axes: int, context: str) -> list[float]:
+    values = list(value) if isinstance(value, (list, tuple)) else [value] * n_axes
+    if len(values) != n_axes:
+        raise ConfigError(f"{context} needs 1 or {n_axes} values, got {len(values)}")
+    return values
+
+
+def _interpolator_config(section: Any) -> InterpolatorConfig:
+    return build_config(InterpolatorConfig, section, "scenario.interpolator")
+
+
+def _servos(section: Any, axes: tuple[str, ...]) -> tuple[ServoConfig, ...]:
+    """One ServoConfig per axis: the section's defaults, then ``axes: {x: {...}}`` overrides."""
+    if not isinstance(section, Mapping):
+        raise ConfigError(f"scenario.servo must be a mapping, got {section!r}")
+    defaults = {k: v for k, v in section.items() if k != "axes"}
+    per_axis = section.get("axes", {}) or {}
+    unknown = sorted(set(per_axis) - set(axes))
+    if unknown:
+        raise ConfigError(f"scenario.servo.axes.{unknown[0]}: unknown axis; axes are {list(axes)}")
+    return tuple(
+        ServoConfig.from_mapping({"axis_name": axis, **merge(defaults, per_axis.get(axis, {}))}, f"scenario.servo[{axis}]")
+        for axis in axes
+    )
