@@ -85,7 +85,8 @@ class LineSegment:
     end_m: FloatArray
     feed_m_s: float
     length_m: float = field(init=False)
-    unit_m_m: FloatArray = field(init=False, repr=False)
+    #: Unit direction of travel, shape ``(n_axes,)``.
+    unit_vector: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         start = as_point("start_m", self.start_m)
@@ -96,7 +97,7 @@ class LineSegment:
             raise ProgramError(f"line length_m must be >= {MIN_LENGTH_M}, got {length} (start_m == end_m)")
         unit = delta / length
         unit.setflags(write=False)
-        for name, value in (("start_m", start), ("end_m", end), ("length_m", length), ("unit_m_m", unit)):
+        for name, value in (("start_m", start), ("end_m", end), ("length_m", length), ("unit_vector", unit)):
             object.__setattr__(self, name, value)
         object.__setattr__(self, "feed_m_s", _require_feed(self.feed_m_s))
 
@@ -108,12 +109,12 @@ class LineSegment:
     def point(self, s_m: ArrayLike) -> FloatArray:
         """Position at arc length ``s_m``, m; shape ``(n_axes,)`` or ``(M, n_axes)``."""
         s = np.clip(np.asarray(s_m, dtype=float), 0.0, self.length_m)
-        return self.start_m + s[..., None] * self.unit_m_m
+        return self.start_m + s[..., None] * self.unit_vector
 
     def tangent(self, s_m: ArrayLike) -> FloatArray:
         """Unit tangent (direction of travel) at ``s_m``; shape as :meth:`point`."""
         shape = np.shape(s_m) + (self.n_axes,)
-        return np.broadcast_to(self.unit_m_m, shape).copy()
+        return np.broadcast_to(self.unit_vector, shape).copy()
 
     def curvature_vector(self, s_m: ArrayLike) -> FloatArray:
         """Curvature vector, 1/m: zero for a line; shape as :meth:`point`."""
@@ -122,11 +123,11 @@ class LineSegment:
     def frame(self, s_m: float) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Point (m), unit tangent and curvature vector (1/m) at a scalar ``s_m``."""
         s = min(max(s_m, 0.0), self.length_m)
-        return self.start_m + s * self.unit_m_m, self.unit_m_m, np.zeros(self.n_axes)
+        return self.start_m + s * self.unit_vector, self.unit_vector, np.zeros(self.n_axes)
 
     def max_abs_tangent(self) -> FloatArray:
         """Largest ``|tangent_j|`` over the segment per axis, shape ``(n_axes,)``."""
-        return np.abs(self.unit_m_m)
+        return np.abs(self.unit_vector)
 
     def max_abs_curvature_per_m(self) -> FloatArray:
         """Largest ``|curvature_vector_j|`` over the segment per axis, 1/m: zeros."""
@@ -150,15 +151,15 @@ class LineSegment:
             Distance to the nearest point of the segment (m) and its arc length (m).
         """
         relative = as_points(points, self.n_axes) - self.start_m
-        s = np.clip(relative @ self.unit_m_m, 0.0, self.length_m)
-        distance = np.linalg.norm(relative - s[:, None] * self.unit_m_m, axis=1)
+        s = np.clip(relative @ self.unit_vector, 0.0, self.length_m)
+        distance = np.linalg.norm(relative - s[:, None] * self.unit_vector, axis=1)
         return distance, s
 
     def signed_error(self, points: ArrayLike, plane: tuple[int, int] = (0, 1)) -> FloatArray:
         """Signed distance (m, shape ``(N,)``) from the infinite line in ``plane``, left of travel > 0."""
         relative = as_points(points, self.n_axes) - self.start_m
         a, b = plane
-        direction = self.unit_m_m[[a, b]]
+        direction = self.unit_vector[[a, b]]
         norm = float(np.hypot(direction[0], direction[1]))
         if norm < 1e-12:
             raise ProgramError(f"line does not move in plane {plane}; signed_error is undefined")
@@ -340,9 +341,9 @@ class ArcSegment:
     def nearest(self, points: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Distance from each point to the arc and where it is reached.
 
-        Exact for a planar arc (in any number of axes); for a helix a grid
-        search refined by golden sections (error far below 1 nm for
-        machine-sized arcs).
+        Exact for a planar arc (in any number of axes). For a helix: a grid
+        search refined by Newton steps (golden sections where Newton is not
+        conclusive); the error is far below 1 nm for machine-sized arcs.
 
         Parameters
         ----------

@@ -13,8 +13,11 @@ and, on arcs, ``v**2 |K_j| <= f amax_j`` while ``|a_t T_j| <= (1 - f) amax_j``
 (``f`` = ``arc_centripetal_fraction``). Speed is zero at the program's start
 and end and at sharp corners; across tangent-continuous junctions it is
 continuous. A junction whose tangents differ by less than
-``corner_angle_tolerance_deg`` (but not exactly) gets a velocity step of at most
-``v * angle``: keep the tolerance at the level of the program's rounding.
+``corner_angle_tolerance_deg`` but not exactly gets a step in the axis
+velocities of at most ``v * angle``; that step is the one place where the
+finite-difference acceleration can exceed the limits. The default tolerance
+(1e-4 deg, 1.7 µrad) only absorbs rounding in exactly tangent geometry; raise
+it for G-code with few decimals, knowing the step it allows.
 """
 from __future__ import annotations
 
@@ -82,7 +85,8 @@ class InterpolatorConfig:
     ----------
     corner_angle_tolerance_deg : float
         Junctions whose tangent directions differ by at most this angle are
-        tangent-continuous (no stop), deg, in [0, 10].
+        tangent-continuous (no stop), deg, in [0, 10]. Such a junction steps
+        the axis velocities by up to ``feed * angle`` (see the module notes).
     arc_centripetal_fraction : float
         Share of each axis's acceleration budget given to centripetal
         acceleration on arcs, in (0, 1); the rest is for speed changes.
@@ -91,7 +95,7 @@ class InterpolatorConfig:
         limits; if False, refuse the program.
     """
 
-    corner_angle_tolerance_deg: float = 0.05
+    corner_angle_tolerance_deg: float = 1.0e-4
     arc_centripetal_fraction: float = 0.5
     clamp_feed: bool = False
 
@@ -278,6 +282,8 @@ class Interpolator:
 
     def _path_state(self, t_s: float) -> tuple[int, float, float, float]:
         """Segment index, local arc length (m), path speed (m/s) and path acceleration (m/s^2) at ``t_s``."""
+        if t_s < 0.0:
+            return 0, 0.0, 0.0, 0.0
         k = max(bisect.bisect_right(self._phase_start_s, t_s) - 1, 0)
         dt = max(t_s - self._phase_start_s[k], 0.0)
         v0, accel = self._phase_v0_m_s[k], self._phase_accel_m_s2[k]
@@ -287,8 +293,10 @@ class Interpolator:
     def sample(self, t_s: float) -> ReferenceSample:
         """The reference at profile time ``t_s`` (s); before 0 holds the start, after the end holds the end."""
         if t_s >= self.duration_s:
-            return self._end_sample(t_s)
-        index, s_local, speed, accel = self._path_state(max(t_s, 0.0))
+            return self._end_sample()
+        if math.isnan(t_s):
+            raise ConfigError(f"t_s must be a number, got {t_s}")
+        index, s_local, speed, accel = self._path_state(t_s)
         segment = self.program.segments[index]
         s_local = min(max(s_local, 0.0), segment.length_m)
         point, tangent, curvature = segment.frame(s_local)
@@ -298,7 +306,7 @@ class Interpolator:
             path_length_m=float(self.program.segment_start_m[index]) + s_local, segment_index=index,
             feed_m_s=speed, programmed_feed_m_s=segment.feed_m_s, done=False, profile_time_s=max(t_s, 0.0))
 
-    def _end_sample(self, t_s: float) -> ReferenceSample:
+    def _end_sample(self) -> ReferenceSample:
         zeros = np.zeros(self.program.n_axes)
         return ReferenceSample(
             position_m=self._end_point_m.copy(), velocity_m_s=zeros, acceleration_m_s2=zeros.copy(),
@@ -328,7 +336,7 @@ class Interpolator:
         speed = np.maximum(v0 + accel * dt, 0.0)
         index = np.asarray(self._phase_segment, dtype=np.intp)[k]
         done = t >= self.duration_s
-        speed[done], accel[done] = 0.0, 0.0
+        speed[done], accel[done | (t < 0.0)] = 0.0, 0.0
         arrays = self._axis_arrays(index, s_local, speed, accel, done)
         path = self.program.segment_start_m[index] + np.clip(s_local, 0.0, None)
         path[done] = self.program.total_length_m

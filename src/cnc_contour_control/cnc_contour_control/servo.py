@@ -176,31 +176,50 @@ class ServoController:
         ``compensation`` is in drive units. Raises :class:`FaultError` naming the
         first non-finite input (or a ``dt_s <= 0``); the law's state is untouched then.
         """
-        values = (dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2,
-                  position_m, compensation)
-        if not all(map(math.isfinite, values)) or dt_s <= 0.0:
-            self._raise_bad_input(values)
+        command, feedback, feedforward, saturated, error_m = self._sample(
+            dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2, position_m, compensation)
+        estimate = self.law.disturbance_estimate if self._has_estimate else 0.0  # type: ignore[attr-defined]
+        return ServoOutput(command, feedback, feedforward, compensation, estimate, saturated, error_m)
+
+    def command(
+        self,
+        dt_s: float,
+        ref_position_m: float,
+        ref_velocity_m_s: float,
+        ref_acceleration_m_s2: float,
+        position_m: float,
+        compensation: float = 0.0,
+    ) -> float:
+        """:meth:`step`'s command alone (same arithmetic, same state update), for the in-process engine."""
+        return self._sample(dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2,
+                            position_m, compensation)[0]
+
+    def _sample(self, dt_s: float, ref_position_m: float, ref_velocity_m_s: float,
+                ref_acceleration_m_s2: float, position_m: float,
+                compensation: float) -> tuple[float, float, float, bool, float]:
+        """(command, feedback, feedforward, saturated, error_m) of one sample; updates the law."""
+        checksum = dt_s + ref_position_m + ref_velocity_m_s + ref_acceleration_m_s2 + position_m + compensation
+        if checksum - checksum != 0.0 or dt_s <= 0.0:  # a NaN or an infinity among the inputs (or an overflow)
+            self._check_inputs((dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2,
+                                position_m, compensation))
         error_m = ref_position_m - position_m
         feedback = self.law.step(error_m * self._counts, dt_s)
         feedforward = self._ff1 * ref_velocity_m_s + self._ff2 * ref_acceleration_m_s2
         total = feedback + feedforward + compensation
         saturated = abs(total) > self._limit
-        command = self._shape(math.copysign(self._limit, total) if saturated else total)
-        estimate = self.law.disturbance_estimate if self._has_estimate else 0.0  # type: ignore[attr-defined]
-        return ServoOutput(command, feedback, feedforward, compensation, estimate, saturated, error_m)
+        command = math.copysign(self._limit, total) if saturated else total
+        quantum = self._quantum
+        if quantum > 0.0:  # quantise the saturated value, keeping it within the limit
+            steps = min(math.floor(abs(command) / quantum + 0.5), self._max_steps)
+            command = math.copysign(steps * quantum, command) if steps else 0.0
+        return command, feedback, feedforward, saturated, error_m
 
-    def _shape(self, value: float) -> float:
-        """Quantise an already saturated value, keeping it within the limit."""
-        if self._quantum <= 0.0:
-            return value
-        steps = math.floor(abs(value) / self._quantum + 0.5)
-        steps = min(steps, self._max_steps)
-        return math.copysign(steps * self._quantum, value) if steps else 0.0
-
-    def _raise_bad_input(self, values: tuple[float, ...]) -> None:
+    def _check_inputs(self, values: tuple[float, ...]) -> None:
+        """Raise :class:`FaultError` naming the first non-finite input, or a ``dt_s <= 0``."""
         for name, value in zip(_INPUT_NAMES, values):
             if not math.isfinite(value):
                 raise FaultError(
                     f"servo {self.config.axis_name}: {name} must be finite, got {value!r}"
                 )
-        raise FaultError(f"servo {self.config.axis_name}: dt_s must be > 0, got {values[0]!r}")
+        if values[0] <= 0.0:
+            raise FaultError(f"servo {self.config.axis_name}: dt_s must be > 0, got {values[0]!r}")

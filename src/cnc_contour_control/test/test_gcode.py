@@ -60,7 +60,7 @@ def test_inch_feed_is_converted() -> None:
 @pytest.mark.parametrize("text, plane, clockwise, center_mm", [
     ("G17 G2 X10 Y10 I10 F100", (0, 1), True, [10, 0, 0]),
     ("G18 G2 X10 Z10 K10 F100", (2, 0), True, [0, 0, 10]),
-    ("G19 G3 Y10 Z10 J10 F100", (1, 2), False, [0, 10, 0]),
+    ("G19 G3 Y10 Z-10 J10 F100", (1, 2), False, [0, 10, 0]),
 ])
 def test_arc_planes(text: str, plane: tuple, clockwise: bool, center_mm: list) -> None:
     (arc,) = parse_gcode(text).segments
@@ -71,10 +71,10 @@ def test_arc_planes(text: str, plane: tuple, clockwise: bool, center_mm: list) -
 
 
 def test_g18_clockwise_is_seen_from_plus_y() -> None:
-    """G2 in G18 from +X about the origin goes toward -Z... as seen from +Y: Z->X is the positive turn."""
-    (arc,) = parse_gcode("G0 X10\nG18 G2 X0 Z-10 I-10 F100").segments[1:]
-    tangent = arc.tangent(0.0)
-    assert_allclose(tangent, [0.0, 0.0, -1.0], atol=1e-12)
+    """Seen from +Y, Z points right and X up: G2 from +X turns toward +Z."""
+    (arc,) = parse_gcode("G0 X10\nG18 G2 X0 Z10 I-10 F100").segments[1:]
+    assert arc.sweep_rad == pytest.approx(math.pi / 2)
+    assert_allclose(arc.tangent(0.0), [0.0, 0.0, 1.0], atol=1e-12)
 
 
 def test_full_circle_and_helix() -> None:
@@ -98,7 +98,7 @@ def test_two_axis_programs_and_start() -> None:
 
 
 @pytest.mark.parametrize("text, message", [
-    ("G1 X10", "line 1: G1 without a feed (F)"),
+    ("G1 X10", r"line 1: G1 without a feed \(F\)"),
     ("G1 X1 F100\n\n(comment)\nG2 X2 Y1", r"line 4: G2 without I/J/K"),
     ("G1 F100\nG3 X10", r"line 2: G3 without I/J/K"),
     ("G1 X1 R5 F100", "line 1: unsupported word R5"),

@@ -51,7 +51,7 @@ def test_corner_shape_in_three_axes_from_a_start() -> None:
     first, second = program.segments
     assert_allclose(first.end_m, [0.021, 0.002, 0.003], atol=1e-15)
     assert_allclose(second.end_m, [0.021, 0.022, 0.003], atol=1e-15)
-    assert_allclose(np.dot(first.unit_m_m, second.unit_m_m), 0.0, atol=1e-15)
+    assert_allclose(np.dot(first.unit_vector, second.unit_vector), 0.0, atol=1e-15)
 
 
 def test_explicit_segments_with_default_feed_and_planes() -> None:

@@ -280,25 +280,33 @@ class FeedDriveAxis:
             If the command or ``dt_s`` is not finite, ``dt_s <= 0``, or the
             state would become non-finite; the state is left unchanged.
         """
-        u = self._checked_command(command)
-        if not (math.isfinite(dt_s) and dt_s > 0.0):
+        u = command if type(command) is float else self._as_float(command)
+        if u - u != 0.0:  # a NaN or an infinity
+            raise FaultError(f"axis {self.name}: command must be finite, got {command!r}")
+        limit = self._limit
+        u = -limit if u < -limit else (limit if u > limit else u)
+        if not (dt_s > 0.0 and dt_s < math.inf):  # also refuses NaN
             raise FaultError(f"axis {self.name}: dt_s must be finite and > 0, got {dt_s!r}")
-        h = dt_s / self._substeps
-        p, v, f = self._pos_blu, self._vel_blu_s, self._friction_force
-        for _ in range(self._substeps):
-            p, v, f = self._substep(p, v, u, h)
-        if not (math.isfinite(p) and math.isfinite(v)):
+        if self._substeps == 1:
+            p, v, f = self._substep(self._pos_blu, self._vel_blu_s, u, dt_s)
+        else:
+            p, v, f = self._substeps_of(u, dt_s / self._substeps)
+        if p - p != 0.0 or v - v != 0.0:  # a NaN or an infinity
             raise FaultError(f"axis {self.name}: state became non-finite (pos {p}, vel {v})")
         self._pos_blu, self._vel_blu_s, self._friction_force = p, v, f
 
-    def _checked_command(self, command: float) -> float:
+    def _substeps_of(self, u: float, h: float) -> tuple[float, float, float]:
+        """All sub-steps of one step, ``h`` seconds each; returns (p, v, friction_dac)."""
+        p, v, f = self._pos_blu, self._vel_blu_s, self._friction_force
+        for _ in range(self._substeps):
+            p, v, f = self._substep(p, v, u, h)
+        return p, v, f
+
+    def _as_float(self, command: float) -> float:
         try:
-            u = float(command)
+            return float(command)
         except (TypeError, ValueError) as err:
             raise FaultError(f"axis {self.name}: command must be a number, got {command!r}") from err
-        if not math.isfinite(u):
-            raise FaultError(f"axis {self.name}: command must be finite, got {command!r}")
-        return _clip(u, self._limit)
 
     def _substep(self, p: float, v: float, u: float, h: float) -> tuple[float, float, float]:
         """Advance (pos_blu, vel_blu_s) by ``h`` seconds; returns (p, v, friction_dac)."""

@@ -232,13 +232,18 @@ class Plant:
             On a wrong count, a non-finite command or a bad ``dt_s``; no axis moves then.
         """
         self._check_length("commands", commands)
-        for axis, command in zip(self.axes, commands):
-            if not _is_finite_number(command):
-                raise FaultError(f"axis {axis.name}: command must be finite, got {command!r}")
-        if not (math.isfinite(dt_s) and dt_s > 0.0):
+        if not _all_finite(commands):
+            self._check_commands(commands)
+        if not (dt_s > 0.0 and dt_s < math.inf):  # also refuses NaN
             raise FaultError(f"plant: dt_s must be finite and > 0, got {dt_s!r}")
         for axis, command in zip(self.axes, commands):
             axis.step(command, dt_s)
+
+    def _check_commands(self, commands: Sequence[float]) -> None:
+        """Raise :class:`FaultError` naming the first axis whose command is not a finite number."""
+        for axis, command in zip(self.axes, commands):
+            if not _is_finite_number(command):
+                raise FaultError(f"axis {axis.name}: command must be finite, got {command!r}")
 
     def _check_length(self, name: str, values: Sequence[float]) -> None:
         if len(values) != len(self.axes):
@@ -268,6 +273,15 @@ class Plant:
             "variation": dataclasses.asdict(self.config.variation),
             "axes": {a.name: _describe_axis(a, n) for a, n in zip(self.axes, self.nominal_configs)},
         }
+
+
+def _all_finite(values: Sequence[float]) -> bool:
+    """True if every value is a finite number (one C-level sum; an overflow gives False too)."""
+    try:
+        total = sum(values, 0.0)
+    except TypeError:
+        return False
+    return total - total == 0.0  # NaN for a NaN or an infinity
 
 
 def _is_finite_number(value: Any) -> bool:

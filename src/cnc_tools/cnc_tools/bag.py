@@ -167,8 +167,12 @@ class BagIntegrity:
             notes = "".join(f"; {p}" for p in self.problems)
             return f"complete ({sum(self.found.values())} messages read through the index{notes})"
         lost = self.lost
-        loss = ("count of lost messages unknown (no metadata.yaml or summary)" if lost is None
-                else f"{sum(lost.values())} messages lost ({', '.join(f'{t}: {n}' for t, n in lost.items() if n)})")
+        if lost is None:
+            loss = "count of lost messages unknown (no metadata.yaml, no MCAP summary)"
+        elif any(lost.values()):
+            loss = f"{sum(lost.values())} messages lost ({', '.join(f'{t}: {n}' for t, n in lost.items() if n)})"
+        else:
+            loss = f"no messages lost (all {sum(self.found.values())} expected were recovered)"
         return f"INCOMPLETE, read by {self.method}: {loss}; " + "; ".join(self.problems)
 
 
@@ -394,7 +398,10 @@ _HANDLERS: dict[int, Callable[[_Scan, memoryview], None]] = {
 
 
 def _scan_records(scan: _Scan, view: memoryview, *, nested: bool) -> bool:
-    """Handle every record of ``view``; True when a footer ends it. Raise ``_Damaged`` at the first bad one."""
+    """Handle every record of ``view``; True when a footer and the closing magic end it.
+
+    Raise ``_Damaged`` at the first record that cannot be read.
+    """
     pos = 0
     while pos < len(view):
         if pos + 9 > len(view):
@@ -407,6 +414,8 @@ def _scan_records(scan: _Scan, view: memoryview, *, nested: bool) -> bool:
             elif pos > len(view):
                 raise _Damaged(f"the file ends inside a record (opcode {opcode:#x})")
             elif opcode == _OP_FOOTER:
+                if bytes(view[pos:]) != _MAGIC:
+                    raise _Damaged("the closing MCAP magic after the footer is cut or wrong")
                 return True
             elif opcode in _HANDLERS:
                 _HANDLERS[opcode](scan, body)

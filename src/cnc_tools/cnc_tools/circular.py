@@ -10,9 +10,12 @@ programmed centre and ``R`` the programmed radius:
 - circular deviation ``G``: max minus min radius about the least-squares centre
   (ISO 230-4's LSC evaluation), ``circular_deviation_m``;
 - mean radius error: ``mean(F)`` (radius lost or gained through servo lag);
-- reversal (quadrant) spikes: at every sign change of an axis's velocity, the
-  radial deviation of largest magnitude within ``window_deg`` of arc around it,
-  and that peak minus the mean radius error.
+- reversal (quadrant) spikes: at every sign change of an axis's velocity (the
+  reference's when recorded), the radial deviation farthest from the mean
+  radius error within ``window_deg`` of arc around it (the peak), and that peak
+  minus the mean radius error (the spike).
+
+Samples are the scored samples given (start and stop transients included).
 """
 from __future__ import annotations
 

@@ -60,12 +60,18 @@ def find_executable(package: str, executable: str) -> Path:
     raise CncError(f"executable {package}/{executable} not found under AMENT_PREFIX_PATH; run ./dev setup")
 
 
-def graph_nodes(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0) -> list[NodeSpec]:
-    """The node processes of a scenario (plant, interpolator, one servo per axis)."""
+def graph_nodes(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0,
+                input_timeout_s: float = 5.0) -> list[NodeSpec]:
+    """The node processes of a scenario (plant, interpolator, one servo per axis).
+
+    ``extra_subscribers`` readers (a recorder, a test probe) subscribe to every
+    lockstep topic besides the graph's own; each stage waits for all its readers
+    before it publishes its first message, so nothing is lost at start-up.
+    """
     axes = list(scenario.axes)
     program_file = run_dir / "program.yaml"
     program_file.write_text(yaml.safe_dump({"program": _with_axes(scenario)}))
-    servos = [_servo_spec(scenario, config) for config in scenario.servos]
+    servos = [_servo_spec(scenario, config, input_timeout_s, 1 + extra_subscribers) for config in scenario.servos]
     limits = scenario.limits
     interpolator = NodeSpec("cnc_contour_control", "interpolator", "interpolator", {
         "axes": axes, "program_file": str(program_file),
@@ -73,9 +79,10 @@ def graph_nodes(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0) -
         "max_acceleration_mm_s2": [a * 1e3 for a in limits.max_acceleration_m_s2],
         "corner_angle_tolerance_deg": float(scenario.interpolator.corner_angle_tolerance_deg),
         "arc_centripetal_fraction": float(scenario.interpolator.arc_centripetal_fraction),
-        "clamp_feed": scenario.interpolator.clamp_feed,
+        "clamp_feed": scenario.interpolator.clamp_feed, "min_subscribers": len(servos) + extra_subscribers,
     })
-    return [_plant_spec(scenario, run_dir, 1 + len(servos) + extra_subscribers), interpolator, *servos]
+    plant = _plant_spec(scenario, run_dir, 1 + len(servos) + extra_subscribers, input_timeout_s)
+    return [plant, interpolator, *servos]
 
 
 def _with_axes(scenario: Scenario) -> dict[str, Any]:
@@ -85,7 +92,7 @@ def _with_axes(scenario: Scenario) -> dict[str, Any]:
     return program
 
 
-def _plant_spec(scenario: Scenario, run_dir: Path, subscribers: int) -> NodeSpec:
+def _plant_spec(scenario: Scenario, run_dir: Path, subscribers: int, timeout_s: float) -> NodeSpec:
     plant = scenario.plant
     return NodeSpec("cnc_plant_sim", "plant", "plant", {
         "model": plant.model, "axes": list(plant.axes), "seed": int(plant.seed), "substeps": int(plant.substeps),
@@ -96,16 +103,18 @@ def _plant_spec(scenario: Scenario, run_dir: Path, subscribers: int) -> NodeSpec
         "initial_position_m": [float(v) for v in scenario.program.start_m],
         "sample_time_s": float(scenario.sample_time_s), "duration_s": float(scenario.duration_s),
         "mode": scenario.mode, "expected_subscribers": subscribers,
-        "summary_file": str(run_dir / "summary.json"),
+        # Twice the stages' timeout: the stage nearest the missing input reports it first.
+        "summary_file": str(run_dir / "summary.json"), "command_timeout_s": 2.0 * float(timeout_s),
     })
 
 
-def _servo_spec(scenario: Scenario, config: Any) -> NodeSpec:
+def _servo_spec(scenario: Scenario, config: Any, timeout_s: float, readers: int) -> NodeSpec:
     return NodeSpec("cnc_contour_control", "servo", f"servo_{config.axis_name}", {
         "axis": config.axis_name, "sample_time_s": float(scenario.sample_time_s),
         "law": config.law, "law_params": yaml.safe_dump(dict(config.law_params), default_flow_style=True).strip(),
         "counts_per_m": float(config.counts_per_m), "ff1": float(config.ff1), "ff2": float(config.ff2),
         "output_limit": float(config.output_limit), "quantum": float(config.quantum), "command_unit": config.command_unit,
+        "input_timeout_s": float(timeout_s), "min_subscribers": readers,
     })
 
 

@@ -294,24 +294,28 @@ def _circular_dict(test: CircularTest, units: Mapping[str, float]) -> dict[str, 
     return out
 
 
-def _csv_rows(score: Score) -> Iterator[tuple[object, ...]]:
-    data = score.to_dict()
-    scoped = [("contour", data["contour_error"]), *(("segment", s) for s in data["segments"]),  # type: ignore[union-attr]
-              *(("tracking", s) for s in data["tracking_error"].values())]  # type: ignore[union-attr]
-    for scope, stats in scoped:
-        for key, value in stats.items():
-            if key not in ("item", "n_samples"):
-                metric, unit = _split_key(key)
-                yield score.run_name, scope, stats["item"], stats["n_samples"], metric, value, unit
+def _csv_groups(data: Mapping[str, object]) -> list[tuple[str, list[dict[str, object]]]]:
+    """(scope, items) of the score's plain data; every item has ``item``, ``n_samples`` and unit-suffixed values."""
+    groups = [("contour", [data["contour_error"]]), ("segment", data["segments"]),
+              ("tracking", list(data["tracking_error"].values()))]  # type: ignore[union-attr]
     circular = data["circular_test"]
-    for key, value in (circular or {}).items():  # type: ignore[union-attr]
-        if isinstance(value, float) and key.endswith(("_um", "_blu")):
-            metric, unit = _split_key(key)
-            yield score.run_name, "circular", "circle", circular["n_samples"], metric, value, unit  # type: ignore[index]
-    for index, reversal in enumerate((circular or {}).get("reversals", [])):  # type: ignore[union-attr]
-        for key in ("spike_um", "spike_blu"):
-            yield score.run_name, "reversal", f"{index} {reversal['axis']}", 1, *_split_key(key)[:1], \
-                reversal[key], _split_key(key)[1]
+    if isinstance(circular, dict):
+        lengths = {k: v for k, v in circular.items() if k.endswith(("_um", "_blu")) and isinstance(v, float)}
+        groups.append(("circular", [{"item": "circle", "n_samples": circular["n_samples"], **lengths}]))
+        groups.append(("reversal", [
+            {"item": f"{r['axis']} at {r['angle_deg']:.1f} deg", "n_samples": 1,
+             **{k: v for k, v in r.items() if k.startswith(("peak_", "spike_"))}} for r in circular["reversals"]]))
+    return groups  # type: ignore[return-value]
+
+
+def _csv_rows(score: Score) -> Iterator[tuple[object, ...]]:
+    for scope, items in _csv_groups(score.to_dict()):
+        for stats in items:
+            for key, value in stats.items():
+                if key not in ("item", "n_samples"):
+                    metric, unit = _split_key(key)
+                    cell = "" if isinstance(value, float) and not math.isfinite(value) else value
+                    yield score.run_name, scope, stats["item"], stats["n_samples"], metric, cell, unit
 
 
 def _split_key(key: str) -> tuple[str, str]:

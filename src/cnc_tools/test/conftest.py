@@ -11,7 +11,7 @@ import pytest
 from numpy.typing import NDArray
 
 from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
-from cnc_tools.bag import BagWriter
+from cnc_tools.bag import BagIntegrity, BagWriter, JointStateSeries, RecordedRun, ReferenceSeries
 from cnc_tools.typestore import project_typestore
 
 NS = "/cnc"
@@ -142,6 +142,40 @@ def write_run_bag(path: Path, program: Program, traj: Trajectory, *, commands: b
     return path
 
 
+def make_run(program: Program, traj: Trajectory, *, name: str = "synthetic", reference_from: int = 0,
+             integrity: BagIntegrity | None = None) -> RecordedRun:
+    """A RecordedRun built in memory; the reference starts at sample ``reference_from``."""
+    n = traj.stamp_ns.size
+    ref = slice(reference_from, n)
+    reference_series = ReferenceSeries(
+        traj.stamp_ns[ref], traj.reference_m[ref], traj.reference_velocity_m_s[ref],
+        np.zeros_like(traj.reference_m[ref]), np.zeros(n - reference_from), np.zeros(n - reference_from, np.int64),
+        np.full(n - reference_from, 0.01), np.zeros(n - reference_from, bool))
+    found = {"/cnc/joint_states": n, "/cnc/reference": n - reference_from, "/cnc/path": 1}
+    return RecordedRun(
+        name=name, source=Path(name), program=program,
+        joint_states=JointStateSeries(traj.stamp_ns, traj.position_m, traj.reference_velocity_m_s),
+        reference=reference_series, commands={},
+        integrity=integrity or BagIntegrity(True, "index", found, found, "metadata.yaml"))
+
+
+def offset_trajectory(program: Program, normal_offsets_m: Sequence[float], n_per_segment: int = 200,
+                      dt_s: float = 1e-3) -> Trajectory:
+    """Samples strictly inside each planar segment, displaced by a known distance along the left normal (XY)."""
+    points, refs, vels = [], [], []
+    for seg, offset in zip(program.segments, normal_offsets_m):
+        s = np.linspace(0.0, seg.length_m, n_per_segment + 2)[1:-1]
+        tangent = seg.tangent(s)
+        normal = np.zeros_like(tangent)
+        normal[:, 0], normal[:, 1] = -tangent[:, 1], tangent[:, 0]
+        refs.append(seg.point(s))
+        points.append(seg.point(s) + offset * normal)
+        vels.append(tangent * seg.feed_m_s)
+    position = np.concatenate(points)
+    stamps = (np.arange(position.shape[0], dtype=np.int64) + 1) * int(round(dt_s * 1e9))
+    return Trajectory(stamps, position, np.concatenate(refs), np.concatenate(vels))
+
+
 @pytest.fixture(scope="session")
 def circle_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 2-axis, 2000-sample circle run (R = 20 mm, 5 µm outside) recorded once per session."""
@@ -155,4 +189,5 @@ def synth() -> SimpleNamespace:
     return SimpleNamespace(
         circle_program=circle_program, corner_program=corner_program, circle_trajectory=circle_trajectory,
         Trajectory=Trajectory, write_run_bag=write_run_bag, path_message=path_message, joint_state=joint_state,
-        reference=reference, axis_command=axis_command, header=header, TOPICS=TOPICS, NS=NS)
+        reference=reference, axis_command=axis_command, header=header, TOPICS=TOPICS, NS=NS, make_run=make_run,
+        offset_trajectory=offset_trajectory, COMMAND_TYPE=COMMAND_TYPE)

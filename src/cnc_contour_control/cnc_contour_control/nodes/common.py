@@ -68,6 +68,34 @@ def describe(
     return descriptor
 
 
+class GatedPublisher:
+    """Holds messages until the writer has matched ``min_subscribers`` readers, then publishes in order.
+
+    With volatile durability a reader matched late never sees earlier samples,
+    so a lockstep stage publishes nothing before all its readers are there.
+    """
+
+    def __init__(self, publisher: Any, min_subscribers: int) -> None:
+        self.publisher = publisher
+        self.min_subscribers = int(min_subscribers)
+        self._held: list[Any] = []
+        self._open = self.min_subscribers <= 0
+
+    def publish(self, msg: Any) -> None:
+        """Publish now if the readers are there, else hold."""
+        self._held.append(msg)
+        self.flush()
+
+    def flush(self) -> None:
+        """Publish what is held once enough readers are matched (checked until they are)."""
+        if not self._open and self.publisher.get_subscription_count() >= self.min_subscribers:
+            self._open = True
+        if self._open:
+            for msg in self._held:
+                self.publisher.publish(msg)
+            self._held.clear()
+
+
 class SuiteNode(Node):
     """A node that reports faults on ``/diagnostics`` and stops on them."""
 
@@ -76,6 +104,14 @@ class SuiteNode(Node):
         self.fault_message: str | None = None
         self.finished = False
         self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+
+    def gated_publisher(self, msg_type: type, topic: str, default_min: int) -> GatedPublisher:
+        """A lockstep publisher that waits for ``min_subscribers`` matched readers (a parameter)."""
+        minimum = self.declare("min_subscribers", default_min, describe(
+            f"readers of {topic} to wait for before publishing", 0, 1000, True, True))
+        gated = GatedPublisher(self.create_publisher(msg_type, topic, LOCKSTEP_QOS), minimum)
+        self.create_timer(0.01, gated.flush)
+        return gated
 
     def declare(self, name: str, default: Any, descriptor: ParameterDescriptor) -> Any:
         """Declare a parameter and return its value."""

@@ -1,6 +1,8 @@
 """Interpolator node: part program -> per-axis reference every tick, and the latched path."""
 from __future__ import annotations
 
+from typing import Any
+
 from cnc_contour_interfaces.msg import Path, Reference
 from sensor_msgs.msg import JointState
 
@@ -22,12 +24,12 @@ from cnc_contour_control.units import mm_s2_to_m_s2, mm_min_to_m_s
 class InterpolatorNode(SuiteNode):
     """Publishes ``reference`` for each ``joint_states`` tick and ``path`` once (latched)."""
 
-    def __init__(self) -> None:
-        super().__init__("interpolator")
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("interpolator", **kwargs)
         self.axes = tuple(self.declare("axes", ["x", "y"], describe("axis names, in order", read_only=True)))
         self.frame_id = self.declare("frame_id", "machine", describe("frame of the references", read_only=True))
         self.interpolator = self._make_interpolator()
-        self.reference_pub = self.create_publisher(Reference, "reference", LOCKSTEP_QOS)
+        self.reference_pub = self.gated_publisher(Reference, "reference", 1)
         path_pub = self.create_publisher(Path, "path", LATCHED_QOS)
         path_pub.publish(
             program_to_path(self.interpolator.program, 0, self.frame_id, self.interpolator.duration_s)
@@ -39,7 +41,7 @@ class InterpolatorNode(SuiteNode):
         velocity = self.declare("max_velocity_mm_min", [6000.0], describe("per-axis velocity limit, mm/min", read_only=True))
         accel = self.declare("max_acceleration_mm_s2", [1000.0], describe("per-axis acceleration limit, mm/s^2", read_only=True))
         config = InterpolatorConfig(
-            corner_angle_tolerance_deg=self.declare("corner_angle_tolerance_deg", 0.05, describe("junction angle treated as tangent, deg", 0.0, 45.0, True)),
+            corner_angle_tolerance_deg=self.declare("corner_angle_tolerance_deg", 1e-4, describe("junction angle treated as tangent, deg", 0.0, 10.0, True)),
             arc_centripetal_fraction=self.declare("arc_centripetal_fraction", 0.5, describe("share of acceleration for centripetal use on arcs", 0.01, 0.99, True)),
             clamp_feed=self.declare("clamp_feed", False, describe("slow down instead of refusing a feed above the axis limits", read_only=True)),
         )

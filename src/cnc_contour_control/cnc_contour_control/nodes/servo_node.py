@@ -34,8 +34,8 @@ _CONFIG_PARAMETERS = ("law", "law_params", "counts_per_m", "ff1", "ff2", "output
 class ServoNode(SuiteNode):
     """Closes one axis's loop in lockstep: a command for every matched tick."""
 
-    def __init__(self) -> None:
-        super().__init__("servo")
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("servo", **kwargs)
         self.axis = self.declare("axis", "x", describe("axis this servo drives", read_only=True))
         self.sample_time_ns = seconds_to_ns(
             self.declare("sample_time_s", 0.01, describe("nominal sample time (first tick), s", 1e-5, 1.0, True))
@@ -48,7 +48,7 @@ class ServoNode(SuiteNode):
         inputs = ["joint_states", "reference"] + (["compensation"] if use_compensation else [])
         self.matcher = StampMatcher(inputs, timeout_s)
         self.last_stamp_ns: int | None = None
-        self.command_pub = self.create_publisher(AxisCommand, f"servo/{self.axis}/command", LOCKSTEP_QOS)
+        self.command_pub = self.gated_publisher(AxisCommand, f"servo/{self.axis}/command", 1)
         self._subscribe(JointState, "joint_states")
         self._subscribe(Reference, "reference")
         if use_compensation:

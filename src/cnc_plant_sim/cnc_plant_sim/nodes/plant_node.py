@@ -30,8 +30,8 @@ MODES = ("lockstep", "realtime")
 class PlantNode(SuiteNode):
     """Lockstep: integrates once every axis's command for the tick is in. Real time: on a wall timer."""
 
-    def __init__(self) -> None:
-        super().__init__("plant")
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("plant", **kwargs)
         self.plant = make_plant(self._plant_config())
         self.axes = self.plant.axis_names
         initial = self.declare("initial_position_m", [0.0], describe("initial axis positions, m", read_only=True))

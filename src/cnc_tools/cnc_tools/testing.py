@@ -1,0 +1,141 @@
+"""Helpers for tests of real nodes: a probe node on a background executor, socket inspection.
+
+Used by the suite's own tests and by integrators testing their stack against ours.
+"""
+from __future__ import annotations
+
+import os
+import threading
+import time
+from collections import defaultdict
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+
+from cnc_contour_control.nodes.common import LOCKSTEP_QOS
+
+
+class TopicProbe:
+    """A node in its own context and thread that records messages and publishes on request.
+
+    ``subscriptions`` maps topic -> message type. Use as a context manager.
+    """
+
+    def __init__(self, subscriptions: dict[str, type], name: str = "probe", qos: QoSProfile = LOCKSTEP_QOS) -> None:
+        self.context = Context()
+        rclpy.init(context=self.context)
+        self.node = Node(name, context=self.context)
+        self.messages: dict[str, list[Any]] = defaultdict(list)
+        self._lock = threading.Lock()
+        for topic, msg_type in subscriptions.items():
+            self.node.create_subscription(msg_type, topic, self._recorder(topic), qos)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._running = True
+
+    def _recorder(self, topic: str) -> Callable[[Any], None]:
+        def record(msg: Any) -> None:
+            with self._lock:
+                self.messages[topic].append(msg)
+
+        return record
+
+    def _spin(self) -> None:
+        while self._running and self.context.ok():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def __enter__(self) -> TopicProbe:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._running = False
+        self._thread.join(timeout=5.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+    def publisher(self, msg_type: type, topic: str, qos: QoSProfile = LOCKSTEP_QOS) -> Any:
+        """A publisher on the probe's node."""
+        return self.node.create_publisher(msg_type, topic, qos)
+
+    def received(self, topic: str) -> list[Any]:
+        """A copy of the messages received on ``topic`` so far."""
+        with self._lock:
+            return list(self.messages[topic])
+
+    def wait_for(self, condition: Callable[[], bool], timeout_s: float, what: str) -> None:
+        """Wait until ``condition()`` holds; raise AssertionError naming ``what`` after ``timeout_s``."""
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if condition():
+                return
+            time.sleep(0.01)
+        raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+
+
+def udp_sockets(pid: int) -> list[tuple[str, int]]:
+    """(local address, port) of every UDP socket process ``pid`` holds (IPv4 and IPv6)."""
+    inodes = _socket_inodes(pid)
+    sockets = []
+    for table, decode in (("udp", _ipv4), ("udp6", _ipv6)):
+        path = Path(f"/proc/{pid}/net/{table}")
+        if not path.exists():
+            continue
+        for line in path.read_text().splitlines()[1:]:
+            fields = line.split()
+            if fields[9] in inodes:
+                address, port = fields[1].split(":")
+                sockets.append((decode(address), int(port, 16)))
+    return sockets
+
+
+def _socket_inodes(pid: int) -> set[str]:
+    inodes = set()
+    for fd in Path(f"/proc/{pid}/fd").iterdir():
+        try:
+            target = os.readlink(fd)
+        except OSError:
+            continue
+        if target.startswith("socket:["):
+            inodes.add(target[8:-1])
+    return inodes
+
+
+def _ipv4(hex_address: str) -> str:
+    return ".".join(str(int(hex_address[i:i + 2], 16)) for i in (6, 4, 2, 0))
+
+
+def _ipv6(hex_address: str) -> str:
+    words = [hex_address[i:i + 8] for i in range(0, 32, 8)]
+    raw = b"".join(bytes.fromhex(w)[::-1] for w in words)
+    import ipaddress
+
+    return str(ipaddress.IPv6Address(raw))
+
+
+def ephemeral_port_range() -> tuple[int, int]:
+    """The kernel's range for ports picked by bind(port=0)."""
+    low, high = Path("/proc/sys/net/ipv4/ip_local_port_range").read_text().split()
+    return int(low), int(high)
+
+
+def dds_ports(domain_id: int, participants: int = 120) -> set[int]:
+    """Well-known RTPS ports of a domain (discovery and user unicast/multicast)."""
+    base = 7400 + 250 * domain_id
+    ports = {base, base + 1}
+    for participant in range(participants):
+        ports.update({base + 10 + 2 * participant, base + 11 + 2 * participant})
+    return ports
+
+
+def all_alive(pids: Iterable[int]) -> bool:
+    """True if every process in ``pids`` is still running."""
+    return all(Path(f"/proc/{pid}").exists() for pid in pids)

@@ -1,0 +1,111 @@
+"""Tier 3: the whole node graph as separate processes over real DDS (loopback only)."""
+from __future__ import annotations
+
+import os
+import signal
+from pathlib import Path
+
+import numpy as np
+import pytest
+from cnc_contour_interfaces.msg import AxisCommand, Reference
+from sensor_msgs.msg import JointState
+
+from cnc_contour_control.errors import FaultError
+from cnc_contour_control.nodes.common import stamp_to_ns
+from cnc_tools.engine import run_engine, tick_count
+from cnc_tools.runner import GraphRun, graph_nodes, run_graph
+from cnc_tools.scenario import load_scenario
+from cnc_tools.testing import TopicProbe, dds_ports, ephemeral_port_range, udp_sockets
+
+ROOT = Path(__file__).resolve().parents[2]
+CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"
+# A probe counts as one extra reader of every lockstep topic (as a recorder does).
+PROBED = {"/cnc/joint_states": JointState, "/cnc/reference": Reference,
+          "/cnc/servo/x/command": AxisCommand, "/cnc/servo/y/command": AxisCommand}
+
+pytestmark = pytest.mark.e2e
+
+
+def _by_stamp(messages: list, value) -> dict[int, object]:
+    return {stamp_to_ns(m.header.stamp): value(m) for m in messages}
+
+
+def test_lockstep_graph_matches_engine_to_1e9(tmp_path: Path) -> None:
+    scenario = load_scenario(CIRCLE, {"duration_s": 2.0})
+    with TopicProbe(PROBED) as probe:
+        result = run_graph(scenario, tmp_path, extra_subscribers=1)
+        expected = tick_count(scenario)
+        probe.wait_for(lambda: len(probe.received("/cnc/servo/y/command")) >= expected, 10.0, "all commands")
+    engine = run_engine(scenario)
+    assert result.summary["ticks"] == expected == engine.ticks
+    assert result.faults == []
+    positions = _by_stamp(probe.received("/cnc/joint_states"), lambda m: list(m.position))
+    stamps = sorted(positions)
+    assert len(stamps) == expected, "every tick's joint state arrived, none dropped"
+    graph_position = np.array([positions[s] for s in stamps])
+    np.testing.assert_allclose(graph_position, engine.position_m, rtol=0.0, atol=1e-9)
+    for i, axis in enumerate(scenario.axes):
+        commands = _by_stamp(probe.received(f"/cnc/servo/{axis}/command"), lambda m: m.command)
+        graph_command = np.array([commands[s] for s in stamps])
+        np.testing.assert_allclose(graph_command, engine.command[:, i], rtol=0.0, atol=1e-9)
+    assert np.ptp(engine.position_m[:, 1]) > 1e-3, "the axes really moved"
+
+
+def test_dds_sockets_stay_on_loopback(tmp_path: Path) -> None:
+    scenario = load_scenario(CIRCLE, {"duration_s": 1.0})
+    domain = int(os.environ["ROS_DOMAIN_ID"])
+    well_known, (low, high) = dds_ports(domain), ephemeral_port_range()
+    with TopicProbe(PROBED) as probe:
+        with GraphRun(graph_nodes(scenario, tmp_path, extra_subscribers=1), tmp_path) as run:
+            probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 5, 30.0, "the run to be going")
+            sockets = {name: udp_sockets(p.pid) for name, p in run.processes.items()}
+            run.wait("plant", 60.0)
+    for name, bound in sockets.items():
+        assert bound, f"{name} holds no UDP socket: the check saw nothing"
+        receiving = [(ip, port) for ip, port in bound if port in well_known]
+        assert receiving and all(ip == "127.0.0.1" for ip, _ in receiving), (name, receiving)
+        elsewhere = [(ip, port) for ip, port in bound if ip not in ("127.0.0.1", "::1")]
+        # Fast DDS's send-only sockets (docs/design.md, "DDS on loopback"): ephemeral ports only.
+        assert all(low <= port <= high and port not in well_known for _, port in elsewhere), (name, elsewhere)
+
+
+def test_node_killed_mid_run_is_named_and_everything_is_reaped(tmp_path: Path) -> None:
+    scenario = load_scenario(CIRCLE)
+    with TopicProbe(PROBED) as probe:
+        with pytest.raises(FaultError, match=r"node servo_y \(pid \d+\) exited with code -9") as caught:
+            with GraphRun(graph_nodes(scenario, tmp_path, extra_subscribers=1), tmp_path) as run:
+                probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 20, 30.0, "ticks")
+                os.kill(run.processes["servo_y"].pid, signal.SIGKILL)
+                run.wait("plant", 60.0)
+    assert "servo_y" in str(caught.value)
+    assert all(p.returncode is not None for p in run.processes.values()), "all node processes reaped"
+
+
+def test_missing_input_past_timeout_is_a_fault_naming_the_topic(tmp_path: Path) -> None:
+    scenario = load_scenario(CIRCLE)
+    nodes = graph_nodes(scenario, tmp_path, extra_subscribers=1, input_timeout_s=1.0)
+    with TopicProbe(PROBED) as probe:
+        with pytest.raises(FaultError) as caught:
+            with GraphRun(nodes, tmp_path) as run:
+                probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 10, 30.0, "ticks")
+                interpolator = run.processes["interpolator"]
+                os.kill(interpolator.pid, signal.SIGSTOP)
+                try:
+                    run.wait("plant", 60.0)
+                finally:
+                    os.kill(interpolator.pid, signal.SIGCONT)
+    message = str(caught.value)
+    assert "servo_" in message and "no /cnc/reference for tick" in message, message
+    assert all(p.returncode is not None for p in run.processes.values())
+
+
+def test_realtime_mode_runs_on_the_wall_clock_and_counts_late_commands(tmp_path: Path) -> None:
+    scenario = load_scenario(CIRCLE, {"mode": "realtime", "duration_s": 1.0})
+    result = run_graph(scenario, tmp_path)
+    summary = result.summary
+    assert result.faults == []
+    assert summary["simulated_time_s"] > 1.0
+    assert summary["ticks"] >= 1
+    assert summary["late_commands"] >= 0
+    # Each tick advances by the measured wall period: simulated time tracks wall time.
+    assert summary["wall_time_s"] >= 0.9 * summary["simulated_time_s"]
