@@ -85,6 +85,7 @@ class BagWriter:
         except (WriterError, OSError) as err:
             raise BagError(f"cannot create bag {self.path}: {err}") from err
         self.topics: dict[str, str] = dict(topics)
+        self._closed_counts: dict[str, int] = {}
 
     def write(self, topic: str, timestamp_ns: int, cdr_bytes: bytes | memoryview) -> None:
         """Append one serialised message; ``timestamp_ns`` is the log time (ns)."""
@@ -543,7 +544,11 @@ def _columns(raw: _RawBag, topic: str, spec: _Fields, axes: tuple[str, ...]) -> 
     out: dict[str, np.ndarray] = {"stamp_ns": np.zeros(count, np.int64)}
     out.update({name: np.full((count, len(axes)), np.nan) for name in spec.axis_fields})
     strings: dict[str, set[str]] = {name: set() for name in spec.strings}
+    needed = {"header.stamp.sec", "header.stamp.nanosec", *spec.axis_fields, *spec.scalars}
     for block in _blocks(raw, topic):
+        missing = sorted(needed - set(block.numbers) | set(spec.strings) - set(block.strings))
+        if missing:
+            raise BagError(f"{topic}: the recorded {raw.msgtypes[topic]} has no fields {missing}")
         sec = block.numbers["header.stamp.sec"].astype(np.int64)
         out["stamp_ns"][block.rows] = sec * 1_000_000_000 + block.numbers["header.stamp.nanosec"]
         _fill_axes(out, block, spec, axes, topic)

@@ -150,7 +150,7 @@ def _circular(run: RecordedRun, series: ContourErrorSeries, window_deg: float) -
     circle = circle_of(run.program)
     if circle is None or series.stamp_ns.size < MIN_CIRCLE_SAMPLES:
         return None
-    velocity = run.joint_states.velocity_m_s[np.isin(run.joint_states.stamp_ns, series.stamp_ns)]
+    velocity = run.joint_states.velocity_m_s[_scored_window(run)[0]]
     if run.reference is not None:
         rows = np.searchsorted(run.reference.stamp_ns, series.stamp_ns)
         shared = (rows < run.reference.stamp_ns.size) & \

@@ -139,3 +139,34 @@ def dds_ports(domain_id: int, participants: int = 120) -> set[int]:
 def all_alive(pids: Iterable[int]) -> bool:
     """True if every process in ``pids`` is still running."""
     return all(Path(f"/proc/{pid}").exists() for pid in pids)
+
+
+class InProcessNode:
+    """Runs a node class in this process, in its own context, spun by a background thread."""
+
+    def __init__(self, factory: Callable[..., Node], parameters: dict[str, Any], namespace: str = "/cnc") -> None:
+        from rclpy.parameter import Parameter
+
+        self.context = Context()
+        rclpy.init(context=self.context)
+        overrides = [Parameter(name, value=value) for name, value in parameters.items()]
+        self.node = factory(context=self.context, namespace=namespace, parameter_overrides=overrides)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self._running = True
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+
+    def _spin(self) -> None:
+        while self._running and self.context.ok():
+            self.executor.spin_once(timeout_sec=0.05)
+
+    def __enter__(self) -> InProcessNode:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._running = False
+        self._thread.join(timeout=5.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)

@@ -139,8 +139,13 @@ class _NotColumnar(Exception):
 
 
 @dataclass
-class _Layout:
-    """Where the fields of one CDR message lie."""
+class MessageLayout:
+    """Where the fields of one CDR message lie.
+
+    ``numbers`` maps a field path to ``(byte offset, count, dtype, is_scalar)``; ``strings``
+    to its value(s); ``fixed`` lists the structural byte offsets (encapsulation, lengths,
+    string bytes) that messages of the same layout share.
+    """
 
     buf: bytes
     order: str
@@ -171,12 +176,12 @@ class _Layout:
         return self.buf[start:start + max(size - 1, 0)].decode("utf-8", errors="replace")
 
 
-def _walk_message(layout: _Layout, fielddefs: Mapping[str, object], msgtype: str, prefix: str) -> None:
+def _walk_message(layout: MessageLayout, fielddefs: Mapping[str, object], msgtype: str, prefix: str) -> None:
     for name, (node, desc) in fielddefs[msgtype][1]:  # type: ignore[index]
         _walk_field(layout, fielddefs, prefix + name, node, desc)
 
 
-def _walk_field(layout: _Layout, fielddefs: Mapping[str, object], path: str, node: int, desc: object) -> None:
+def _walk_field(layout: MessageLayout, fielddefs: Mapping[str, object], path: str, node: int, desc: object) -> None:
     if node == Nodetype.NAME:
         _walk_message(layout, fielddefs, str(desc), path + ".")
     elif node == Nodetype.BASE:
@@ -189,7 +194,7 @@ def _walk_field(layout: _Layout, fielddefs: Mapping[str, object], path: str, nod
         _walk_values(layout, path, sub_desc[0], count, scalar=False)
 
 
-def _walk_values(layout: _Layout, path: str, typename: str, count: int, *, scalar: bool) -> None:
+def _walk_values(layout: MessageLayout, path: str, typename: str, count: int, *, scalar: bool) -> None:
     if typename == "string":
         values = tuple(layout.string() for _ in range(count))
         layout.strings[path] = values[0] if scalar else values
@@ -203,16 +208,16 @@ def _walk_values(layout: _Layout, path: str, typename: str, count: int, *, scala
     layout.numbers[path] = (start, count, dtype, scalar)
 
 
-def message_layout(buf: bytes, msgtype: str, typestore: Typestore) -> _Layout:
+def message_layout(buf: bytes, msgtype: str, typestore: Typestore) -> MessageLayout:
     """Walk one CDR message of ``msgtype``; raise ``BagError`` if it is malformed."""
     if len(buf) < 4 or buf[0] != 0 or buf[1] not in (0, 1):
         raise BagError(f"{msgtype}: not a plain CDR message (header {bytes(buf[:4])!r})")
-    layout = _Layout(buf=bytes(buf), order="<" if buf[1] == 1 else ">")
+    layout = MessageLayout(buf=bytes(buf), order="<" if buf[1] == 1 else ">")
     _walk_message(layout, typestore.fielddefs, msgtype, "")
     return layout
 
 
-def _block(matrix: NDArray[np.uint8], rows: NDArray[np.int64], layout: _Layout) -> ColumnBlock:
+def _block(matrix: NDArray[np.uint8], rows: NDArray[np.int64], layout: MessageLayout) -> ColumnBlock:
     numbers: dict[str, NDArray[np.generic]] = {}
     for path, (start, count, dtype, scalar) in layout.numbers.items():
         raw = np.ascontiguousarray(matrix[:, start:start + dtype.itemsize * count])

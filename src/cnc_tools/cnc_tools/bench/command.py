@@ -1,0 +1,21 @@
+"""The ``cnc-contour bench NAME [--quick] [--json PATH] [--out DIR]`` subcommand."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from cnc_tools.bench import BENCHES, get_bench
+from cnc_tools.cli import command
+
+
+def _configure(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("name", help=f"benchmark, one of {sorted(BENCHES)}")
+    parser.add_argument("--quick", action="store_true", help="shorter runs and fewer repetitions (< 30 s)")
+    parser.add_argument("--json", type=Path, help="also write the measured figures to this JSON file")
+    parser.add_argument("--out", type=Path, help="folder for run files (default bags/bench/<name>/<timestamp>)")
+
+
+@command("bench", _configure)
+def bench(args: argparse.Namespace) -> int:
+    """Run one benchmark and print its table."""
+    return get_bench(args.name)(args)
