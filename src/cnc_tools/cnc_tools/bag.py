@@ -24,7 +24,7 @@ from types import TracebackType
 import numpy as np
 from numpy.typing import NDArray
 from rosbags.highlevel import AnyReader
-from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+from rosbags.interfaces import Connection, Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
@@ -71,21 +71,32 @@ class BagWriter:
         if unknown:
             raise BagError(f"bag {self.path}: unknown message types {unknown}; not in the Jazzy typestore "
                            "nor in cnc_contour_interfaces")
-        latched = transient_local_topics
-        if latched is None:
-            latched = {t for t, ty in topics.items() if ty == PATH_TYPE}
+        self._latched = transient_local_topics
         self._writer: Writer | None = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._connections: dict[str, Connection] = {}
+        self._closed_counts: dict[str, int] = {}
+        self.topics: dict[str, str] = {}
         try:
             self._writer.open()
-            self._connections = {
-                topic: self._writer.add_connection(
-                    topic, msgtype, typestore=self._store,
-                    offered_qos_profiles=[TRANSIENT_LOCAL_QOS] if topic in latched else [])
-                for topic, msgtype in topics.items()}
         except (WriterError, OSError) as err:
             raise BagError(f"cannot create bag {self.path}: {err}") from err
-        self.topics: dict[str, str] = dict(topics)
-        self._closed_counts: dict[str, int] = {}
+        for topic, msgtype in topics.items():
+            self.add_topic(topic, msgtype)
+
+    def add_topic(self, topic: str, type_name: str) -> None:
+        """Declare one more topic (before writing to it); transient-local if so declared, or of type ``Path``."""
+        if self._writer is None:
+            raise BagError(f"bag {self.path} is closed; cannot add {topic}")
+        if topic in self._connections or type_name not in self._store.types:
+            reason = "is declared already" if topic in self._connections else f"has unknown type {type_name!r}"
+            raise BagError(f"bag {self.path}: topic {topic!r} {reason}")
+        latched = topic in self._latched if self._latched is not None else type_name == PATH_TYPE
+        try:
+            self._connections[topic] = self._writer.add_connection(
+                topic, type_name, typestore=self._store, offered_qos_profiles=[TRANSIENT_LOCAL_QOS] if latched else [])
+        except WriterError as err:
+            raise BagError(f"bag {self.path}: cannot add topic {topic!r}: {err}") from err
+        self.topics[topic] = type_name
 
     def write(self, topic: str, timestamp_ns: int, cdr_bytes: bytes | memoryview) -> None:
         """Append one serialised message; ``timestamp_ns`` is the log time (ns)."""

@@ -64,3 +64,4 @@ def check(args: argparse.Namespace) -> int:
                       "duration_s": scenario.duration_s, "segments": len(scenario.program.segments),
                       "length_mm": scenario.program.total_length_m * 1e3}, indent=2))
     return 0
+from cnc_tools.bench import command as _bench_command  # noqa: F401,E402

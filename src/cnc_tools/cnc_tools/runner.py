@@ -44,6 +44,7 @@ class RunResult:
     run_dir: Path
     summary: dict[str, Any]
     exit_codes: dict[str, int | None] = field(default_factory=dict)
+    bag_path: Path | None = None
 
     @property
     def faults(self) -> list[str]:
@@ -144,8 +145,12 @@ class GraphRun:
         log = open(self.run_dir / f"{spec.name}.log", "wb")  # noqa: SIM115 (closed with the process)
         return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=self.env, start_new_session=True)
 
-    def wait(self, main: str = "plant", timeout_s: float = 3600.0, poll: Callable[[], None] | None = None) -> dict[str, int | None]:
-        """Wait until ``main`` exits; a node that exits first ends the run with a FaultError naming it."""
+    def wait(self, main: str = "plant", timeout_s: float = 3600.0, poll: Callable[[], None] | None = None,
+             may_finish: Sequence[str] = ()) -> dict[str, int | None]:
+        """Wait until ``main`` exits; a node that exits first ends the run with a FaultError naming it.
+
+        Nodes in ``may_finish`` (a recorder that is done) may exit first with code 0.
+        """
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             if poll is not None:
@@ -153,11 +158,21 @@ class GraphRun:
             if self.processes[main].poll() is not None:
                 return self.exit_codes()
             for name, process in self.processes.items():
-                if name != main and process.poll() is not None:
+                if name != main and process.poll() is not None and not (name in may_finish and process.returncode == 0):
                     raise FaultError(f"node {name} (pid {process.pid}) exited with code {process.returncode} "
                                      f"during the run; last output: {self.last_output(name)!r}")
             time.sleep(0.05)
         raise FaultError(f"run did not finish within {timeout_s} s")
+
+    def wait_exit(self, name: str, timeout_s: float) -> int:
+        """Wait for ``name`` to exit by itself; FaultError naming it if it fails or hangs."""
+        try:
+            code = self.processes[name].wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired as err:
+            raise FaultError(f"node {name} did not finish within {timeout_s} s") from err
+        if code != 0:
+            raise FaultError(f"node {name} exited with code {code}: {self.last_output(name)!r}")
+        return code
 
     def exit_codes(self) -> dict[str, int | None]:
         """Exit code of every process (None while running)."""
@@ -185,20 +200,31 @@ class GraphRun:
             process.wait()
 
 
-def run_graph(scenario: Scenario, run_dir: Path, extra_nodes: Sequence[NodeSpec] = (),
-              extra_subscribers: int = 0, env: Mapping[str, str] | None = None,
-              on_poll: Callable[[], None] | None = None, timeout_s: float = 3600.0) -> RunResult:
-    """Run ``scenario`` through the node graph in ``run_dir`` and return its summary."""
+def recorder_spec(scenario: Scenario, bag_path: Path) -> NodeSpec:
+    """The recorder of a run: every topic of the graph, into ``bag_path``."""
+    return NodeSpec("cnc_tools", "recorder", "recorder", {"output": str(bag_path), "axes": list(scenario.axes)})
+
+
+def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_subscribers: int = 0,
+              env: Mapping[str, str] | None = None, on_poll: Callable[[], None] | None = None,
+              timeout_s: float = 3600.0) -> RunResult:
+    """Run ``scenario`` through the node graph in ``run_dir`` (recorded to ``run_dir/bag`` if asked)."""
     run_dir.mkdir(parents=True, exist_ok=True)
-    subscribers = extra_subscribers + sum(1 for n in extra_nodes if n.executable == "recorder")
-    nodes = [*extra_nodes, *graph_nodes(scenario, run_dir, subscribers)]
+    extra = [recorder_spec(scenario, run_dir / "bag")] if record else []
+    nodes = [*extra, *graph_nodes(scenario, run_dir, extra_subscribers + len(extra))]
     with GraphRun(nodes, run_dir, env) as run:
-        codes = run.wait("plant", timeout_s, on_poll)
+        codes = run.wait("plant", timeout_s, on_poll, may_finish=["recorder"])
         summary = _read_summary(run_dir)
         if summary is None:
             raise FaultError(f"node plant exited with code {codes['plant']} before the run ended: "
                              f"{run.last_output('plant')!r}")
-    return RunResult(run_dir, summary, codes)
+        if record and not summary.get("faults"):
+            run.wait_exit("recorder", 60.0)
+        codes = run.exit_codes()
+    result = RunResult(run_dir, summary, codes)
+    if record:
+        result.bag_path = run_dir / "bag"
+    return result
 
 
 def _read_summary(run_dir: Path) -> dict[str, Any] | None:

@@ -15,6 +15,7 @@ from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
@@ -182,12 +183,11 @@ def spin_node(factory: Callable[[], SuiteNode], args: Sequence[str] | None = Non
 
 
 def _flush_and_destroy(node: SuiteNode) -> None:
-    """Give published diagnostics a moment to leave, then destroy the node."""
+    """Wait (bounded) until every reader acknowledged what this node published, then destroy it."""
     if node.fault_message:
         print(f"FAULT: {node.fault_message}", file=sys.stderr, flush=True)
-        deadline = time.monotonic() + 0.5
-        while time.monotonic() < deadline and rclpy.ok():
-            rclpy.spin_once(node, timeout_sec=0.05)
+    for publisher in list(node.publishers):
+        publisher.wait_for_all_acked(Duration(seconds=2.0))
     node.destroy_node()
 
 

@@ -7,6 +7,7 @@ from typing import Any
 
 import yaml
 from cnc_contour_interfaces.msg import AxisCommand
+from diagnostic_msgs.msg import DiagnosticStatus
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
@@ -25,6 +26,8 @@ from cnc_plant_sim.plant import PlantConfig, make_plant
 from cnc_plant_sim.run_clock import RunClock
 
 MODES = ("lockstep", "realtime")
+#: Status message announcing the end of a run (its value "ticks" counts the ticks published).
+RUN_FINISHED = "run finished"
 
 
 class PlantNode(SuiteNode):
@@ -146,6 +149,7 @@ class PlantNode(SuiteNode):
         self.clock.finished_wall_s = wall_time_s()
         self._write_summary()
         self.get_logger().info(f"run finished: {self.clock.tick} ticks")
+        self.report(DiagnosticStatus.OK, RUN_FINISHED, {"ticks": str(self.clock.tick)})
         self.finished = True
 
     def _write_summary(self) -> None:

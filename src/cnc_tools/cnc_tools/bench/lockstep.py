@@ -1,0 +1,185 @@
+"""Bench ``lockstep``: what a lockstep tick costs through DDS, against a bare rclpy hop and the engine.
+
+Measured side by side in one run, on the paper-000 circle
+(``scenarios/paper000_circle_high.yaml``, two axes):
+
+1. the node graph (:func:`cnc_tools.runner.run_graph`) at T = 10 ms and 1 ms:
+   ticks, wall time and real-time factor from the plant's summary, wall time
+   per tick, and per hop: a tick's critical path is plant → interpolator →
+   servo → plant, :data:`HOPS` = 3 hops (the servos run in parallel, and
+   ``joint_states`` reaches them while the interpolator works);
+2. a bare rclpy round trip between two processes
+   (:mod:`cnc_tools.bench.pingpong`, the graph's QoS and executor), with a
+   ``Reference`` and with a ``Float64``; one hop = median round trip / 2;
+3. the ratio per-hop overhead / bare hop (goal <= :data:`HOP_RATIO_GOAL`);
+4. the in-process engine's real-time factor at T = 1 ms and 10 ms, median of
+   several runs (goal at 1 ms >= :data:`ENGINE_RTF_GOAL`).
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+from cnc_tools.bench import register_bench
+from cnc_tools.bench.peers import round_trips
+from cnc_tools.bench.report import format_table, goal_text, machine, write_json
+from cnc_tools.cli import project_root, timestamp
+from cnc_tools.engine import run_engine
+from cnc_tools.runner import run_graph
+from cnc_tools.scenario import Scenario, load_scenario
+
+SCENARIO = "scenarios/paper000_circle_high.yaml"
+#: Hops on a tick's critical path: plant -> interpolator -> servo -> plant.
+HOPS = 3
+#: Goal: a graph hop costs at most this many bare rclpy hops.
+HOP_RATIO_GOAL = 2.0
+#: Goal: the engine runs two axes at T = 1 ms at least this much faster than real time.
+ENGINE_RTF_GOAL = 100.0
+SAMPLE_TIMES_S = (0.01, 0.001)
+
+
+@dataclass(frozen=True)
+class Plan:
+    """How long a bench run measures."""
+
+    graph_duration_s: dict[float, float | None]  # per T; None: the scenario's duration
+    pingpong_iterations: int
+    pingpong_warmup: int
+    engine_repeats: int
+
+
+FULL = Plan({0.01: None, 0.001: None}, 2000, 200, 7)
+QUICK = Plan({0.01: 2.0, 0.001: 1.0}, 500, 50, 3)
+
+
+@dataclass(frozen=True)
+class GraphFigures:
+    """One node-graph run."""
+
+    sample_time_s: float
+    ticks: int
+    simulated_time_s: float
+    wall_time_s: float
+    real_time_factor: float
+    wall_per_tick_s: float
+    per_hop_s: float
+
+
+@dataclass(frozen=True)
+class HopFigures:
+    """The bare rclpy round trip of one message type."""
+
+    message: str
+    iterations: int
+    round_trip_median_s: float
+    round_trip_p90_s: float
+    one_way_hop_s: float
+
+
+@dataclass(frozen=True)
+class EngineFigures:
+    """Repeated engine runs at one sample time."""
+
+    sample_time_s: float
+    ticks: int
+    repeats: int
+    real_time_factor_median: float
+    real_time_factor_best: float
+    wall_per_tick_median_s: float
+
+
+def scenario_at(sample_time_s: float, duration_s: float | None) -> Scenario:
+    """The bench's scenario at ``sample_time_s`` (and a shorter duration, if given)."""
+    overrides: dict[str, Any] = {"sample_time_s": sample_time_s}
+    if duration_s is not None:
+        overrides["duration_s"] = duration_s
+    return load_scenario(project_root() / SCENARIO, overrides)
+
+
+def measure_graph(scenario: Scenario, run_dir: Path) -> GraphFigures:
+    """Run the node graph once and derive the per-tick and per-hop wall time."""
+    summary = run_graph(scenario, run_dir).summary
+    ticks, wall_s = int(summary["ticks"]), float(summary["wall_time_s"])
+    per_tick = wall_s / ticks
+    return GraphFigures(scenario.sample_time_s, ticks, float(summary["simulated_time_s"]), wall_s,
+                        float(summary["real_time_factor"]), per_tick, per_tick / HOPS)
+
+
+def measure_hop(run_dir: Path, message: str, plan: Plan) -> HopFigures:
+    """Median and 90th percentile of the bare round trip; one hop is half the median."""
+    times = sorted(round_trips(run_dir, message, plan.pingpong_iterations, plan.pingpong_warmup))
+    median = statistics.median(times)
+    return HopFigures(message, len(times), median, times[int(0.9 * (len(times) - 1))], median / 2.0)
+
+
+def measure_engine(scenario: Scenario, repeats: int) -> EngineFigures:
+    """Real-time factor of ``repeats`` engine runs (median and best)."""
+    results = [run_engine(scenario) for _ in range(repeats)]
+    factors = [r.real_time_factor for r in results]
+    return EngineFigures(scenario.sample_time_s, results[0].ticks, repeats, statistics.median(factors),
+                         max(factors), statistics.median(r.wall_time_s / r.ticks for r in results))
+
+
+@register_bench("lockstep")
+def lockstep_bench(options: argparse.Namespace) -> int:
+    """Measure the node graph, the bare hop and the engine; print the table; write JSON if asked."""
+    plan = QUICK if options.quick else FULL
+    run_dir = options.out or project_root() / "bags" / "bench" / "lockstep" / timestamp()
+    print(f"lockstep bench ({'quick' if options.quick else 'full'}) on {SCENARIO}; run files in {run_dir}", flush=True)
+    graph = []
+    for t in SAMPLE_TIMES_S:
+        print(f"  node graph at T = {t * 1e3:g} ms ...", flush=True)
+        graph.append(measure_graph(scenario_at(t, plan.graph_duration_s[t]), run_dir / f"graph_T{t * 1e3:g}ms"))
+    print("  bare rclpy ping-pong ...", flush=True)
+    hops = [measure_hop(run_dir / "pingpong", message, plan) for message in ("reference", "float64")]
+    print("  engine ...", flush=True)
+    engine = [measure_engine(scenario_at(t, None), plan.engine_repeats) for t in SAMPLE_TIMES_S]
+    figures = collect(options.quick, graph, hops, engine)
+    print_figures(figures)
+    write_json(options.json, figures)
+    return 0
+
+
+def collect(quick: bool, graph: list[GraphFigures], hops: list[HopFigures],
+            engine: list[EngineFigures]) -> dict[str, Any]:
+    """Every figure of the run, with the ratios and goals, as plain types."""
+    bare = hops[0].one_way_hop_s
+    ratios = [{"sample_time_s": g.sample_time_s, "per_hop_s": g.per_hop_s, "bare_hop_s": bare,
+               "ratio": g.per_hop_s / bare, "goal": HOP_RATIO_GOAL, "met": g.per_hop_s / bare <= HOP_RATIO_GOAL}
+              for g in graph]
+    at_1ms = next(e for e in engine if e.sample_time_s == 0.001)
+    return {
+        "bench": "lockstep", "quick": quick, "scenario": SCENARIO, "machine": machine(), "hops_per_tick": HOPS,
+        "graph": [asdict(g) for g in graph], "bare_hop": [asdict(h) for h in hops],
+        "hop_ratio": ratios, "engine": [asdict(e) for e in engine],
+        "engine_goal": {"sample_time_s": 0.001, "real_time_factor_min": ENGINE_RTF_GOAL,
+                        "measured_median": at_1ms.real_time_factor_median,
+                        "met": at_1ms.real_time_factor_median >= ENGINE_RTF_GOAL},
+    }
+
+
+def print_figures(figures: dict[str, Any]) -> None:
+    """The four tables of the bench."""
+    m = figures["machine"]
+    print(f"\nmachine: {m['cpus']} cores, {m['cpu']}, Python {m['python']}, {m['rmw']}, "
+          f"load average {m['load_average_1min']:.2f}")
+    print(f"\nnode graph, {figures['scenario']} (2 axes), {HOPS} hops per tick (plant -> interpolator -> servo -> plant)")
+    print(format_table(["T [ms]", "ticks", "wall [s]", "RTF", "wall/tick [us]", "per hop [us]"], [
+        [g["sample_time_s"] * 1e3, g["ticks"], g["wall_time_s"], g["real_time_factor"],
+         g["wall_per_tick_s"] * 1e6, g["per_hop_s"] * 1e6] for g in figures["graph"]]))
+    print("\nbare rclpy hop, 2 processes, LOCKSTEP_QOS, SingleThreadedExecutor.spin_once")
+    print(format_table(["message", "round trips", "median RTT [us]", "p90 RTT [us]", "one-way hop [us]"], [
+        [h["message"], h["iterations"], h["round_trip_median_s"] * 1e6, h["round_trip_p90_s"] * 1e6,
+         h["one_way_hop_s"] * 1e6] for h in figures["bare_hop"]]))
+    print(f"\nper-hop overhead / bare hop (Reference), goal <= {HOP_RATIO_GOAL:g}")
+    print(format_table(["T [ms]", "per hop [us]", "bare hop [us]", "ratio", "goal"], [
+        [r["sample_time_s"] * 1e3, r["per_hop_s"] * 1e6, r["bare_hop_s"] * 1e6, r["ratio"], goal_text(r["met"])]
+        for r in figures["hop_ratio"]]))
+    goal = figures["engine_goal"]
+    print(f"\nengine (in-process), 2 axes; goal at T = 1 ms: RTF >= {ENGINE_RTF_GOAL:g} (median): {goal_text(goal['met'])}")
+    print(format_table(["T [ms]", "ticks", "runs", "RTF median", "RTF best", "wall/tick [us]"], [
+        [e["sample_time_s"] * 1e3, e["ticks"], e["repeats"], e["real_time_factor_median"],
+         e["real_time_factor_best"], e["wall_per_tick_median_s"] * 1e6] for e in figures["engine"]]))
