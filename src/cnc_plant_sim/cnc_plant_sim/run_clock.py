@@ -39,9 +39,10 @@ class RunClock:
         """True once the stamp has passed the run's duration."""
         return self.stamp_ns > self.end_ns
 
-    def summary(self, faults: list[str]) -> dict[str, object]:
-        """Ticks, simulated and wall time, real-time factor, late commands, faults."""
-        wall_s = (self.finished_wall_s or 0.0) - (self.started_wall_s or 0.0)
+    def summary(self, faults: list[str], now_wall_s: float) -> dict[str, object]:
+        """Ticks, simulated and wall time (to the end, or to ``now_wall_s`` while running), real-time factor."""
+        end_s = self.finished_wall_s if self.finished_wall_s is not None else now_wall_s
+        wall_s = end_s - (self.started_wall_s if self.started_wall_s is not None else end_s)
         sim_s = self.stamp_ns / NS_PER_S
         return {
             "ticks": self.tick,

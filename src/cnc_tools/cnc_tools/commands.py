@@ -5,7 +5,9 @@ import argparse
 import json
 from pathlib import Path
 
+from cnc_contour_control.errors import CncError
 from cnc_tools.cli import command, parse_overrides, project_root, timestamp
+from cnc_tools.pipeline import report_runs, score_bag
 from cnc_tools.engine import run_engine
 from cnc_tools.runner import run_graph
 from cnc_tools.scenario import load_scenario
@@ -30,11 +32,42 @@ def run(args: argparse.Namespace) -> int:
         print_summary(scenario.name, "engine", summary)
         return 0
     run_dir = args.out or project_root() / "bags" / scenario.name / timestamp()
+    if run_dir.exists():
+        raise CncError(f"run folder {run_dir} exists already; runs are never overwritten")
     print(f"running {scenario.name} through the node graph ({scenario.mode}, T = {scenario.sample_time_s} s, "
-          f"{scenario.duration_s:.2f} s simulated) in {run_dir}", flush=True)
-    result = run_graph(scenario, run_dir)
+          f"{scenario.duration_s:.2f} s simulated), recording to {run_dir / 'bag'}", flush=True)
+    result = run_graph(scenario, run_dir, record=True, on_poll=Progress(run_dir / "summary.json", scenario.duration_s))
     print_summary(scenario.name, "node graph", result.summary)
-    return 1 if result.faults else 0
+    if result.faults or result.bag_path is None:
+        return 1
+    scored = score_bag(result.bag_path, run_dir)
+    print(scored.score.to_table())
+    plots = report_runs([scored], run_dir / "report")
+    print(f"bag:   {result.bag_path}\njson:  {scored.json_path}\ncsv:   {scored.csv_path}")
+    print("plots: " + "\n       ".join(str(p) for p in plots))
+    return 0
+
+
+class Progress:
+    """Prints the simulated time reached, read from the plant's running summary, at most once a second."""
+
+    def __init__(self, summary_file: Path, duration_s: float) -> None:
+        self.summary_file, self.duration_s = summary_file, duration_s
+        self.last_print_s = 0.0
+
+    def __call__(self) -> None:
+        import time
+
+        now = time.monotonic()
+        if now - self.last_print_s < 1.0 or not self.summary_file.exists():
+            return
+        self.last_print_s = now
+        try:
+            reached = float(json.loads(self.summary_file.read_text()).get("simulated_time_s", 0.0))
+        except (ValueError, OSError):
+            return
+        print(f"  ... {reached:6.2f} / {self.duration_s:.2f} s simulated ({100 * reached / self.duration_s:3.0f} %)",
+              flush=True)
 
 
 def print_summary(name: str, how: str, summary: dict[str, object]) -> None:
@@ -64,4 +97,41 @@ def check(args: argparse.Namespace) -> int:
                       "duration_s": scenario.duration_s, "segments": len(scenario.program.segments),
                       "length_mm": scenario.program.total_length_m * 1e3}, indent=2))
     return 0
+
+
+def _configure_score(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("bags", nargs="+", type=Path, help="bag folders (or .mcap files)")
+    parser.add_argument("--metrics", nargs="*", help="metric names (default: all registered)")
+    parser.add_argument("--out", type=Path, help="write score.json and score.csv per bag under this folder")
+
+
+@command("score", _configure_score)
+def score(args: argparse.Namespace) -> int:
+    """Score recorded runs: exact contour error from the recorded path and positions."""
+    status = 0
+    for bag in args.bags:
+        out = args.out / bag.resolve().parent.name if args.out else None
+        scored = score_bag(bag, out, args.metrics)
+        print(scored.score.to_table())
+        if not scored.run.integrity.complete:
+            status = 1
+        if scored.json_path:
+            print(f"json: {scored.json_path}\ncsv:  {scored.csv_path}")
+    return status
+
+
+def _configure_report(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("bags", nargs="+", type=Path, help="bag folders; several are drawn side by side")
+    parser.add_argument("--out", type=Path, default=Path("reports") / timestamp(), help="folder for the PNGs")
+
+
+@command("report", _configure_report)
+def report(args: argparse.Namespace) -> int:
+    """PNG plots of one or more recorded runs."""
+    scored = [score_bag(bag) for bag in args.bags]
+    for path in report_runs(scored, args.out):
+        print(path)
+    return 0
+
+
 from cnc_tools.bench import command as _bench_command  # noqa: F401,E402

@@ -104,8 +104,8 @@ def _plant_spec(scenario: Scenario, run_dir: Path, subscribers: int, timeout_s: 
         "initial_position_m": [float(v) for v in scenario.program.start_m],
         "sample_time_s": float(scenario.sample_time_s), "duration_s": float(scenario.duration_s),
         "mode": scenario.mode, "expected_subscribers": subscribers,
-        # Twice the stages' timeout: the stage nearest the missing input reports it first.
-        "summary_file": str(run_dir / "summary.json"), "command_timeout_s": 2.0 * float(timeout_s),
+        # Thrice the stages' timeout: the stage nearest the missing input reports it first.
+        "summary_file": str(run_dir / "summary.json"), "command_timeout_s": 3.0 * float(timeout_s),
     })
 
 
@@ -228,8 +228,10 @@ def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_sub
 
 
 def _read_summary(run_dir: Path) -> dict[str, Any] | None:
+    """The plant's final summary; None if it never wrote one or stopped while running."""
     path = run_dir / "summary.json"
-    return json.loads(path.read_text()) if path.exists() else None
+    summary = json.loads(path.read_text()) if path.exists() else None
+    return summary if summary and summary.get("status") in ("finished", "faulted") else None
 
 
 class _QuotedDumper(yaml.SafeDumper):

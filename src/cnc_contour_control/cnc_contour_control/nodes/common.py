@@ -186,8 +186,10 @@ def _flush_and_destroy(node: SuiteNode) -> None:
     """Wait (bounded) until every reader acknowledged what this node published, then destroy it."""
     if node.fault_message:
         print(f"FAULT: {node.fault_message}", file=sys.stderr, flush=True)
+    # After a fault, readers may be gone: wait briefly so the diagnostic still leaves.
+    timeout = Duration(seconds=0.3 if node.fault_message else 2.0)
     for publisher in list(node.publishers):
-        publisher.wait_for_all_acked(Duration(seconds=2.0))
+        publisher.wait_for_all_acked(timeout)
     node.destroy_node()
 
 

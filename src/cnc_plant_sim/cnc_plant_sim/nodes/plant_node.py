@@ -59,6 +59,7 @@ class PlantNode(SuiteNode):
             self.create_subscription(AxisCommand, f"servo/{axis}/command", self.guarded(self._command_callback(axis)), LOCKSTEP_QOS)
         self.create_timer(0.02, self.guarded(self._wait_for_graph))
         self.create_timer(0.1, self.guarded(self._watchdog))
+        self.create_timer(1.0, self._write_progress)
 
     def _plant_config(self) -> PlantConfig:
         overrides = yaml.safe_load(self.declare("axis_overrides", "{}", describe("per-axis model overrides as a YAML mapping", read_only=True))) or {}
@@ -152,10 +153,16 @@ class PlantNode(SuiteNode):
         self.report(DiagnosticStatus.OK, RUN_FINISHED, {"ticks": str(self.clock.tick)})
         self.finished = True
 
-    def _write_summary(self) -> None:
-        if self.clock.finished_wall_s is None:
-            self.clock.finished_wall_s = wall_time_s()
-        summary = self.clock.summary([self.fault_message] if self.fault_message else [])
+    def _write_progress(self) -> None:
+        if self.started and not self.finished:
+            self._write_summary("running")
+
+    def _write_summary(self, status: str | None = None) -> None:
+        if status is None:
+            status = "faulted" if self.fault_message else "finished"
+            self.clock.finished_wall_s = self.clock.finished_wall_s or wall_time_s()
+        summary = self.clock.summary([self.fault_message] if self.fault_message else [], wall_time_s())
+        summary["status"] = status
         summary["plant"] = self.plant.describe()
         if self.summary_file:
             Path(self.summary_file).write_text(json.dumps(summary, indent=2))

@@ -127,6 +127,7 @@ def measure_engine(scenario: Scenario, repeats: int) -> EngineFigures:
 def lockstep_bench(options: argparse.Namespace) -> int:
     """Measure the node graph, the bare hop and the engine; print the table; write JSON if asked."""
     plan = QUICK if options.quick else FULL
+    load_at_start = machine()["load_average_1min"]
     run_dir = options.out or project_root() / "bags" / "bench" / "lockstep" / timestamp()
     print(f"lockstep bench ({'quick' if options.quick else 'full'}) on {SCENARIO}; run files in {run_dir}", flush=True)
     graph = []
@@ -138,6 +139,7 @@ def lockstep_bench(options: argparse.Namespace) -> int:
     print("  engine ...", flush=True)
     engine = [measure_engine(scenario_at(t, None), plan.engine_repeats) for t in SAMPLE_TIMES_S]
     figures = collect(options.quick, graph, hops, engine)
+    figures["machine"]["load_average_1min_at_start"] = load_at_start
     print_figures(figures)
     write_json(options.json, figures)
     return 0
@@ -164,8 +166,8 @@ def collect(quick: bool, graph: list[GraphFigures], hops: list[HopFigures],
 def print_figures(figures: dict[str, Any]) -> None:
     """The four tables of the bench."""
     m = figures["machine"]
-    print(f"\nmachine: {m['cpus']} cores, {m['cpu']}, Python {m['python']}, {m['rmw']}, "
-          f"load average {m['load_average_1min']:.2f}")
+    print(f"\nmachine: {m['cpus']} cores, {m['cpu']}, Python {m['python']}, {m['rmw']}; 1-min load average "
+          f"{m['load_average_1min_at_start']:.2f} at start, {m['load_average_1min']:.2f} at end")
     print(f"\nnode graph, {figures['scenario']} (2 axes), {HOPS} hops per tick (plant -> interpolator -> servo -> plant)")
     print(format_table(["T [ms]", "ticks", "wall [s]", "RTF", "wall/tick [us]", "per hop [us]"], [
         [g["sample_time_s"] * 1e3, g["ticks"], g["wall_time_s"], g["real_time_factor"],
