@@ -76,4 +76,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    # Run the imported module's main, so subcommands register in the one registry.
+    from cnc_tools.cli import main as _imported_main
+
+    raise SystemExit(_imported_main())

@@ -87,7 +87,7 @@ def graph_nodes(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0,
 
 
 def _with_axes(scenario: Scenario) -> dict[str, Any]:
-    program = dict(scenario.raw["program"])
+    program = {"name": scenario.name, **dict(scenario.raw["program"])}
     if "gcode_file" in program and scenario.source is not None:
         program["gcode_file"] = str((scenario.source.parent / program["gcode_file"]).resolve())
     return program

@@ -104,7 +104,7 @@ class SuiteNode(Node):
         super().__init__(name, **kwargs)
         self.fault_message: str | None = None
         self.finished = False
-        self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 100)
 
     def gated_publisher(self, msg_type: type, topic: str, default_min: int) -> GatedPublisher:
         """A lockstep publisher that waits for ``min_subscribers`` matched readers (a parameter)."""
@@ -188,8 +188,9 @@ def _flush_and_destroy(node: SuiteNode) -> None:
         print(f"FAULT: {node.fault_message}", file=sys.stderr, flush=True)
     # After a fault, readers may be gone: wait briefly so the diagnostic still leaves.
     timeout = Duration(seconds=0.3 if node.fault_message else 2.0)
-    for publisher in list(node.publishers):
-        publisher.wait_for_all_acked(timeout)
+    if node.context.ok():  # after SIGINT/SIGTERM the context is gone and nothing can be flushed
+        for publisher in list(node.publishers):
+            publisher.wait_for_all_acked(timeout)
     node.destroy_node()
 
 

@@ -54,7 +54,7 @@ class PlantNode(SuiteNode):
         self.received = [False] * len(self.axes)
         self.started = False
         self.joint_pub = self.create_publisher(JointState, "joint_states", LOCKSTEP_QOS)
-        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.clock_pub = self.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
         for axis in self.axes:
             self.create_subscription(AxisCommand, f"servo/{axis}/command", self.guarded(self._command_callback(axis)), LOCKSTEP_QOS)
         self.create_timer(0.02, self.guarded(self._wait_for_graph))

@@ -1,0 +1,152 @@
+"""Raw reading of a bag: locate its MCAP file, read the CDR bytes of wanted topics with their log times.
+
+Reading goes through ``rosbags``' ``AnyReader`` (the file's index). When that
+fails (a truncated or damaged file) the salvage scan (:mod:`cnc_tools.mcap_salvage`)
+keeps every intact message of the readable prefix. Either way the result says,
+in a :class:`~cnc_tools.recorded_run.BagIntegrity`, how the file was read and
+how many messages were lost. Shared by ``read_bag`` (scoring) and replay. No rclpy.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from rosbags.highlevel import AnyReader
+from rosbags.typesys.store import Typestore
+from ruamel.yaml import YAML
+
+from cnc_contour_control.errors import BagError
+from cnc_tools.mcap_salvage import scan_mcap, scan_typestore
+from cnc_tools.recorded_run import BagIntegrity
+from cnc_tools.typestore import project_typestore
+
+TopicFilter = Callable[[str], bool]
+
+
+@dataclass(frozen=True)
+class BagSource:
+    """The MCAP file of a bag and what its ``metadata.yaml`` says (counts ``None`` when unusable)."""
+
+    mcap_path: Path
+    metadata_counts: Mapping[str, int] | None
+    problems: tuple[str, ...]
+
+
+@dataclass
+class RawBag:
+    """Raw CDR messages of the wanted topics, per topic in the order read.
+
+    ``log_time_ns[topic][i]`` is the log time of ``data[topic][i]``; ``sequence``
+    its position in the order the file was read (log time, then file order), so
+    the messages of several topics can be merged back into that order.
+    """
+
+    msgtypes: dict[str, str] = field(default_factory=dict)
+    data: dict[str, list[bytes | memoryview]] = field(default_factory=dict)
+    log_time_ns: dict[str, list[int]] = field(default_factory=dict)
+    sequence: dict[str, list[int]] = field(default_factory=dict)
+    typestore: Typestore | None = None
+    _read: int = 0
+
+    def declare(self, topic: str, msgtype: str) -> None:
+        """A topic of the bag (with no messages yet)."""
+        self.msgtypes[topic] = msgtype
+        self.data.setdefault(topic, [])
+        self.log_time_ns.setdefault(topic, [])
+        self.sequence.setdefault(topic, [])
+
+    def append(self, topic: str, log_time_ns: int, data: bytes | memoryview) -> None:
+        """One message, after those read before it."""
+        self.data.setdefault(topic, []).append(data)
+        self.log_time_ns.setdefault(topic, []).append(log_time_ns)
+        self.sequence.setdefault(topic, []).append(self._read)
+        self._read += 1
+
+    def in_read_order(self) -> Iterator[tuple[str, int, bytes | memoryview]]:
+        """(topic, log time ns, data) of every message, in the order read."""
+        entries = [(seq, topic, i) for topic, seqs in self.sequence.items() for i, seq in enumerate(seqs)]
+        for _, topic, i in sorted(entries):
+            yield topic, self.log_time_ns[topic][i], self.data[topic][i]
+
+
+# =========================================================================== locating and metadata
+def _metadata_counts(folder: Path) -> tuple[dict[str, int] | None, list[str], tuple[str, ...]]:
+    """Per-topic counts and file names from ``metadata.yaml``; ``None`` and a note when unusable."""
+    meta_path = folder / "metadata.yaml"
+    if not meta_path.is_file():
+        return None, [], (f"{meta_path} is missing",)
+    try:
+        info = YAML(typ="safe").load(meta_path.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+        counts = {str(t["topic_metadata"]["name"]): int(t["message_count"]) for t in info["topics_with_message_count"]}
+        return counts, [Path(str(p)).name for p in info.get("relative_file_paths", [])], ()
+    except Exception as err:  # noqa: BLE001 - any malformed YAML is reported, never raised raw
+        return None, [], (f"{meta_path} is unreadable ({type(err).__name__}: {err})",)
+
+
+def locate(path: Path) -> BagSource:
+    """The MCAP file of a bag folder (or the file itself) and its metadata.
+
+    Raises
+    ------
+    BagError
+        The path does not exist, holds no ``.mcap`` file, or a split bag.
+    """
+    if not path.exists():
+        raise BagError(f"bag {path} does not exist")
+    folder = path if path.is_dir() else path.parent
+    counts, listed, problems = _metadata_counts(folder)
+    if path.is_file():
+        return BagSource(path, counts if path.name in listed else None, problems)
+    names = [n for n in listed if (folder / n).is_file()] or sorted(p.name for p in folder.glob("*.mcap"))
+    if not names:
+        raise BagError(f"bag {path} holds no .mcap file")
+    if len(names) > 1:
+        raise BagError(f"bag {path} is split into {names}; split bags are not supported")
+    return BagSource(folder / names[0], counts, problems)
+
+
+# =========================================================================== the two ways of reading
+def _read_indexed(source: BagSource, wanted: TopicFilter) -> tuple[RawBag, dict[str, int]]:
+    """Read through rosbags (the MCAP index). Returns the messages and the summary's counts."""
+    target = source.mcap_path.parent if source.metadata_counts is not None else source.mcap_path
+    raw = RawBag()
+    with AnyReader([target], default_typestore=project_typestore()) as reader:
+        connections = [c for c in reader.connections if wanted(c.topic)]
+        for conn in connections:
+            raw.declare(conn.topic, conn.msgtype)
+        for conn, log_time_ns, data in reader.messages(connections=connections) if connections else ():
+            raw.append(conn.topic, log_time_ns, data)
+        raw.typestore = reader.typestore
+    return raw, {c.topic: c.msgcount for c in connections}
+
+
+def _read_scanned(source: BagSource, wanted: TopicFilter, index_error: str) -> tuple[RawBag, BagIntegrity]:
+    raw = RawBag()
+    scan, problem = scan_mcap(source.mcap_path, wanted, raw.append)
+    # Declared after the scan; declaring keeps the messages already appended.
+    for topic, msgtype in scan.topic_types().items():
+        raw.declare(topic, msgtype)
+    raw.typestore = scan_typestore(scan)
+    expected, expected_source = source.metadata_counts, "metadata.yaml"
+    if expected is None and scan.statistics_counts() is not None:
+        expected, expected_source = scan.statistics_counts(), "mcap summary"
+    problems = (f"index unreadable ({index_error})", *((problem,) if problem else ()), *source.problems)
+    found = {topic: scan.counts.get(topic, 0) for topic in raw.msgtypes}
+    found.update({t: scan.counts.get(t, 0) for t in (expected or {}) if wanted(t)})
+    integrity = BagIntegrity(False, "scan", found, expected, expected_source if expected else "unknown", problems)
+    return raw, integrity
+
+
+def read_raw(source: BagSource, wanted: TopicFilter) -> tuple[RawBag, BagIntegrity]:
+    """Read the wanted topics through the index, else by the salvage scan; say how intact the bag is."""
+    try:
+        raw, summary_counts = _read_indexed(source, wanted)
+    except Exception as err:  # noqa: BLE001 - a damaged file may make rosbags raise anything; the scan decides
+        return _read_scanned(source, wanted, f"{type(err).__name__}: {err}")
+    expected = source.metadata_counts if source.metadata_counts is not None else summary_counts
+    found = {topic: len(data) for topic, data in raw.data.items()}
+    found.update({t: found.get(t, 0) for t in expected if wanted(t)})
+    mismatch = tuple(f"{t}: {found[t]} of {expected.get(t, 0)} messages" for t in found if found[t] != expected.get(t, 0))
+    source_name = "metadata.yaml" if source.metadata_counts is not None else "mcap summary"
+    return raw, BagIntegrity(not mismatch, "index", found, expected, source_name, mismatch + source.problems)
