@@ -6,6 +6,7 @@ from typing import Any
 from cnc_contour_interfaces.msg import Path, Reference
 from sensor_msgs.msg import JointState
 
+from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_contour_control.lockstep import ns_to_s
 from cnc_contour_control.nodes.common import (
@@ -46,6 +47,8 @@ class InterpolatorNode(SuiteNode):
             clamp_feed=self.declare("clamp_feed", False, describe("slow down instead of refusing a feed above the axis limits", read_only=True)),
         )
         program = read_program_file(program_file, self.axes)
+        if tuple(program.axis_names) != self.axes:
+            raise ConfigError(f"program axes {list(program.axis_names)} differ from parameter axes {list(self.axes)}")
         limits = AxisLimits(
             max_velocity_m_s=tuple(mm_min_to_m_s(v) for v in _per_axis(velocity, len(self.axes))),
             max_acceleration_m_s2=tuple(mm_s2_to_m_s2(a) for a in _per_axis(accel, len(self.axes))),
