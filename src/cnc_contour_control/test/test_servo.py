@@ -169,20 +169,17 @@ def eq1_error_blu(kp: float) -> float:
 
 
 def test_p_control_steady_error_matches_eq1() -> None:
-    pytest.importorskip("cnc_plant_sim")
     errors = track_ramp("p", {"kp": 2.4}, quantum=0.0)
     assert_allclose(errors[-100:], eq1_error_blu(2.4), rtol=1e-6)
 
 
 def test_p_control_with_8bit_dac_stays_near_eq1() -> None:
-    pytest.importorskip("cnc_plant_sim")
     steady = track_ramp("p", {"kp": 2.4}, quantum=1.0)[-200:]
     assert abs(steady.mean() - eq1_error_blu(2.4)) < 0.1
     assert np.ptp(steady) < 1.0  # quantisation ripple of about ±0.5 DAC / Kp
 
 
 def test_pid_tracks_the_ramp_with_bounded_error() -> None:
-    pytest.importorskip("cnc_plant_sim")
     errors = track_ramp("pid", {}, quantum=1.0)
     assert np.abs(errors).max() < 2.0 * eq1_error_blu(2.4)  # start-up from stiction, ~18 BLU
     assert np.abs(errors[-200:]).max() < 0.5  # the integral removes Eq. (1)'s error

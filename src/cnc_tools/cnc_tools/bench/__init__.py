@@ -41,3 +41,4 @@ def get_bench(name: str) -> Bench:
 
 
 from cnc_tools.bench import lockstep as _lockstep  # noqa: E402,F401  (registers "lockstep")
+from cnc_tools.bench import scoring as _scoring  # noqa: E402,F401  (registers "scoring")

@@ -1,0 +1,534 @@
+"""Friction identification (paper 000, Section 2): constant-speed runs under P control.
+
+One axis runs a straight line at a constant programmed speed ``V_r`` under a
+pure P law ``u = K_p e`` (8-bit DAC: saturated at ±127, quantised to 1). In
+steady state the drive ``dP/dt = K (u − F_d)`` gives Eq. (1) of the paper,
+``e_ss = V_r/(K K_e K_p) + F_d/K_p``, hence Eq. (1a)::
+
+    F_d = K_p e_ss − V_r / (K K_e)
+
+Units (the plant's, see :mod:`cnc_plant_sim.axis`): ``e_ss`` and ``V_r`` in
+servo counts and counts/s, ``K`` in BLU/s per DAC unit, ``K_e`` the encoder
+gain in counts per BLU (``counts_per_m · blu_m``; 1 for paper 000, whose
+servo counts are BLU), ``F_d`` and ``u`` in DAC units. ``K`` is the plant's
+*nominal* gain, as an experimenter knows it from the drive's data: with the
+random ±5 % gain variation the ``V_r/(K K_e)`` term is off by up to 5 %, which
+is part of the run-to-run spread.
+
+``e_ss`` is the mean following error over a window of the constant-speed part
+of the reference: it starts ``settle_s`` after the ramp reaches ``V_r`` and
+ends where the deceleration ramp starts. The 8-bit quantisation makes the
+command toggle between neighbouring DAC levels, so ``e`` ripples; the mean
+over the window is used, and ``quantisation_dac = mean(u) − K_p·mean(e)``
+shows how much the rounding biases that mean (the estimate from ``mean(u)``
+would be free of it). A window where the axis stops (stick-slip near V = 0),
+drifts, or does not move at ``V_r`` is flagged, not hidden (:data:`STATUSES`).
+
+The fitted curve has the form of Eq. (15) per branch: a quadratic in V up to
+a break speed and a constant beyond (the break chosen by least squares). It
+is written as a ``table`` friction (:class:`~cnc_plant_sim.friction.TableFriction`)
+usable as a plant friction model or as a feedforward table.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+import yaml
+
+from cnc_contour_control.config import require_choice, require_non_negative, require_positive
+from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.units import M_PER_MM
+from cnc_plant_sim.friction import FrictionModel, TableFriction, make_friction
+from cnc_plant_sim.plant import PlantConfig
+from cnc_tools.scenario import Scenario, build_scenario
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Speed magnitudes [mm/s], run in both directions; denser near 0 where the curve bends.
+DEFAULT_SPEEDS_MM_S = (0.05, 0.1, 0.25, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0, 8.0, 10.0, 11.5, 13.0, 16.0, 20.0)
+#: Paper 000's plant and servo hardware: T = 10 ms, 8-bit DAC, BLU = 10 µm, ±5 %/±5 %/±8 % variation.
+DEFAULT_TEMPLATE: dict[str, Any] = {
+    "sample_time_s": 0.01, "mode": "lockstep",
+    "plant": {"model": "paper000", "axes": ["x", "y"],
+              "variation": {"gain_pct": 5.0, "time_constant_pct": 5.0, "friction_pct": 8.0}},
+    "limits": {"max_velocity_mm_min": 2000.0, "max_acceleration_mm_s2": 250.0},
+    "servo": {"counts_per_m": 1.0e5, "output_limit": 127.0, "quantum": 1.0, "command_unit": "dac"},
+}
+#: Window statuses: ``steady`` is used for the curve; the others are reported.
+STATUSES = ("steady", "stick-slip", "stuck")
+#: Largest share of window samples in which the axis may stand still for ``steady``.
+MAX_STOPPED_FRACTION = 0.05
+#: Largest relative deviation of the measured mean speed from ``V_r`` for ``steady``.
+MAX_SPEED_DEVIATION = 0.05
+#: Largest change of ``K_p·mean(e)`` between the window's halves [DAC] for ``steady``.
+MAX_DRIFT_DAC = 0.5
+#: Extra cruise beyond ``settle_s + window_s`` [s] (keeps the window off the deceleration ramp).
+CRUISE_MARGIN_S = 0.2
+#: Simulated time after the program ends [s] (nothing is measured there).
+RUN_TAIL_S = 0.1
+
+
+@dataclass(frozen=True)
+class IdentificationConfig:
+    """What to run: axis, speeds, P gain, plants, averaging window.
+
+    Parameters
+    ----------
+    axis : str
+        Axis to identify (one of the template plant's axes).
+    speeds_mm_s : tuple of float
+        Speed magnitudes [mm/s], each > 0, distinct; both directions are run.
+    kp_dac_per_count : float
+        Gain of the P law [DAC units per servo count], > 0.
+    seeds : tuple of int
+        Seeds of the varied plants (the template's ±% variation), >= 0; the
+        nominal plant (no variation) is always run as well.
+    settle_s : float
+        Time after the ramp reaches ``V_r`` before averaging starts [s], >= 0.
+    window_s : float
+        Averaging window [s], > 0 (at least 10 samples).
+    """
+
+    axis: str = "x"
+    speeds_mm_s: tuple[float, ...] = DEFAULT_SPEEDS_MM_S
+    kp_dac_per_count: float = 2.4
+    seeds: tuple[int, ...] = (1, 2, 3, 4)
+    settle_s: float = 1.0
+    window_s: float = 2.0
+
+    def __post_init__(self) -> None:
+        speeds = tuple(require_positive(f"speeds_mm_s[{i}]", v) for i, v in enumerate(self.speeds_mm_s))
+        if not speeds:
+            raise ConfigError("speeds_mm_s must hold at least one speed, got []")
+        if len(set(speeds)) != len(speeds):
+            raise ConfigError(f"speeds_mm_s must be distinct, got {list(speeds)}")
+        object.__setattr__(self, "speeds_mm_s", tuple(sorted(speeds)))
+        require_positive("kp_dac_per_count", self.kp_dac_per_count)
+        require_non_negative("settle_s", self.settle_s)
+        require_positive("window_s", self.window_s)
+        for i, seed in enumerate(self.seeds):
+            if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+                raise ConfigError(f"seeds[{i}] must be an integer >= 0, got {seed!r}")
+        if len(set(self.seeds)) != len(self.seeds):
+            raise ConfigError(f"seeds must be distinct, got {list(self.seeds)}")
+
+    @property
+    def signed_speeds_mm_s(self) -> tuple[float, ...]:
+        """Every speed in both directions, ascending [mm/s]."""
+        return tuple(sorted([-v for v in self.speeds_mm_s] + list(self.speeds_mm_s)))
+
+
+# =========================================================================== planning
+@dataclass(frozen=True)
+class SpeedRun:
+    """One planned run: a plant (nominal or a seed) at one signed speed."""
+
+    plant_label: str
+    seed: int | None
+    velocity_mm_s: float
+    scenario: Scenario
+
+    @property
+    def label(self) -> str:
+        """Folder name of the run, e.g. ``v+0.500``."""
+        return f"v{self.velocity_mm_s:+.3f}"
+
+
+@dataclass(frozen=True)
+class AxisConstants:
+    """What Eq. (1a) needs about the identified axis (nominal values).
+
+    Attributes: ``gain_blu_s_per_dac`` K, ``encoder_counts_per_blu`` K_e,
+    ``counts_per_m`` of the servo, ``friction`` the nominal model (Eq. 15 at scale 1).
+    """
+
+    axis: str
+    axis_index: int
+    gain_blu_s_per_dac: float
+    encoder_counts_per_blu: float
+    counts_per_m: float
+    friction: FrictionModel
+
+
+def base_mapping(template: Mapping[str, Any], config: IdentificationConfig) -> dict[str, Any]:
+    """The template scenario with a P law on every axis (no feedforward) and no program yet."""
+    raw = {k: copy.deepcopy(v) for k, v in template.items() if k not in ("program", "duration_s", "paper")}
+    servo = {k: v for k, v in dict(raw.get("servo", {})).items() if k != "axes"}
+    servo.update({"law": "p", "law_params": {"kp": float(config.kp_dac_per_count)}, "ff1": 0.0, "ff2": 0.0})
+    raw["servo"], raw["settle_s"] = servo, RUN_TAIL_S
+    return raw
+
+
+def run_mapping(base: Mapping[str, Any], config: IdentificationConfig, velocity_mm_s: float,
+                seed: int | None) -> dict[str, Any]:
+    """The scenario mapping of one run: a line along the axis long enough for ramp + settle + window."""
+    raw = copy.deepcopy(dict(base))
+    plant = raw.setdefault("plant", {})
+    axes = list(plant.get("axes", ["x", "y"]))
+    accel_mm_s2 = _axis_value(raw.get("limits", {}).get("max_acceleration_mm_s2", 1000.0), axes.index(config.axis))
+    speed = abs(velocity_mm_s)
+    length_mm = speed * (config.settle_s + config.window_s + CRUISE_MARGIN_S) + speed * speed / float(accel_mm_s2)
+    end_mm = [0.0] * len(axes)
+    end_mm[axes.index(config.axis)] = math.copysign(length_mm, velocity_mm_s)
+    raw["program"] = {"axes": axes, "segments": [{"line": {"to_mm": end_mm, "feed_mm_min": speed * 60.0}}]}
+    if seed is None:
+        plant["variation"] = {"gain_pct": 0.0, "time_constant_pct": 0.0, "friction_pct": 0.0}
+    raw["seed"] = 0 if seed is None else int(seed)
+    raw["name"] = f"friction_id_{config.axis}_{'nominal' if seed is None else f'seed{seed}'}_{velocity_mm_s:+.3f}"
+    return raw
+
+
+def _axis_value(value: Any, index: int) -> float:
+    return float(value[index] if isinstance(value, (list, tuple)) else value)
+
+
+def axis_constants(scenario: Scenario, axis: str) -> AxisConstants:
+    """K, K_e and the nominal friction of ``axis`` in a (template) scenario."""
+    require_choice("axis", axis, scenario.axes)
+    index = scenario.axes.index(axis)
+    nominal = scenario.plant.nominal_axes()[index]
+    counts_per_m = float(scenario.servos[index].counts_per_m)
+    return AxisConstants(axis, index, float(nominal.gain_blu_s_per_dac), counts_per_m * float(nominal.blu_m),
+                         counts_per_m, nominal.make_friction())
+
+
+def plan_runs(template: Mapping[str, Any], config: IdentificationConfig) -> tuple[AxisConstants, list[SpeedRun]]:
+    """Validate the speeds against the axis limits and build every run's scenario (nominal first).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``axis`` if the plant has no such axis, or ``speeds_mm_s`` with the
+        bound (``limits.max_velocity_mm_min`` or ``servo.output_limit``) a speed exceeds.
+    """
+    base = base_mapping(template, config)
+    probe = build_scenario(run_mapping(base, config, config.speeds_mm_s[0], None))
+    constants = axis_constants(probe, config.axis)
+    check_speeds(probe, constants, config)
+    plants: list[tuple[str, int | None]] = [("nominal", None), *((f"seed_{s}", s) for s in config.seeds)]
+    runs = [SpeedRun(label, seed, v, build_scenario(run_mapping(base, config, v, seed)))
+            for label, seed in plants for v in config.signed_speeds_mm_s]
+    return constants, runs
+
+
+def check_speeds(scenario: Scenario, constants: AxisConstants, config: IdentificationConfig) -> None:
+    """Refuse speeds beyond the axis's velocity limit or needing more than the DAC range."""
+    index = constants.axis_index
+    limit_mm_s = scenario.limits.max_velocity_m_s[index] / M_PER_MM
+    headroom_mm_s = dac_speed_limit_mm_s(scenario, constants, bool(config.seeds))
+    for i, speed in enumerate(config.speeds_mm_s):
+        if speed > limit_mm_s:
+            raise ConfigError(f"speeds_mm_s[{i}] must be <= limits.max_velocity_mm_min/60 = {limit_mm_s:.3f} mm/s "
+                              f"on axis {constants.axis}, got {speed!r}")
+        if speed > headroom_mm_s:
+            raise ConfigError(f"speeds_mm_s[{i}] must be <= {headroom_mm_s:.3f} mm/s, the largest speed whose "
+                              f"command stays within servo.output_limit = {scenario.servos[index].output_limit:g} "
+                              f"on axis {constants.axis} (with the plant variation), got {speed!r}")
+
+
+def dac_speed_limit_mm_s(scenario: Scenario, constants: AxisConstants, varied: bool) -> float:
+    """Largest speed [mm/s] whose steady command ``V/K + |F(V)|`` stays below the servo's output limit.
+
+    With ``varied`` the lowest drawn gain and the highest drawn friction scale count.
+    """
+    variation = scenario.plant.variation
+    gain = constants.gain_blu_s_per_dac * (1.0 - (variation.gain_pct / 100.0 if varied else 0.0))
+    scale = 1.0 + (variation.friction_pct / 100.0 if varied else 0.0)
+    mm_per_blu = constants.encoder_counts_per_blu / constants.counts_per_m / M_PER_MM
+    speeds = np.linspace(0.0, scenario.limits.max_velocity_m_s[constants.axis_index] / M_PER_MM, 2001)
+    need = [s / mm_per_blu / gain + scale * max(abs(constants.friction.force(s)), abs(constants.friction.force(-s)))
+            for s in speeds]
+    inside = speeds[np.asarray(need) < scenario.servos[constants.axis_index].output_limit]
+    return float(inside[-1]) if inside.size else 0.0
+
+
+# =========================================================================== one run
+@dataclass(frozen=True, eq=False)
+class AxisTrace:
+    """One run of the identified axis; arrays of shape (N,), SI units, command in DAC units."""
+
+    time_s: FloatArray
+    position_m: FloatArray
+    reference_m: FloatArray
+    reference_velocity_m_s: FloatArray
+    command_dac: FloatArray
+
+
+@dataclass(frozen=True)
+class DrawnAxis:
+    """The identified axis as the run's plant drew it (from ``Plant.describe()``)."""
+
+    gain_blu_s_per_dac: float
+    friction: FrictionModel
+    friction_scale: float
+
+    @classmethod
+    def from_description(cls, plant: Mapping[str, Any], axis: str) -> DrawnAxis:
+        """From the ``plant`` entry of a run summary (or ``Plant.describe()``)."""
+        drawn = plant["axes"][axis]
+        model = make_friction(drawn["friction"], drawn.get("friction_params") or {})
+        scale = float(drawn["friction_scale"])
+        return cls(float(drawn["gain_blu_s_per_dac"]), model.scaled(scale), scale)
+
+
+@dataclass(frozen=True)
+class FrictionPoint:
+    """The identification at one signed speed on one plant (forces in DAC units).
+
+    ``friction_dac`` is Eq. (1a) with the nominal K; ``friction_true_gain_dac``
+    uses the gain the plant drew (only a simulation knows it); ``model_dac`` is
+    the friction the plant ran (Eq. 15 times the drawn scale) at ``V_r``.
+    """
+
+    plant_label: str
+    seed: int | None
+    velocity_mm_s: float
+    error_ss_counts: float
+    ripple_counts: float
+    friction_dac: float
+    friction_true_gain_dac: float
+    command_mean_dac: float
+    quantisation_dac: float
+    model_dac: float
+    model_nominal_dac: float
+    friction_scale: float
+    measured_velocity_mm_s: float
+    stopped_fraction: float
+    drift_dac: float
+    samples: int
+    status: str
+
+    @property
+    def deviation_dac(self) -> float:
+        """Identified minus the model the plant ran."""
+        return self.friction_dac - self.model_dac
+
+
+def window_mask(trace: AxisTrace, velocity_mm_s: float, settle_s: float) -> npt.NDArray[np.bool_]:
+    """Samples of the constant-speed part, from ``settle_s`` after the ramp to the deceleration start."""
+    cruise = np.nonzero(np.abs(trace.reference_velocity_m_s) >= abs(velocity_mm_s) * M_PER_MM * (1.0 - 1e-6))[0]
+    if cruise.size == 0:
+        raise FaultError(f"run at {velocity_mm_s:+g} mm/s: the reference never reaches the programmed speed")
+    start_s, end_s = trace.time_s[cruise[0]] + settle_s, trace.time_s[cruise[-1]]
+    mask = (trace.time_s >= start_s - 1e-9) & (trace.time_s <= end_s + 1e-9)
+    if mask.sum() < 10:
+        raise FaultError(f"run at {velocity_mm_s:+g} mm/s: only {int(mask.sum())} samples of constant speed "
+                         f"after settle_s = {settle_s} s; at least 10 are needed")
+    return mask
+
+
+def classify(stopped_fraction: float, speed_ratio: float, drift_dac: float) -> str:
+    """``stuck``, ``stick-slip`` or ``steady`` (see the thresholds at the top of the module)."""
+    if stopped_fraction >= 0.99:
+        return "stuck"
+    steady = (stopped_fraction <= MAX_STOPPED_FRACTION and abs(speed_ratio - 1.0) <= MAX_SPEED_DEVIATION
+              and abs(drift_dac) <= MAX_DRIFT_DAC)
+    return "steady" if steady else "stick-slip"
+
+
+def estimate_point(trace: AxisTrace, run: SpeedRun, constants: AxisConstants, drawn: DrawnAxis,
+                   config: IdentificationConfig) -> FrictionPoint:
+    """Eq. (1a) on the run's averaging window, with the window's steadiness checks."""
+    mask = window_mask(trace, run.velocity_mm_s, config.settle_s)
+    kp = config.kp_dac_per_count
+    error = (trace.reference_m[mask] - trace.position_m[mask]) * constants.counts_per_m
+    position, time_s = trace.position_m[mask], trace.time_s[mask]
+    speed_counts_s = run.velocity_mm_s * M_PER_MM * constants.counts_per_m
+    k_ke = constants.gain_blu_s_per_dac * constants.encoder_counts_per_blu
+    true_k_ke = drawn.gain_blu_s_per_dac * constants.encoder_counts_per_blu
+    measured_mm_s = (position[-1] - position[0]) / (time_s[-1] - time_s[0]) / M_PER_MM
+    half = error.size // 2
+    drift = kp * float(error[half:].mean() - error[:half].mean())
+    stopped = float(np.mean(np.diff(position) == 0.0))
+    error_ss, command = float(error.mean()), float(trace.command_dac[mask].mean())
+    return FrictionPoint(
+        run.plant_label, run.seed, run.velocity_mm_s, error_ss, float(error.std()),
+        kp * error_ss - speed_counts_s / k_ke, kp * error_ss - speed_counts_s / true_k_ke,
+        command, command - kp * error_ss, drawn.friction.force(run.velocity_mm_s),
+        constants.friction.force(run.velocity_mm_s), drawn.friction_scale, measured_mm_s, stopped, drift,
+        int(error.size), classify(stopped, measured_mm_s / run.velocity_mm_s, drift))
+
+
+# =========================================================================== the curve
+@dataclass(frozen=True)
+class SpeedSummary:
+    """All plants at one signed speed: the nominal point and the run-to-run band of the varied plants."""
+
+    velocity_mm_s: float
+    nominal: FrictionPoint
+    varied: tuple[FrictionPoint, ...]
+
+    def _steady(self) -> FloatArray:
+        return np.array([p.friction_dac for p in self.varied if p.status == "steady"])
+
+    @property
+    def band_dac(self) -> tuple[float, float, float, float]:
+        """(mean, std, min, max) of the steady varied plants' ``friction_dac`` (NaN without any)."""
+        values = self._steady()
+        if values.size == 0:
+            return (math.nan,) * 4  # type: ignore[return-value]
+        return float(values.mean()), float(values.std()), float(values.min()), float(values.max())
+
+    @property
+    def half_range_dac(self) -> float:
+        """Half the min–max range of the varied plants (NaN with fewer than two)."""
+        values = self._steady()
+        return float(np.ptp(values)) / 2.0 if values.size > 1 else math.nan
+
+
+def summarise(points: Sequence[FrictionPoint]) -> list[SpeedSummary]:
+    """Group the points by signed speed (ascending); every speed needs its nominal point."""
+    by_speed: dict[float, list[FrictionPoint]] = {}
+    for point in points:
+        by_speed.setdefault(point.velocity_mm_s, []).append(point)
+    summaries = []
+    for speed in sorted(by_speed):
+        group = by_speed[speed]
+        nominal = [p for p in group if p.seed is None]
+        if len(nominal) != 1:
+            raise ConfigError(f"speed {speed:+g} mm/s needs exactly one nominal point, got {len(nominal)}")
+        summaries.append(SpeedSummary(speed, nominal[0], tuple(p for p in group if p.seed is not None)))
+    return summaries
+
+
+@dataclass(frozen=True)
+class BranchFit:
+    """One branch of the fitted curve in the form of Eq. (15).
+
+    ``coefficients_dac`` = (c2, c1, c0) of ``c2 V² + c1 V + c0`` for
+    ``|V| < limit_speed_mm_s``; ``high_dac`` beyond (None: the quadratic throughout).
+    ``direction`` is +1 (V > 0) or −1; ``rms_dac`` the fit residual.
+    """
+
+    direction: int
+    coefficients_dac: tuple[float, float, float]
+    limit_speed_mm_s: float
+    high_dac: float | None
+    rms_dac: float
+
+    def force(self, velocity_mm_s: FloatArray | float) -> FloatArray:
+        """Fitted force [DAC] at velocities of this branch's sign [mm/s]."""
+        v = np.asarray(velocity_mm_s, dtype=float)
+        quadratic = np.polyval(self.coefficients_dac, v)
+        if self.high_dac is None:
+            return quadratic
+        return np.where(np.abs(v) < self.limit_speed_mm_s, quadratic, self.high_dac)
+
+
+def fit_branch(velocity_mm_s: Sequence[float], force_dac: Sequence[float]) -> BranchFit:
+    """Least-squares quadratic + constant on one branch; the break is tried between every pair of speeds.
+
+    Needs at least 3 points, all of one sign. The constant part needs 2 points;
+    with fewer the quadratic covers the whole branch.
+    """
+    v, f = np.asarray(velocity_mm_s, dtype=float), np.asarray(force_dac, dtype=float)
+    order = np.argsort(np.abs(v))
+    v, f = v[order], f[order]
+    if v.size < 3 or not (np.all(v > 0) or np.all(v < 0)):
+        raise ConfigError(f"a branch fit needs >= 3 steady speeds of one sign, got {v.tolist()}")
+    direction = 1 if v[0] > 0 else -1
+    best = _fit_quadratic(v, f, direction, math.inf, None)
+    for split in range(3, v.size - 1):
+        high = float(f[split:].mean())
+        limit = float(abs(v[split - 1] + v[split]) / 2.0)
+        candidate = _fit_quadratic(v[:split], f[:split], direction, limit, high, v[split:], f[split:])
+        if candidate.rms_dac < best.rms_dac - 1e-9:
+            best = candidate
+    return best
+
+
+def _fit_quadratic(v: FloatArray, f: FloatArray, direction: int, limit: float, high: float | None,
+                   v_high: FloatArray | None = None, f_high: FloatArray | None = None) -> BranchFit:
+    coefficients = np.polyfit(v, f, 2)
+    residual = np.concatenate([np.polyval(coefficients, v) - f, [] if f_high is None else f_high - high])
+    n_points = v.size + (0 if v_high is None else v_high.size)
+    rms = float(np.sqrt(np.sum(residual ** 2) / n_points))
+    return BranchFit(direction, tuple(float(c) for c in coefficients), limit, high, rms)  # type: ignore[arg-type]
+
+
+def fit_curve(points: Sequence[FrictionPoint]) -> tuple[BranchFit, BranchFit]:
+    """(positive, negative) branch fits of the steady points given (e.g. the nominal plant's)."""
+    steady = [p for p in points if p.status == "steady"]
+    fits = []
+    for sign in (1, -1):
+        branch = [p for p in steady if p.velocity_mm_s * sign > 0]
+        fits.append(fit_branch([p.velocity_mm_s for p in branch], [p.friction_dac for p in branch]))
+    return fits[0], fits[1]
+
+
+#: Spacing of the table's samples of the fitted quadratic [mm/s] (linear interpolation error < 0.01 DAC).
+TABLE_STEP_MM_S = 0.5
+#: The table's innermost speed [mm/s]: below it a branch holds its value; V = 0 takes the breakaway level.
+TABLE_INNER_MM_S = 0.01
+
+
+def _branch_samples(fit: BranchFit, max_speed_mm_s: float) -> tuple[FloatArray, FloatArray]:
+    end = min(fit.limit_speed_mm_s, max_speed_mm_s)
+    speeds = np.unique(np.r_[TABLE_INNER_MM_S, np.arange(TABLE_STEP_MM_S, end, TABLE_STEP_MM_S), end - 1e-3])
+    if fit.high_dac is not None and fit.limit_speed_mm_s < max_speed_mm_s:
+        speeds = np.r_[speeds, fit.limit_speed_mm_s]
+    velocity = fit.direction * speeds
+    return velocity, fit.force(velocity)
+
+
+def fitted_table(fits: tuple[BranchFit, BranchFit], max_speed_mm_s: float) -> TableFriction:
+    """The fitted curve sampled into a ``table`` friction; breakaway levels are the quadratics at V = 0."""
+    pos_v, pos_f = _branch_samples(fits[0], max_speed_mm_s)
+    neg_v, neg_f = _branch_samples(fits[1], max_speed_mm_s)
+    return TableFriction.from_arrays(np.round(np.r_[neg_v, pos_v], 6), np.round(np.r_[neg_f, pos_f], 4),
+                                     breakaway_positive_dac=round(fits[0].coefficients_dac[2], 4),
+                                     breakaway_negative_dac=round(fits[1].coefficients_dac[2], 4))
+
+
+TABLE_HEADER = """\
+# Friction table identified by `cnc-contour identify-friction` (paper 000, Section 2, Eq. 1a).
+# Force in DAC units against velocity in mm/s, linear interpolation between points, each
+# branch constant beyond its ends; V = 0 exactly takes the breakaway level of the branch.
+# As a plant friction model:  plant: {axis_overrides: {<axis>: {friction: table, friction_params: <friction_params>}}}
+# As a feedforward table:     u_ff(k) = F(v_ref(k)) with v_ref in mm/s (cnc_tools.friction_id.load_table)
+"""
+
+
+def table_document(table: TableFriction, fits: tuple[BranchFit, BranchFit], meta: Mapping[str, Any]) -> dict[str, Any]:
+    """The YAML document of a friction table (``friction``, ``friction_params``, ``fit``, ``identification``)."""
+    return {"axis": meta.get("axis"), "friction": "table", "friction_params": table.to_params(),
+            "fit": {name: {"coefficients_dac": [round(c, 5) for c in fit.coefficients_dac],
+                           "limit_speed_mm_s": None if math.isinf(fit.limit_speed_mm_s) else fit.limit_speed_mm_s,
+                           "high_dac": None if fit.high_dac is None else round(fit.high_dac, 4),
+                           "rms_dac": round(fit.rms_dac, 4)}
+                    for name, fit in (("positive", fits[0]), ("negative", fits[1]))},
+            "identification": dict(meta)}
+
+
+def write_table(path: Path, table: TableFriction, fits: tuple[BranchFit, BranchFit], meta: Mapping[str, Any]) -> Path:
+    """Write the table YAML (see :data:`TABLE_HEADER` for the format); the folder is created."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(TABLE_HEADER + yaml.safe_dump(table_document(table, fits, meta), sort_keys=False))
+    return path
+
+
+def load_table(path: Path) -> TableFriction:
+    """Read a table YAML written by :func:`write_table` back as a friction model."""
+    try:
+        document = yaml.safe_load(Path(path).read_text())
+    except (OSError, yaml.YAMLError) as err:
+        raise ConfigError(f"friction table {str(path)!r} cannot be read: {err}") from err
+    if not isinstance(document, Mapping) or document.get("friction") != "table":
+        raise ConfigError(f"friction table {str(path)!r} must be a mapping with friction: table")
+    model = make_friction("table", document.get("friction_params"))
+    assert isinstance(model, TableFriction)
+    return model
+
+
+def plant_with_table(plant: Mapping[str, Any], axis: str, table: TableFriction) -> PlantConfig:
+    """A plant config whose ``axis`` runs the table (a check that the table works as a plant model)."""
+    overrides = dict(plant.get("axis_overrides") or {})
+    overrides[axis] = {**dict(overrides.get(axis, {})), "friction": "table", "friction_params": table.to_params()}
+    return PlantConfig.from_mapping({**dict(plant), "axis_overrides": overrides})
