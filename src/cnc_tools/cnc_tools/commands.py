@@ -135,3 +135,5 @@ def report(args: argparse.Namespace) -> int:
 
 
 from cnc_tools.bench import command as _bench_command  # noqa: F401,E402
+from cnc_tools import replay_command as _replay_command  # noqa: F401,E402
+from cnc_tools import friction_id_command as _friction_id_command  # noqa: F401,E402

@@ -46,7 +46,6 @@ from cnc_contour_control.config import require_choice, require_non_negative, req
 from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.units import M_PER_MM
 from cnc_plant_sim.friction import FrictionModel, TableFriction, make_friction
-from cnc_plant_sim.plant import PlantConfig
 from cnc_tools.scenario import Scenario, build_scenario
 
 FloatArray = npt.NDArray[np.float64]
@@ -202,6 +201,9 @@ def axis_constants(scenario: Scenario, axis: str) -> AxisConstants:
 def plan_runs(template: Mapping[str, Any], config: IdentificationConfig) -> tuple[AxisConstants, list[SpeedRun]]:
     """Validate the speeds against the axis limits and build every run's scenario (nominal first).
 
+    The limits are checked on the plant of the first seed (the template's
+    variation) when there are seeds, else on the nominal plant.
+
     Raises
     ------
     ConfigError
@@ -209,7 +211,8 @@ def plan_runs(template: Mapping[str, Any], config: IdentificationConfig) -> tupl
         bound (``limits.max_velocity_mm_min`` or ``servo.output_limit``) a speed exceeds.
     """
     base = base_mapping(template, config)
-    probe = build_scenario(run_mapping(base, config, config.speeds_mm_s[0], None))
+    require_choice("axis", config.axis, tuple(base.get("plant", {}).get("axes", ("x", "y"))))
+    probe = build_scenario(run_mapping(base, config, config.speeds_mm_s[0], config.seeds[0] if config.seeds else None))
     constants = axis_constants(probe, config.axis)
     check_speeds(probe, constants, config)
     plants: list[tuple[str, int | None]] = [("nominal", None), *((f"seed_{s}", s) for s in config.seeds)]
@@ -222,7 +225,7 @@ def check_speeds(scenario: Scenario, constants: AxisConstants, config: Identific
     """Refuse speeds beyond the axis's velocity limit or needing more than the DAC range."""
     index = constants.axis_index
     limit_mm_s = scenario.limits.max_velocity_m_s[index] / M_PER_MM
-    headroom_mm_s = dac_speed_limit_mm_s(scenario, constants, bool(config.seeds))
+    headroom_mm_s = dac_speed_limit_mm_s(scenario, constants)
     for i, speed in enumerate(config.speeds_mm_s):
         if speed > limit_mm_s:
             raise ConfigError(f"speeds_mm_s[{i}] must be <= limits.max_velocity_mm_min/60 = {limit_mm_s:.3f} mm/s "
@@ -233,14 +236,14 @@ def check_speeds(scenario: Scenario, constants: AxisConstants, config: Identific
                               f"on axis {constants.axis} (with the plant variation), got {speed!r}")
 
 
-def dac_speed_limit_mm_s(scenario: Scenario, constants: AxisConstants, varied: bool) -> float:
+def dac_speed_limit_mm_s(scenario: Scenario, constants: AxisConstants) -> float:
     """Largest speed [mm/s] whose steady command ``V/K + |F(V)|`` stays below the servo's output limit.
 
-    With ``varied`` the lowest drawn gain and the highest drawn friction scale count.
+    The lowest gain and the highest friction scale the scenario's plant variation can draw count.
     """
     variation = scenario.plant.variation
-    gain = constants.gain_blu_s_per_dac * (1.0 - (variation.gain_pct / 100.0 if varied else 0.0))
-    scale = 1.0 + (variation.friction_pct / 100.0 if varied else 0.0)
+    gain = constants.gain_blu_s_per_dac * (1.0 - variation.gain_pct / 100.0)
+    scale = 1.0 + variation.friction_pct / 100.0
     mm_per_blu = constants.encoder_counts_per_blu / constants.counts_per_m / M_PER_MM
     speeds = np.linspace(0.0, scenario.limits.max_velocity_m_s[constants.axis_index] / M_PER_MM, 2001)
     need = [s / mm_per_blu / gain + scale * max(abs(constants.friction.force(s)), abs(constants.friction.force(-s)))
@@ -526,9 +529,3 @@ def load_table(path: Path) -> TableFriction:
     assert isinstance(model, TableFriction)
     return model
 
-
-def plant_with_table(plant: Mapping[str, Any], axis: str, table: TableFriction) -> PlantConfig:
-    """A plant config whose ``axis`` runs the table (a check that the table works as a plant model)."""
-    overrides = dict(plant.get("axis_overrides") or {})
-    overrides[axis] = {**dict(overrides.get(axis, {})), "friction": "table", "friction_params": table.to_params()}
-    return PlantConfig.from_mapping({**dict(plant), "axis_overrides": overrides})

@@ -1,0 +1,255 @@
+"""Runs of the paper-000 benches: a scenario with a named controller, run and scored.
+
+- Controllers come from :data:`CONTROLLERS` by name: ``pid`` (Eq. 14, Table 4
+  gains), ``flc`` (Eqs. 3-8, Tables 1, 3, 4), ``pid+ff`` / ``flc+ff`` (the same
+  plus the feedforward of :func:`feedforward_axes`) and ``flc:<rule base>``
+  for every alternative rule base of ``fuzzy.RULE_BASES``.
+- A run goes through the node graph (recorded to MCAP, read back with
+  :func:`cnc_tools.bag.read_bag`) or through the in-process engine; the
+  engine's arrays are put into the same :class:`RecordedRun` a bag gives
+  (:func:`engine_recorded_run`), so both are scored by the one scorer,
+  :func:`cnc_tools.scoring.score_run`.
+- A *view* (:data:`VIEWS`) chooses what is scored, by cutting the recorded
+  run before it reaches the scorer: the paper's view (``paper``: the contour
+  of Eqs. 9/10 while the reference moves) or the project's default
+  (``whole_run``: the programmed contour, every sample).
+"""
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cnc_contour_control.config import require_choice
+from cnc_contour_control.errors import FaultError
+from cnc_contour_control.geometry import LineSegment, Program, Segment
+from cnc_contour_control.laws.fuzzy import RULE_BASES
+from cnc_contour_control.lockstep import NS_PER_S, seconds_to_ns
+from cnc_contour_control.units import M_PER_BLU_PAPER000
+from cnc_plant_sim.plant import PlantConfig
+from cnc_tools.bag import read_bag
+from cnc_tools.bench.paper000_data import TABLE4_GAINS
+from cnc_tools.engine import EngineResult, run_engine
+from cnc_tools.recorded_run import BagIntegrity, CommandSeries, JointStateSeries, RecordedRun, ReferenceSeries
+from cnc_tools.runner import run_graph
+from cnc_tools.scenario import Scenario, build_scenario, load_scenario
+from cnc_tools.scoring import Score, score_run
+
+
+# =========================================================================== controllers
+@dataclass(frozen=True)
+class Controller:
+    """A servo law with its parameters, and whether the feedforward of :func:`feedforward_axes` is added."""
+
+    name: str
+    label: str
+    law: str
+    law_params: Mapping[str, Any]
+    feedforward: bool = False
+
+
+def _controllers() -> dict[str, Controller]:
+    found = [Controller("pid", "PID", "pid", dict(TABLE4_GAINS)),
+             Controller("flc", "FLC", "fuzzy", {}),
+             Controller("pid+ff", "PID+ff", "pid", dict(TABLE4_GAINS), True),
+             Controller("flc+ff", "FLC+ff", "fuzzy", {}, True)]
+    found += [Controller(f"flc:{name}", f"FLC {name}", "fuzzy", {"rule_base": name})
+              for name in RULE_BASES if name != "paper000"]
+    return {c.name: c for c in found}
+
+
+#: Controllers by name.
+CONTROLLERS: dict[str, Controller] = _controllers()
+
+
+def get_controller(name: str) -> Controller:
+    """The controller called ``name``; an unknown name lists the valid ones."""
+    require_choice("controller", name, CONTROLLERS)
+    return CONTROLLERS[name]
+
+
+def feedforward_axes(plant: PlantConfig) -> dict[str, dict[str, float]]:
+    """Per-axis ``ff1 = 1/K`` [DAC per BLU/s] and ``ff2 = τ/K`` [DAC per BLU/s²] from the *nominal* plant.
+
+    ``u_ff = (v + τ a)/K`` inverts K/(s(τs+1)) for the reference; the drawn
+    ±5 % variation of K and τ is unknown to the controller, as on a machine.
+    """
+    return {axis.name: {"ff1": 1.0 / axis.gain_blu_s_per_dac,
+                        "ff2": axis.time_constant_s / axis.gain_blu_s_per_dac}
+            for axis in plant.nominal_axes()}
+
+
+def _servo_section(raw: Mapping[str, Any], controller: Controller, plant: PlantConfig) -> dict[str, Any]:
+    servo = {k: v for k, v in dict(raw.get("servo", {})).items() if k not in ("law", "law_params", "axes")}
+    servo.update(law=controller.law, law_params=dict(controller.law_params))
+    if controller.feedforward:
+        servo["axes"] = feedforward_axes(plant)
+    return servo
+
+
+def scenario_for(path: Path, controller: Controller, seed: int,
+                 overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """The scenario in ``path`` with ``overrides`` (deep-merged), ``seed`` and ``controller``'s servo law.
+
+    The servo's law and law parameters are *replaced* (a deep merge would
+    keep the PID's gains beside the FLC's parameters).
+    """
+    base = load_scenario(path, {**dict(overrides or {}), "seed": seed})
+    raw = dict(base.raw)
+    raw["servo"] = _servo_section(raw, controller, base.plant)
+    raw["name"] = f"{base.name}_{controller.name.replace(':', '_')}_seed{seed}"
+    return build_scenario(raw, base_dir=path.parent, source=path)
+
+
+# =========================================================================== running
+def engine_recorded_run(scenario: Scenario, result: EngineResult | None = None) -> RecordedRun:
+    """Run ``scenario`` in-process (or take ``result``) and put it in the form :func:`read_bag` returns.
+
+    Stamps are ``k·T`` in integer ns, as on the wire; the reference is the
+    interpolator's at those stamps (what the engine used); commands carry the
+    command only (its parts are not kept by the engine: NaN).
+    """
+    result = result if result is not None else run_engine(scenario)
+    stamps = np.arange(result.ticks, dtype=np.int64) * seconds_to_ns(scenario.sample_time_s)
+    ref = scenario.make_interpolator().sample_array(stamps * 1e-9)
+    reference = ReferenceSeries(stamps, ref.position_m, ref.velocity_m_s, ref.acceleration_m_s2, ref.path_length_m,
+                                ref.segment_index.astype(np.int64), ref.feed_m_s, ref.done)
+    commands = {config.axis_name: _engine_commands(config.axis_name, config.law, config.command_unit,
+                                                   config.output_limit, stamps, result.command[:, k],
+                                                   ref.position_m[:, k] - result.position_m[:, k])
+                for k, config in enumerate(scenario.servos)}
+    integrity = BagIntegrity(True, "engine", {"joint_states": result.ticks, "reference": result.ticks}, None,
+                             "engine (in-process, no bag)")
+    return RecordedRun(scenario.name, Path("engine"), scenario.program,
+                       JointStateSeries(stamps, result.position_m, result.velocity_m_s), reference, commands, integrity)
+
+
+def _engine_commands(axis: str, law: str, unit: str, limit: float, stamps: np.ndarray, command: np.ndarray,
+                     error_m: np.ndarray) -> CommandSeries:
+    unknown = np.full(stamps.size, np.nan)
+    return CommandSeries(axis, law, unit, stamps, command, unknown, unknown, unknown, unknown,
+                         np.abs(command) >= limit, error_m)
+
+
+def graph_recorded_run(scenario: Scenario, run_dir: Path) -> RecordedRun:
+    """Run ``scenario`` through the node graph, recorded to ``run_dir/bag``, and read the bag back."""
+    result = run_graph(scenario, run_dir, record=True)
+    if result.faults or result.bag_path is None:
+        raise FaultError(f"{scenario.name}: node-graph run in {run_dir} faulted: {result.faults}")
+    return read_bag(result.bag_path)
+
+
+# =========================================================================== views
+#: Length added to the free ends of an open contour for Eq. 9 (the whole line x = a·y), m.
+EXTENSION_M = 0.01
+
+
+@dataclass(frozen=True)
+class View:
+    """What is scored: the contour (``program`` or ``eq9_10``) and the window of samples."""
+
+    name: str
+    description: str
+    contour: str
+    window: str
+    skip_start_s: float = 0.0
+
+
+VIEWS: dict[str, View] = {v.name: v for v in (
+    View("paper", "Eqs. 9/10 (open ends extended), while the reference moves", "eq9_10", "motion"),
+    View("whole_run", "programmed contour, every sample (the project's default score)", "program", "run"),
+    View("after_start", "Eqs. 9/10, while the reference moves, first 0.5 s left out", "eq9_10", "motion", 0.5),
+)}
+
+
+def _extend(segment: Segment, at_start: bool) -> Segment:
+    if not isinstance(segment, LineSegment):
+        return segment
+    step = EXTENSION_M * segment.unit_vector
+    return (LineSegment(segment.start_m - step, segment.end_m, segment.feed_m_s) if at_start
+            else LineSegment(segment.start_m, segment.end_m + step, segment.feed_m_s))
+
+
+def eq9_program(program: Program) -> Program:
+    """The contour of Eqs. 9/10: an open contour's end lines extended by :data:`EXTENSION_M` (closed: unchanged).
+
+    Eq. 9 measures the distance to the whole line x = a·y, so running past
+    the end point is not a contour error; Eq. 10 is the whole circle already.
+    """
+    segments = list(program.segments)
+    if np.allclose(segments[0].start_m, segments[-1].end_m):
+        return program
+    segments[0] = _extend(segments[0], at_start=True)
+    segments[-1] = _extend(segments[-1], at_start=False)
+    return Program(program.name, program.axis_names, tuple(segments))
+
+
+def _window_ns(run: RecordedRun, view: View) -> tuple[int, int]:
+    """First and last stamp [ns] the view scores."""
+    stamps = run.joint_states.stamp_ns
+    start, end = int(stamps[0]) + round(view.skip_start_s * NS_PER_S), int(stamps[-1])
+    if view.window == "motion" and run.reference is not None:
+        moving = run.reference.stamp_ns[~run.reference.done]
+        end = int(moving[-1]) if moving.size else end
+    return start, end
+
+
+def _cut(series: Any, low_ns: int, high_ns: int) -> Any:
+    keep = (series.stamp_ns >= low_ns) & (series.stamp_ns <= high_ns)
+    return dataclasses.replace(series, **{f.name: getattr(series, f.name)[keep] for f in dataclasses.fields(series)
+                                          if isinstance(getattr(series, f.name), np.ndarray)})
+
+
+def apply_view(run: RecordedRun, view: View) -> RecordedRun:
+    """``run`` cut to the view's window and with the view's contour; the scorer then scores all of it."""
+    low, high = _window_ns(run, view)
+    program = eq9_program(run.program) if view.contour == "eq9_10" else run.program
+    return dataclasses.replace(
+        run, program=program, joint_states=_cut(run.joint_states, low, high),
+        reference=None if run.reference is None else _cut(run.reference, low, high),
+        commands={axis: _cut(series, low, high) for axis, series in run.commands.items()})
+
+
+# =========================================================================== scores
+@dataclass(frozen=True)
+class RunScore:
+    """Max and RMS contour error [BLU] of one run under each view, and where it ran."""
+
+    scenario: str
+    controller: str
+    seed: int
+    source: str
+    max_blu: dict[str, float]
+    rms_blu: dict[str, float]
+
+
+def blu(score: Score) -> tuple[float, float]:
+    """(max, rms) of a score's contour error in BLU."""
+    values = score.contour.values_si
+    return values["max"] / M_PER_BLU_PAPER000, values["rms"] / M_PER_BLU_PAPER000
+
+
+def score_views(run: RecordedRun, views: Mapping[str, View] = VIEWS) -> dict[str, tuple[RecordedRun, Score]]:
+    """Each view of ``run`` and its score (:func:`cnc_tools.scoring.score_run`, the project's scorer)."""
+    out = {}
+    for name, view in views.items():
+        cut = apply_view(run, view)
+        out[name] = (cut, score_run(cut, ("max", "rms")))
+    return out
+
+
+#: A runner: scenario -> recorded run.
+Runner = Callable[[Scenario], RecordedRun]
+
+
+def run_and_score(scenario: Scenario, controller: str, seed: int, source: str,
+                  runner: Runner) -> tuple[RunScore, dict[str, tuple[RecordedRun, Score]]]:
+    """Run ``scenario`` with ``runner`` and score every view."""
+    scored = score_views(runner(scenario))
+    return RunScore(scenario.name, controller, seed, source,
+                    {k: blu(s)[0] for k, (_, s) in scored.items()},
+                    {k: blu(s)[1] for k, (_, s) in scored.items()}), scored

@@ -1,0 +1,105 @@
+"""Replay node: republishes a bag's topics, raw, at their recorded times (as ``ros2 bag play``)."""
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from diagnostic_msgs.msg import DiagnosticStatus
+
+from cnc_contour_control.errors import BagError
+from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, spin_node, wall_time_s
+from cnc_tools.replay import Recording, ReplayConfig, ReplaySchedule, load_recording, replay_summary, topics_of
+
+#: Poll period while waiting for readers, s.
+_WAIT_PERIOD_S = 0.01
+#: Shortest timer period, ns (a zero period would spin).
+_MIN_PERIOD_NS = 1_000
+
+
+class ReplayNode(SuiteNode):
+    """One raw publisher per recorded topic; a timer publishes each message's bytes when it is due.
+
+    ``recording`` (optional) is a bag already loaded, e.g. by ``cnc-contour replay``; else the
+    ``bag`` parameter names the bag to load.
+    """
+
+    def __init__(self, recording: Recording | None = None, **kwargs: Any) -> None:
+        super().__init__("replay", **kwargs)
+        bag = self.declare("bag", "" if recording is None else str(recording.source),
+                           describe("bag folder (or .mcap file) to replay", read_only=True))
+        config = self._declare_config()
+        self.min_subscribers = self.declare("min_subscribers", 0, describe(
+            "readers every replayed topic must have before playback starts", 0, 1000, True, True))
+        if recording is None and not bag:
+            raise BagError("replay: parameter bag (the bag folder to replay) is required")
+        self.recording = recording or load_recording(bag, config.topics)
+        self.schedule = ReplaySchedule(self.recording, config)
+        self.outputs = {topic: self._publisher(topic, type_name) for topic, type_name in self.recording.topics.items()}
+        self.started_at_s: float | None = None
+        self.get_logger().info(f"replaying {self.recording.describe()}: {self.schedule.describe()}")
+        self._timer = self.create_timer(_WAIT_PERIOD_S, self.guarded(self._tick))
+
+    def _declare_config(self) -> ReplayConfig:
+        """Rate, start offset, loop and topics from the parameters, validated by the core."""
+        return ReplayConfig(
+            rate=self.declare("rate", 1.0, describe("playback speed relative to the recording", 1e-3, 1e4, True)),
+            start_offset_s=self.declare("start_offset_s", 0.0, describe(
+                "start this many seconds into the bag, s", 0.0, 1e9, True)),
+            loop=self.declare("loop", False, describe("start over at the end, until stopped", read_only=True)),
+            topics=topics_of(self.declare("topics", [""], describe("topics to replay (empty: all)", read_only=True))),
+            skip_empty_s=self.declare("skip_empty_s", 10.0, describe(
+                "skip stretches of log time longer than this with no message, s (0: never)", 0.0, 1e9, True)))
+
+    def _publisher(self, topic: str, type_name: str) -> Any:
+        qos = LATCHED_QOS if topic in self.recording.latched_topics else LOCKSTEP_QOS
+        return self.create_publisher(message_class(type_name, topic), topic, qos)
+
+    def _tick(self) -> None:
+        """Start once the readers are there, publish what is due, then sleep until the next message."""
+        started_s = self.started_at_s
+        if started_s is None:
+            if not self._readers_ready():
+                return
+            started_s = self._start()
+        for message in self.schedule.step(wall_time_s() - started_s):
+            self.outputs[message.topic].publish(message.data)
+        wait_s = self.schedule.wait_s(wall_time_s() - started_s)
+        if wait_s is None:
+            self._finish()
+            return
+        self._timer.timer_period_ns = max(int(wait_s * 1e9), _MIN_PERIOD_NS)
+        self._timer.reset()
+
+    def _readers_ready(self) -> bool:
+        return all(p.get_subscription_count() >= self.min_subscribers for p in self.outputs.values())
+
+    def _start(self) -> float:
+        """Note the wall time playback starts at; warn on /diagnostics if the bag is damaged."""
+        self.started_at_s = wall_time_s()
+        if not self.recording.integrity.complete:
+            lost = self.recording.integrity.lost
+            self.report(DiagnosticStatus.WARN, f"replaying a damaged bag: {self.recording.integrity.describe()}",
+                        {"lost": "unknown" if lost is None else str(sum(lost.values()))})
+        return self.started_at_s
+
+    def _finish(self) -> None:
+        ok, text, values = replay_summary(self.schedule, self.recording)
+        self.report(DiagnosticStatus.OK if ok else DiagnosticStatus.WARN, text, values)
+        self.get_logger().info(text)
+        self._timer.cancel()
+        self.finished = True
+
+
+def message_class(type_name: str, topic: str = "") -> type:
+    """The rclpy message class of ``pkg/msg/Name``; ``BagError`` if this environment lacks it."""
+    package, _, name = type_name.split("/") if type_name.count("/") == 2 else ("", "", type_name)
+    try:
+        return getattr(importlib.import_module(f"{package}.msg"), name)  # type: ignore[no-any-return]
+    except (ImportError, AttributeError, ValueError) as err:
+        raise BagError(f"replay: message type {type_name!r} of {topic or 'a topic'} is not available "
+                       f"in this ROS environment ({type(err).__name__}: {err})") from err
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point: ``ros2 run cnc_tools replay --ros-args -p bag:=bags/run1/bag -p rate:=2.0``."""
+    raise SystemExit(spin_node(ReplayNode, args))
