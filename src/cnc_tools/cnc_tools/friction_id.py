@@ -46,6 +46,7 @@ from cnc_contour_control.config import require_choice, require_non_negative, req
 from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.units import M_PER_MM
 from cnc_plant_sim.friction import FrictionModel, TableFriction, make_friction
+from cnc_plant_sim.friction import table as table_friction
 from cnc_tools.scenario import Scenario, build_scenario
 
 FloatArray = npt.NDArray[np.float64]
@@ -157,8 +158,9 @@ class AxisConstants:
 
 
 def base_mapping(template: Mapping[str, Any], config: IdentificationConfig) -> dict[str, Any]:
-    """The template scenario with a P law on every axis (no feedforward) and no program yet."""
+    """The template scenario with a P law on every axis (no feedforward, no per-axis servo overrides), no program."""
     raw = {k: copy.deepcopy(v) for k, v in template.items() if k not in ("program", "duration_s", "paper")}
+    raw.get("plant", {}).pop("seed", None)  # the run's seed decides the plant
     servo = {k: v for k, v in dict(raw.get("servo", {})).items() if k != "axes"}
     servo.update({"law": "p", "law_params": {"kp": float(config.kp_dac_per_count)}, "ff1": 0.0, "ff2": 0.0})
     raw["servo"], raw["settle_s"] = servo, RUN_TAIL_S
@@ -525,7 +527,5 @@ def load_table(path: Path) -> TableFriction:
         raise ConfigError(f"friction table {str(path)!r} cannot be read: {err}") from err
     if not isinstance(document, Mapping) or document.get("friction") != "table":
         raise ConfigError(f"friction table {str(path)!r} must be a mapping with friction: table")
-    model = make_friction("table", document.get("friction_params"))
-    assert isinstance(model, TableFriction)
-    return model
+    return table_friction(document.get("friction_params"))
 

@@ -43,3 +43,4 @@ def get_bench(name: str) -> Bench:
 from cnc_tools.bench import lockstep as _lockstep  # noqa: E402,F401  (registers "lockstep")
 from cnc_tools.bench import scoring as _scoring  # noqa: E402,F401  (registers "scoring")
 from cnc_tools.bench import paper000 as _paper000  # noqa: E402,F401  (registers "paper000", "paper000-pid", "paper000-assumptions")
+from cnc_tools.bench import laws as _laws  # noqa: E402,F401  (registers "laws")

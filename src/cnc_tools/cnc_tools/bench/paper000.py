@@ -144,22 +144,18 @@ def compare_table(sweep: Sweep, rows: Sequence[Table5Row], pid: str = "pid", flc
 
 
 def print_compare_table(table: Sequence[dict[str, Any]], paper: bool = True) -> None:
-    """Max and RMS of both controllers (and the paper's), the FLC/PID ratios, seeds where the FLC is not worse."""
-    header = ["case"]
-    for metric in ("max", "RMS"):
-        header += [f"{metric} PID", f"{metric} FLC"] + (["paper PID", "paper FLC"] if paper else [])
-        header += ["FLC/PID"] + (["paper"] if paper else []) + ["FLC<=PID"]
-    rows = []
-    for t in table:
-        cells: list[object] = [t["case"]]
-        for metric in ("max", "rms"):
+    """Max, then RMS: both controllers (and the paper's), the FLC/PID ratios, seeds where the FLC is not worse."""
+    for metric, title in (("max", "max"), ("rms", "RMS")):
+        header = ["case", f"{title} PID", f"{title} FLC"] + (["paper PID", "paper FLC"] if paper else [])
+        header += ["FLC/PID"] + (["paper FLC/PID"] if paper else []) + ["FLC<=PID seeds"]
+        rows = []
+        for t in table:
             m = t[metric]
-            cells += [stat_text(m["pid_blu"]), stat_text(m["flc_blu"])]
+            cells: list[object] = [t["case"], stat_text(m["pid_blu"]), stat_text(m["flc_blu"])]
             cells += [f"{m['paper_pid_blu']:.1f}", f"{m['paper_flc_blu']:.1f}"] if paper else []
             cells += [f"{m['flc_to_pid']:.2f}"] + ([f"{m['paper_flc_to_pid']:.2f}"] if paper else [])
-            cells += [m["flc_not_worse_seeds"]]
-        rows.append(cells)
-    print(format_table(header, rows))
+            rows.append(cells + [m["flc_not_worse_seeds"]])
+        print(format_table(header, rows))
 
 
 def experiment_table(sweep: Sweep, quick: bool) -> list[dict[str, Any]]:

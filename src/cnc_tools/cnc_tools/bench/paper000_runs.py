@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from cnc_contour_control.config import require_choice
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.errors import BagError, FaultError
 from cnc_contour_control.geometry import LineSegment, Program, Segment
 from cnc_contour_control.laws.fuzzy import RULE_BASES
 from cnc_contour_control.lockstep import NS_PER_S, seconds_to_ns
@@ -144,8 +144,9 @@ def graph_recorded_run(scenario: Scenario, run_dir: Path) -> RecordedRun:
 
 
 # =========================================================================== views
-#: Length added to the free ends of an open contour for Eq. 9 (the whole line x = a·y), m.
-EXTENSION_M = 0.01
+#: Length added to the free ends of an open contour for Eq. 9 (the whole line x = a·y), m;
+#: :func:`apply_view` refuses a run that reaches beyond it.
+EXTENSION_M = 0.005
 
 
 @dataclass(frozen=True)
@@ -204,12 +205,29 @@ def _cut(series: Any, low_ns: int, high_ns: int) -> Any:
                                           if isinstance(getattr(series, f.name), np.ndarray)})
 
 
+def _check_extension(program: Program, extended: Program, points: np.ndarray) -> None:
+    """Refuse points (N, n_axes) that project beyond an extended free end (the extension would be too short)."""
+    first, last = extended.segments[0], extended.segments[-1]
+    beyond = 0
+    if first is not program.segments[0]:
+        beyond += int(np.sum(first.nearest(points)[1] <= 0.0))
+    if last is not program.segments[-1]:
+        beyond += int(np.sum(last.nearest(points)[1] >= last.length_m))
+    if beyond:
+        raise BagError(f"{program.name}: {beyond} samples lie beyond the {EXTENSION_M * 1e3:g} mm extension of "
+                       "the contour's end lines; Eq. 9 scoring needs a longer EXTENSION_M")
+
+
 def apply_view(run: RecordedRun, view: View) -> RecordedRun:
     """``run`` cut to the view's window and with the view's contour; the scorer then scores all of it."""
     low, high = _window_ns(run, view)
-    program = eq9_program(run.program) if view.contour == "eq9_10" else run.program
+    joint_states = _cut(run.joint_states, low, high)
+    program = run.program
+    if view.contour == "eq9_10":
+        program = eq9_program(run.program)
+        _check_extension(run.program, program, joint_states.position_m)
     return dataclasses.replace(
-        run, program=program, joint_states=_cut(run.joint_states, low, high),
+        run, program=program, joint_states=joint_states,
         reference=None if run.reference is None else _cut(run.reference, low, high),
         commands={axis: _cut(series, low, high) for axis, series in run.commands.items()})
 
