@@ -7,9 +7,12 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any, TypeVar
 
-from cnc_contour_control.errors import ConfigError
+import yaml
+
+from cnc_contour_control.errors import CncError, ConfigError
 
 T = TypeVar("T")
 
@@ -77,3 +80,17 @@ def build_config(cls: type[T], mapping: Mapping[str, Any] | None, context: str =
         return cls(**mapping)
     except TypeError as err:
         raise ConfigError(f"{context or cls.__name__}: {err}") from err
+
+
+def read_yaml_mapping(path: str | Path, what: str, error: type[CncError] = ConfigError) -> dict[str, Any]:
+    """The mapping in the YAML file ``path``; ``error`` naming ``what`` and the file otherwise."""
+    file = Path(path)
+    if not file.is_file():
+        raise error(f"{what} {str(file)!r} does not exist")
+    try:
+        content = yaml.safe_load(file.read_text())
+    except yaml.YAMLError as err:
+        raise error(f"{what} {str(file)!r} is not valid YAML: {err}") from err
+    if not isinstance(content, dict):
+        raise error(f"{what} {str(file)!r} must hold a mapping, got {type(content).__name__}")
+    return content

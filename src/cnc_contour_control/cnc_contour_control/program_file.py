@@ -4,8 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import yaml
-
+from cnc_contour_control.config import read_yaml_mapping
 from cnc_contour_control.errors import ProgramError
 from cnc_contour_control.geometry import Program
 from cnc_contour_control.program import load_program
@@ -32,12 +31,7 @@ def read_program_file(path: str | Path, axes: tuple[str, ...] | None = None) -> 
 
 
 def _yaml_program(file: Path) -> dict[str, Any]:
-    try:
-        content = yaml.safe_load(file.read_text())
-    except yaml.YAMLError as err:
-        raise ProgramError(f"program_file {str(file)!r} is not valid YAML: {err}") from err
-    if not isinstance(content, dict):
-        raise ProgramError(f"program_file {str(file)!r} must hold a mapping, got {type(content).__name__}")
+    content = read_yaml_mapping(file, "program_file", ProgramError)
     program = content.get("program", content)
     if not isinstance(program, dict):
         raise ProgramError(f"program in {str(file)!r} must be a mapping")

@@ -515,7 +515,8 @@ def table_document(table: TableFriction, fits: tuple[BranchFit, BranchFit], meta
 def write_table(path: Path, table: TableFriction, fits: tuple[BranchFit, BranchFit], meta: Mapping[str, Any]) -> Path:
     """Write the table YAML (see :data:`TABLE_HEADER` for the format); the folder is created."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(TABLE_HEADER + yaml.safe_dump(table_document(table, fits, meta), sort_keys=False))
+    path.write_text(TABLE_HEADER + yaml.safe_dump(table_document(table, fits, meta), sort_keys=False,
+                                                      default_flow_style=None, width=100))
     return path
 
 

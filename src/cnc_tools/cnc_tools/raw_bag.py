@@ -37,36 +37,35 @@ class BagSource:
 class RawBag:
     """Raw CDR messages of the wanted topics, per topic in the order read.
 
-    ``log_time_ns[topic][i]`` is the log time of ``data[topic][i]``; ``sequence``
-    its position in the order the file was read (log time, then file order), so
-    the messages of several topics can be merged back into that order.
+    ``log_time_ns[topic][i]`` is the log time of ``data[topic][i]``; ``order`` the
+    topic of every message in the order the file was read (log time, then file
+    order), so the messages of several topics can be merged back into that order.
     """
 
     msgtypes: dict[str, str] = field(default_factory=dict)
     data: dict[str, list[bytes | memoryview]] = field(default_factory=dict)
     log_time_ns: dict[str, list[int]] = field(default_factory=dict)
-    sequence: dict[str, list[int]] = field(default_factory=dict)
+    order: list[str] = field(default_factory=list)
     typestore: Typestore | None = None
-    _read: int = 0
 
     def declare(self, topic: str, msgtype: str) -> None:
-        """A topic of the bag (with no messages yet)."""
+        """A topic of the bag; its messages, if some were appended already, are kept."""
         self.msgtypes[topic] = msgtype
         self.data.setdefault(topic, [])
         self.log_time_ns.setdefault(topic, [])
-        self.sequence.setdefault(topic, [])
 
     def append(self, topic: str, log_time_ns: int, data: bytes | memoryview) -> None:
-        """One message, after those read before it."""
-        self.data.setdefault(topic, []).append(data)
-        self.log_time_ns.setdefault(topic, []).append(log_time_ns)
-        self.sequence.setdefault(topic, []).append(self._read)
-        self._read += 1
+        """One message of a declared topic, after those read before it."""
+        self.data[topic].append(data)
+        self.log_time_ns[topic].append(log_time_ns)
+        self.order.append(topic)
 
     def in_read_order(self) -> Iterator[tuple[str, int, bytes | memoryview]]:
         """(topic, log time ns, data) of every message, in the order read."""
-        entries = [(seq, topic, i) for topic, seqs in self.sequence.items() for i, seq in enumerate(seqs)]
-        for _, topic, i in sorted(entries):
+        position = dict.fromkeys(self.data, 0)
+        for topic in self.order:
+            i = position[topic]
+            position[topic] = i + 1
             yield topic, self.log_time_ns[topic][i], self.data[topic][i]
 
 
@@ -123,8 +122,13 @@ def _read_indexed(source: BagSource, wanted: TopicFilter) -> tuple[RawBag, dict[
 
 def _read_scanned(source: BagSource, wanted: TopicFilter, index_error: str) -> tuple[RawBag, BagIntegrity]:
     raw = RawBag()
-    scan, problem = scan_mcap(source.mcap_path, wanted, raw.append)
-    # Declared after the scan; declaring keeps the messages already appended.
+
+    def sink(topic: str, log_time_ns: int, data: bytes) -> None:
+        if topic not in raw.data:
+            raw.declare(topic, "")  # its type is known once the scan is over
+        raw.append(topic, log_time_ns, data)
+
+    scan, problem = scan_mcap(source.mcap_path, wanted, sink)
     for topic, msgtype in scan.topic_types().items():
         raw.declare(topic, msgtype)
     raw.typestore = scan_typestore(scan)

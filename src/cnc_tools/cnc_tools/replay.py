@@ -25,13 +25,17 @@ from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from cnc_contour_control.config import require_non_negative, require_positive
+from cnc_contour_control.config import require_range
 from cnc_contour_control.errors import BagError, ConfigError
 from cnc_tools.bag import PATH_TYPE
 from cnc_tools.raw_bag import locate, read_raw
 from cnc_tools.recorded_run import BagIntegrity
 
 NS_PER_S = 1_000_000_000
+#: Bounds of ``rate`` (the node's parameter range too).
+RATE_BOUNDS = (1e-3, 1e4)
+#: Upper bound of ``start_offset_s`` and ``skip_empty_s``, s (the node's parameter range too).
+SECONDS_MAX = 1e12
 #: Messages handed out by one ``step`` at most, so a late or fast replay keeps its executor responsive.
 DEFAULT_BATCH = 1000
 
@@ -43,7 +47,7 @@ class ReplayConfig:
     Attributes
     ----------
     rate
-        Playback speed relative to the recording (2.0 = twice as fast); > 0.
+        Playback speed relative to the recording (2.0 = twice as fast), in ``RATE_BOUNDS``.
     start_offset_s
         Start this many seconds (of log time) after the bag's first message; >= 0.
     loop
@@ -61,9 +65,9 @@ class ReplayConfig:
     skip_empty_s: float = 10.0
 
     def __post_init__(self) -> None:
-        require_positive("rate", self.rate, "replay")
-        require_non_negative("start_offset_s", self.start_offset_s, "replay")
-        require_non_negative("skip_empty_s", self.skip_empty_s, "replay")
+        require_range("rate", self.rate, *RATE_BOUNDS, "replay")
+        require_range("start_offset_s", self.start_offset_s, 0.0, SECONDS_MAX, "replay")
+        require_range("skip_empty_s", self.skip_empty_s, 0.0, SECONDS_MAX, "replay")
         if not all(isinstance(t, str) and t for t in self.topics):
             raise ConfigError(f"replay.topics must be non-empty topic names, got {list(self.topics)!r}")
 
@@ -275,7 +279,8 @@ def replay_summary(schedule: ReplaySchedule, recording: Recording) -> tuple[bool
     lost = recording.integrity.lost
     values = {"published": str(schedule.published), "max_late_s": f"{schedule.max_late_s:.6f}",
               "lost": "unknown" if lost is None else str(sum(lost.values()))}
-    text = f"replay finished: {schedule.published} messages published; bag {recording.integrity.describe()}"
+    text = (f"replay finished: {schedule.published} messages published, at most {1e3 * schedule.max_late_s:.3f} ms "
+            f"late; bag {recording.integrity.describe()}")
     return recording.integrity.complete, text, values
 
 

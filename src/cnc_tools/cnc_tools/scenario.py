@@ -11,9 +11,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
-from cnc_contour_control.config import build_config, require_choice, require_non_negative, require_positive
+from cnc_contour_control.config import build_config, read_yaml_mapping, require_choice, require_non_negative, require_positive
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.geometry import Program
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
@@ -60,15 +58,7 @@ class Scenario:
 def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Read and validate the scenario in ``path`` (with optional top-level overrides)."""
     file = Path(path)
-    if not file.is_file():
-        raise ConfigError(f"scenario file {str(file)!r} does not exist")
-    try:
-        raw = yaml.safe_load(file.read_text())
-    except yaml.YAMLError as err:
-        raise ConfigError(f"scenario {str(file)!r} is not valid YAML: {err}") from err
-    if not isinstance(raw, dict):
-        raise ConfigError(f"scenario {str(file)!r} must hold a mapping")
-    raw = merge(raw, overrides or {})
+    raw = merge(read_yaml_mapping(file, "scenario file"), overrides or {})
     raw.setdefault("name", file.stem)
     return build_scenario(raw, base_dir=file.parent, source=file)
 

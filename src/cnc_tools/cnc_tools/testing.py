@@ -21,37 +21,21 @@ from rclpy.qos import QoSProfile
 from cnc_contour_control.nodes.common import LOCKSTEP_QOS
 
 
-class TopicProbe:
-    """A node in its own context and thread that records messages and publishes on request.
+class _BackgroundNode:
+    """A node in its own context, spun by a daemon thread between ``__enter__`` and ``__exit__``."""
 
-    ``subscriptions`` maps topic -> message type. Use as a context manager.
-    """
-
-    def __init__(self, subscriptions: dict[str, type], name: str = "probe", qos: QoSProfile = LOCKSTEP_QOS) -> None:
-        self.context = Context()
-        rclpy.init(context=self.context)
-        self.node = Node(name, context=self.context)
-        self.messages: dict[str, list[Any]] = defaultdict(list)
-        self._lock = threading.Lock()
-        for topic, msg_type in subscriptions.items():
-            self.node.create_subscription(msg_type, topic, self._recorder(topic), qos)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._thread = threading.Thread(target=self._spin, daemon=True)
+    def _attach(self, context: Context, node: Node) -> None:
+        self.context, self.node = context, node
+        self.executor = SingleThreadedExecutor(context=context)
+        self.executor.add_node(node)
         self._running = True
-
-    def _recorder(self, topic: str) -> Callable[[Any], None]:
-        def record(msg: Any) -> None:
-            with self._lock:
-                self.messages[topic].append(msg)
-
-        return record
+        self._thread = threading.Thread(target=self._spin, daemon=True)
 
     def _spin(self) -> None:
         while self._running and self.context.ok():
             self.executor.spin_once(timeout_sec=0.05)
 
-    def __enter__(self) -> TopicProbe:
+    def __enter__(self) -> Any:
         self._thread.start()
         return self
 
@@ -61,6 +45,29 @@ class TopicProbe:
         self.executor.shutdown()
         self.node.destroy_node()
         rclpy.shutdown(context=self.context)
+
+
+class TopicProbe(_BackgroundNode):
+    """A node in its own context and thread that records messages and publishes on request.
+
+    ``subscriptions`` maps topic -> message type. Use as a context manager.
+    """
+
+    def __init__(self, subscriptions: dict[str, type], name: str = "probe", qos: QoSProfile = LOCKSTEP_QOS) -> None:
+        context = Context()
+        rclpy.init(context=context)
+        self._attach(context, Node(name, context=context))
+        self.messages: dict[str, list[Any]] = defaultdict(list)
+        self._lock = threading.Lock()
+        for topic, msg_type in subscriptions.items():
+            self.node.create_subscription(msg_type, topic, self._recorder(topic), qos)
+
+    def _recorder(self, topic: str) -> Callable[[Any], None]:
+        def record(msg: Any) -> None:
+            with self._lock:
+                self.messages[topic].append(msg)
+
+        return record
 
     def publisher(self, msg_type: type, topic: str, qos: QoSProfile = LOCKSTEP_QOS) -> Any:
         """A publisher on the probe's node."""
@@ -141,32 +148,13 @@ def all_alive(pids: Iterable[int]) -> bool:
     return all(Path(f"/proc/{pid}").exists() for pid in pids)
 
 
-class InProcessNode:
+class InProcessNode(_BackgroundNode):
     """Runs a node class in this process, in its own context, spun by a background thread."""
 
     def __init__(self, factory: Callable[..., Node], parameters: dict[str, Any], namespace: str = "/cnc") -> None:
         from rclpy.parameter import Parameter
 
-        self.context = Context()
-        rclpy.init(context=self.context)
+        context = Context()
+        rclpy.init(context=context)
         overrides = [Parameter(name, value=value) for name, value in parameters.items()]
-        self.node = factory(context=self.context, namespace=namespace, parameter_overrides=overrides)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._running = True
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-
-    def _spin(self) -> None:
-        while self._running and self.context.ok():
-            self.executor.spin_once(timeout_sec=0.05)
-
-    def __enter__(self) -> InProcessNode:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._running = False
-        self._thread.join(timeout=5.0)
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
+        self._attach(context, factory(context=context, namespace=namespace, parameter_overrides=overrides))

@@ -8,7 +8,16 @@ from diagnostic_msgs.msg import DiagnosticStatus
 
 from cnc_contour_control.errors import BagError
 from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, spin_node, wall_time_s
-from cnc_tools.replay import Recording, ReplayConfig, ReplaySchedule, load_recording, replay_summary, topics_of
+from cnc_tools.replay import (
+    RATE_BOUNDS,
+    SECONDS_MAX,
+    Recording,
+    ReplayConfig,
+    ReplaySchedule,
+    load_recording,
+    replay_summary,
+    topics_of,
+)
 
 #: Poll period while waiting for readers, s.
 _WAIT_PERIOD_S = 0.01
@@ -32,7 +41,7 @@ class ReplayNode(SuiteNode):
             "readers every replayed topic must have before playback starts", 0, 1000, True, True))
         if recording is None and not bag:
             raise BagError("replay: parameter bag (the bag folder to replay) is required")
-        self.recording = recording or load_recording(bag, config.topics)
+        self.recording = recording if recording is not None else load_recording(bag, config.topics)
         self.schedule = ReplaySchedule(self.recording, config)
         self.outputs = {topic: self._publisher(topic, type_name) for topic, type_name in self.recording.topics.items()}
         self.started_at_s: float | None = None
@@ -42,13 +51,13 @@ class ReplayNode(SuiteNode):
     def _declare_config(self) -> ReplayConfig:
         """Rate, start offset, loop and topics from the parameters, validated by the core."""
         return ReplayConfig(
-            rate=self.declare("rate", 1.0, describe("playback speed relative to the recording", 1e-3, 1e4, True)),
+            rate=self.declare("rate", 1.0, describe("playback speed relative to the recording", *RATE_BOUNDS, True)),
             start_offset_s=self.declare("start_offset_s", 0.0, describe(
-                "start this many seconds into the bag, s", 0.0, 1e9, True)),
+                "start this many seconds into the bag, s", 0.0, SECONDS_MAX, True)),
             loop=self.declare("loop", False, describe("start over at the end, until stopped", read_only=True)),
             topics=topics_of(self.declare("topics", [""], describe("topics to replay (empty: all)", read_only=True))),
             skip_empty_s=self.declare("skip_empty_s", 10.0, describe(
-                "skip stretches of log time longer than this with no message, s (0: never)", 0.0, 1e9, True)))
+                "skip stretches of log time longer than this with no message, s (0: never)", 0.0, SECONDS_MAX, True)))
 
     def _publisher(self, topic: str, type_name: str) -> Any:
         qos = LATCHED_QOS if topic in self.recording.latched_topics else LOCKSTEP_QOS
