@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -263,13 +262,6 @@ def test_advance_holds_the_end() -> None:
     assert interpolator.profile_time_s == pytest.approx(interpolator.duration_s)
     assert_allclose(sample.position_m, [0.001, 0.0]) and sample.feed_m_s == 0.0
 
-
-def test_sample_is_cheap() -> None:
-    interpolator = Interpolator(load_program({"shape": "circle", "radius_mm": 20, "feed_mm_min": 1300}), LIMITS_2)
-    start = time.perf_counter()
-    for k in range(2000):
-        interpolator.sample(k * 1e-3)
-    assert (time.perf_counter() - start) / 2000 < 1e-4
 
 
 @pytest.mark.parametrize("kwargs, message", [

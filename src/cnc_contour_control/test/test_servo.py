@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 import pytest
@@ -126,13 +125,6 @@ def test_unknown_config_key_lists_valid_keys() -> None:
     assert "servo.kp: unknown key; valid keys are ['axis_name', 'command_unit', 'counts_per_m'" \
         in str(info.value)
 
-
-def test_step_is_fast() -> None:
-    ctrl = servo()
-    start = time.perf_counter()
-    for k in range(2000):
-        ctrl.step(0.01, 1e-5 * k, 1e-3, 0.0, 1e-5 * k - 2e-5)
-    assert (time.perf_counter() - start) / 2000 < 100e-6  # measured ~3 µs; generous for CI
 
 
 # ---------------------------------------------------------------- closed loop with the plant

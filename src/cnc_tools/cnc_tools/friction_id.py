@@ -71,6 +71,8 @@ MAX_SPEED_DEVIATION = 0.05
 MAX_DRIFT_DAC = 0.5
 #: Extra cruise beyond ``settle_s + window_s`` [s] (keeps the window off the deceleration ramp).
 CRUISE_MARGIN_S = 0.2
+#: Speed [mm/s] of the scenario built to read the template's limits before the speeds are checked.
+PROBE_SPEED_MM_S = 0.01
 #: Simulated time after the program ends [s] (nothing is measured there).
 RUN_TAIL_S = 0.1
 
@@ -214,7 +216,8 @@ def plan_runs(template: Mapping[str, Any], config: IdentificationConfig) -> tupl
     """
     base = base_mapping(template, config)
     require_choice("axis", config.axis, tuple(base.get("plant", {}).get("axes", ("x", "y"))))
-    probe = build_scenario(run_mapping(base, config, config.speeds_mm_s[0], config.seeds[0] if config.seeds else None))
+    probe_speed_mm_s = min(config.speeds_mm_s[0], PROBE_SPEED_MM_S)  # within any limit; the real speeds come next
+    probe = build_scenario(run_mapping(base, config, probe_speed_mm_s, config.seeds[0] if config.seeds else None))
     constants = axis_constants(probe, config.axis)
     check_speeds(probe, constants, config)
     plants: list[tuple[str, int | None]] = [("nominal", None), *((f"seed_{s}", s) for s in config.seeds)]

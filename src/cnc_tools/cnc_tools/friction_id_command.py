@@ -178,7 +178,7 @@ def _points_panel(ax: Axes, summaries: Sequence[fid.SpeedSummary], fits: tuple[f
 
 
 def _residual_panel(ax: Axes, points: Sequence[fid.FrictionPoint]) -> None:
-    for seed_kind, colour, label in ((False, "tab:blue", "nominal plant"), (True, "tab:orange", "varied plants")):
+    for seed_kind, colour, label in ((False, "tab:blue", "nominal plant"), (True, "tab:orange", "varied plants (nominal K)")):
         chosen = [p for p in points if (p.seed is not None) == seed_kind and p.status == "steady"]
         ax.plot([p.velocity_mm_s for p in chosen], [p.deviation_dac for p in chosen], "o" if not seed_kind else "s",
                 ms=3, color=colour, label=label)

@@ -276,12 +276,17 @@ class ReplaySchedule:
 
 def replay_summary(schedule: ReplaySchedule, recording: Recording) -> tuple[bool, str, dict[str, str]]:
     """(ok, one line, key values) for the end of a replay: what was published, what the bag had lost."""
-    lost = recording.integrity.lost
     values = {"published": str(schedule.published), "max_late_s": f"{schedule.max_late_s:.6f}",
-              "lost": "unknown" if lost is None else str(sum(lost.values()))}
+              "lost": lost_count(recording.integrity)}
     text = (f"replay finished: {schedule.published} messages published, at most {1e3 * schedule.max_late_s:.3f} ms "
             f"late; bag {recording.integrity.describe()}")
     return recording.integrity.complete, text, values
+
+
+def lost_count(integrity: BagIntegrity) -> str:
+    """Messages the bag lost in all, as text: a number, or ``unknown``."""
+    lost = integrity.lost
+    return "unknown" if lost is None else str(sum(lost.values()))
 
 
 def topics_of(values: Sequence[str]) -> tuple[str, ...]:

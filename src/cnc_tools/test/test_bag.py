@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -312,25 +311,3 @@ def test_columnar_decoding_refuses_nested_sequences_and_truncated_messages() -> 
         decode_columns([b"\x00\x01\x00\x00" + bytes(64)], "cnc_contour_interfaces/msg/Path", store)
     with pytest.raises(BagError, match="ends inside a field"):
         decode_columns([b"\x00\x01\x00\x00\x01\x00"], "sensor_msgs/msg/JointState", store)
-
-
-# --------------------------------------------------------------------------- speed
-def _best_of(runs: int, func) -> float:  # noqa: ANN001
-    best = float("inf")
-    for _ in range(runs):
-        start = time.perf_counter()
-        func()
-        best = min(best, time.perf_counter() - start)
-    return best
-
-
-def test_scoring_is_at_least_half_as_fast_as_a_bare_rosbags_loop(circle_bag: Path) -> None:
-    from cnc_tools.scoring import score_run
-
-    def bare() -> None:
-        with AnyReader([circle_bag], default_typestore=project_typestore()) as reader:
-            for conn, _, raw in reader.messages():
-                reader.deserialize(raw, conn.msgtype)
-
-    score = _best_of(3, lambda: score_run(read_bag(circle_bag)))
-    assert score <= 2.0 * _best_of(3, bare), "score_run(read_bag(...)) is slower than 0.5x a bare rosbags loop"

@@ -52,6 +52,8 @@ def test_speed_beyond_the_velocity_limit_is_refused() -> None:
     with pytest.raises(ConfigError, match=r"speeds_mm_s\[1\] must be <= limits.max_velocity_mm_min/60 = 33.333 mm/s "
                                           r"on axis x, got 40.0"):
         fid.plan_runs(fid.DEFAULT_TEMPLATE, _config(speeds_mm_s=(1.0, 40.0)))
+    with pytest.raises(ConfigError, match=r"speeds_mm_s\[0\] must be <= limits.max_velocity_mm_min/60"):
+        fid.plan_runs(fid.DEFAULT_TEMPLATE, _config(speeds_mm_s=(40.0,)))
 
 
 def test_speed_beyond_the_dac_range_is_refused() -> None:

@@ -5,7 +5,8 @@ import math
 import re
 import subprocess
 import sys
-from collections.abc import Mapping
+import time
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import pytest
@@ -221,6 +222,15 @@ def _final_status(probe) -> object | None:  # noqa: ANN001
     return None
 
 
+def _wait(condition: Callable[[], bool], timeout_s: float, what: str) -> None:
+    """Wait until ``condition()`` holds; fail naming ``what`` after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+        time.sleep(0.01)
+
+
 def _wait_for_all(probe, expected: Mapping[str, int], timeout_s: float = 30.0) -> None:  # noqa: ANN001
     probe.wait_for(lambda: all(len(probe.received(t)) >= n for t, n in expected.items()), timeout_s,
                    f"replayed messages {dict(expected)}")
@@ -292,3 +302,25 @@ def test_the_command_replays_a_bag_in_its_own_process_and_exits(tmp_path: Path, 
     assert process.returncode == 0, output.decode()
     assert received == {t: recorded[t] for t in received}
     assert b"replaying 11 messages on 2 topics" in output
+
+
+@pytest.mark.nodes
+def test_replaying_into_the_recorder_records_the_same_bag(tmp_path: Path, synth) -> None:  # noqa: ANN001
+    from cnc_tools.nodes.recorder_node import RecorderNode
+    from cnc_tools.nodes.replay_node import ReplayNode
+    from cnc_tools.testing import InProcessNode
+
+    bag = _small_run(tmp_path, synth)
+    recorded = _recorded(bag)
+    expected = {t: len(v) for t, v in recorded.items()}
+    copy = tmp_path / "rerecorded"
+    with InProcessNode(RecorderNode, {"output": str(copy), "axes": ["x", "y"]}) as recorder, \
+            InProcessNode(ReplayNode, {"bag": str(bag), "rate": 20.0, "min_subscribers": 1}):
+
+        def holds_everything() -> bool:
+            counts = recorder.node.writer.message_counts
+            return all(counts.get(t, 0) >= n for t, n in expected.items())
+
+        _wait(holds_everything, 30.0, f"the recorder to hold {expected}")
+    rerecorded = _recorded(copy)  # the recorder closed its bag when its node was destroyed
+    assert {t: rerecorded[t] for t in recorded} == recorded

@@ -4,7 +4,6 @@ from __future__ import annotations
 import csv
 import io
 import json
-import time
 from pathlib import Path
 
 import numpy as np
@@ -185,13 +184,9 @@ def _big_bag(path: Path, synth, seconds: int = 60, rate_hz: int = 1000) -> Path:
     return path
 
 
-def test_a_60s_1khz_3_axis_run_is_scored_within_1s(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_a_60s_1khz_3_axis_run_is_scored_completely(tmp_path: Path, synth) -> None:  # noqa: ANN001
+    """Every sample of a long run is scored (its speed is measured by ``cnc-contour bench scoring``)."""
     bag = _big_bag(tmp_path / "big", synth)
-    best = float("inf")
-    for _ in range(2):
-        start = time.perf_counter()
-        score = score_run(read_bag(bag, commands=False))
-        best = min(best, time.perf_counter() - start)
+    score = score_run(read_bag(bag, commands=False))
     assert score.window.n_scored == 60_000
     assert_allclose(score.contour.values_si["max"], 3e-6, rtol=1e-6)
-    assert best <= 1.0, f"scoring took {best:.3f} s"

@@ -30,6 +30,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
+from cnc_contour_control.units import M_PER_BLU_PAPER000
 from cnc_tools.bench import register_bench
 from cnc_tools.bench.paper000_data import EXPERIMENTS, TABLE5, Table5Row
 from cnc_tools.bench.paper000_runs import CONTROLLERS, VIEWS
@@ -53,6 +56,8 @@ from cnc_tools.report import write_report
 DEFAULT_SEEDS = 5
 #: Table 5 cases drawn as Figs. 9-11 (line 0.4 m/min, circle 0.4 and 1.3 m/min, corner 0.3 m/min).
 FIGURE_CASES = ("line_low", "circle_low", "circle_high", "corner_low")
+#: The FLC's input range, Table 3's outermost centres: |e| [BLU] and |Δe| [BLU per sample].
+FLC_E_LIMIT_BLU, FLC_DE_LIMIT_BLU = 21.0, 4.5
 #: The alternative rule bases (``flc:<name>``).
 RULE_BASE_CONTROLLERS = tuple(name for name in CONTROLLERS if name.startswith("flc:"))
 
@@ -93,13 +98,16 @@ def pid_table(sweep: Sweep, rows: Sequence[Table5Row]) -> list[dict[str, Any]]:
 
 def print_pid_table(table: Sequence[dict[str, Any]]) -> None:
     """Our PID beside Table 5's PID columns."""
-    print(format_table(
-        ["contour", "feed", "max ours", "max paper", "ours/paper", "RMS ours", "RMS paper", "ours/paper",
-         "whole-run max", "whole-run RMS"],
-        [[t["contour"], f"{t['feed']} {t['feed_m_min']:g}", stat_text(t["max"]["ours_blu"]), f"{t['max']['paper_blu']:.1f}",
-          f"{t['max']['ratio_ours_to_paper']:.2f}", stat_text(t["rms"]["ours_blu"]), f"{t['rms']['paper_blu']:.1f}",
-          f"{t['rms']['ratio_ours_to_paper']:.2f}", stat_text(t["max"]["whole_run_blu"]),
-          stat_text(t["rms"]["whole_run_blu"])] for t in table]))
+    print(format_table(["contour", "feed", "max ours", "max paper", "ours/paper", "RMS ours", "RMS paper",
+                        "ours/paper", "whole-run max", "whole-run RMS"], [_pid_cells(t) for t in table]))
+
+
+def _pid_cells(entry: dict[str, Any]) -> list[object]:
+    cells: list[object] = [entry["contour"], f"{entry['feed']} {entry['feed_m_min']:g}"]
+    for metric in ("max", "rms"):
+        m = entry[metric]
+        cells += [stat_text(m["ours_blu"]), f"{m['paper_blu']:.1f}", f"{m['ratio_ours_to_paper']:.2f}"]
+    return cells + [stat_text(entry["max"]["whole_run_blu"]), stat_text(entry["rms"]["whole_run_blu"])]
 
 
 @register_bench("paper000-pid")
@@ -205,6 +213,31 @@ def print_rule_base_table(table: Sequence[dict[str, Any]]) -> None:
         for t in table]))
 
 
+def following_table(sweep: Sweep, rows: Sequence[Table5Row]) -> list[dict[str, Any]]:
+    """First seed, whole run, PID and FLC: peak |following error| and |command| per axis, share in the FLC's sets."""
+    return [{"case": row.case, "controller": name,
+             **_following(sweep.first_runs[(row.case, name)]["whole_run"][0])}
+            for row in rows for name in ("pid", "flc")]
+
+
+def _following(run: RecordedRun) -> dict[str, Any]:
+    axes = run.axis_names
+    error_blu = np.array([run.commands[a].error_m for a in axes]) / M_PER_BLU_PAPER000  # (n_axes, N)
+    change_blu = np.diff(error_blu, axis=1, prepend=0.0)
+    inside = (np.abs(error_blu) <= FLC_E_LIMIT_BLU) & (np.abs(change_blu) <= FLC_DE_LIMIT_BLU)
+    return {"peak_error_blu": {a: float(np.max(np.abs(e))) for a, e in zip(axes, error_blu)},
+            "peak_command_dac": {a: float(np.max(np.abs(run.commands[a].command))) for a in axes},
+            "inside_flc_sets": float(np.mean(inside))}
+
+
+def print_following_table(table: Sequence[dict[str, Any]]) -> None:
+    """Peak following error and command per axis; share of axis samples inside the FLC's input sets."""
+    print(format_table(["case", "law", "peak |e| [BLU]", "peak |u| [DAC]", "inside FLC sets"], [
+        [t["case"], CONTROLLERS[t["controller"]].label, "/".join(f"{v:.1f}" for v in t["peak_error_blu"].values()),
+         "/".join(f"{v:.0f}" for v in t["peak_command_dac"].values()), f"{100 * t['inside_flc_sets']:.1f} %"]
+        for t in table]))
+
+
 def _print_agreement(sweep: Sweep) -> None:
     if sweep.graph_vs_engine_blu:
         print(f"node graph vs engine, same seed, same scorer: largest difference "
@@ -252,7 +285,7 @@ def _print_all(sweep: Sweep, rows: Sequence[Table5Row], settings: Settings) -> d
     """Print every table of ``paper000``; return them as plain data."""
     tables = {"table5": compare_table(sweep, rows), "experiments": experiment_table(sweep, settings.quick),
               "feedforward": compare_table(sweep, rows, "pid+ff", "flc+ff", paper=False),
-              "rule_bases": rule_base_table(sweep, rows)}
+              "rule_bases": rule_base_table(sweep, rows), "following": following_table(sweep, rows)}
     print(f"\nTable 5, contour error [BLU = 10 µm], {VIEWS['paper'].description}; mean ± sample std over "
           f"{len(settings.seeds)} seeds; FLC<=PID: seeds where the FLC is not worse")
     print_compare_table(tables["table5"])
@@ -263,6 +296,9 @@ def _print_all(sweep: Sweep, rows: Sequence[Table5Row], settings: Settings) -> d
     print_compare_table(tables["feedforward"], paper=False)
     print("\nrule-base sensitivity (fuzzy.RULE_BASES; docs/fuzzy_rule_base.md); ratios to the PID")
     print_rule_base_table(tables["rule_bases"])
+    print(f"\nseed 1, whole run: peak following error and command per axis (x/y); share of axis samples with "
+          f"|e| <= {FLC_E_LIMIT_BLU:g} BLU and |de| <= {FLC_DE_LIMIT_BLU:g} BLU (inside the FLC's sets, Table 3)")
+    print_following_table(tables["following"])
     return tables
 
 

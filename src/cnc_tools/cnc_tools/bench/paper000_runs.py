@@ -29,6 +29,7 @@ from cnc_contour_control.errors import BagError, FaultError
 from cnc_contour_control.geometry import LineSegment, Program, Segment
 from cnc_contour_control.laws.fuzzy import RULE_BASES
 from cnc_contour_control.lockstep import NS_PER_S, seconds_to_ns
+from cnc_contour_control.servo import ServoConfig
 from cnc_contour_control.units import M_PER_BLU_PAPER000
 from cnc_plant_sim.plant import PlantConfig
 from cnc_tools.bag import read_bag
@@ -118,9 +119,8 @@ def engine_recorded_run(scenario: Scenario, result: EngineResult | None = None) 
     ref = scenario.make_interpolator().sample_array(stamps * 1e-9)
     reference = ReferenceSeries(stamps, ref.position_m, ref.velocity_m_s, ref.acceleration_m_s2, ref.path_length_m,
                                 ref.segment_index.astype(np.int64), ref.feed_m_s, ref.done)
-    commands = {config.axis_name: _engine_commands(config.axis_name, config.law, config.command_unit,
-                                                   config.output_limit, stamps, result.command[:, k],
-                                                   ref.position_m[:, k] - result.position_m[:, k])
+    following_m = ref.position_m - result.position_m
+    commands = {config.axis_name: _engine_commands(config, stamps, result.command[:, k], following_m[:, k])
                 for k, config in enumerate(scenario.servos)}
     integrity = BagIntegrity(True, "engine", {"joint_states": result.ticks, "reference": result.ticks}, None,
                              "engine (in-process, no bag)")
@@ -128,11 +128,12 @@ def engine_recorded_run(scenario: Scenario, result: EngineResult | None = None) 
                        JointStateSeries(stamps, result.position_m, result.velocity_m_s), reference, commands, integrity)
 
 
-def _engine_commands(axis: str, law: str, unit: str, limit: float, stamps: np.ndarray, command: np.ndarray,
+def _engine_commands(config: ServoConfig, stamps: np.ndarray, command: np.ndarray,
                      error_m: np.ndarray) -> CommandSeries:
+    """One axis's commands (N,) as a bag holds them; the parts of the command are unknown (NaN)."""
     unknown = np.full(stamps.size, np.nan)
-    return CommandSeries(axis, law, unit, stamps, command, unknown, unknown, unknown, unknown,
-                         np.abs(command) >= limit, error_m)
+    return CommandSeries(config.axis_name, config.law, config.command_unit, stamps, command, unknown, unknown,
+                         unknown, unknown, np.abs(command) >= config.output_limit, error_m)
 
 
 def graph_recorded_run(scenario: Scenario, run_dir: Path) -> RecordedRun:

@@ -15,6 +15,7 @@ from cnc_tools.replay import (
     ReplayConfig,
     ReplaySchedule,
     load_recording,
+    lost_count,
     replay_summary,
     topics_of,
 )
@@ -85,10 +86,10 @@ class ReplayNode(SuiteNode):
     def _start(self) -> float:
         """Note the wall time playback starts at; warn on /diagnostics if the bag is damaged."""
         self.started_at_s = wall_time_s()
-        if not self.recording.integrity.complete:
-            lost = self.recording.integrity.lost
-            self.report(DiagnosticStatus.WARN, f"replaying a damaged bag: {self.recording.integrity.describe()}",
-                        {"lost": "unknown" if lost is None else str(sum(lost.values()))})
+        integrity = self.recording.integrity
+        if not integrity.complete:
+            self.report(DiagnosticStatus.WARN, f"replaying a damaged bag: {integrity.describe()}",
+                        {"lost": lost_count(integrity)})
         return self.started_at_s
 
     def _finish(self) -> None:
@@ -104,7 +105,7 @@ def message_class(type_name: str, topic: str = "") -> type:
     package, _, name = type_name.split("/") if type_name.count("/") == 2 else ("", "", type_name)
     try:
         return getattr(importlib.import_module(f"{package}.msg"), name)  # type: ignore[no-any-return]
-    except (ImportError, AttributeError, ValueError) as err:
+    except (ImportError, AttributeError, TypeError, ValueError) as err:
         raise BagError(f"replay: message type {type_name!r} of {topic or 'a topic'} is not available "
                        f"in this ROS environment ({type(err).__name__}: {err})") from err
 
