@@ -54,6 +54,10 @@ def test_circle_at_1ms_loses_no_message_and_reads_back_with_rosbags_and_mcap(tmp
     assert decoded["/cnc/joint_states"] == ticks and decoded["/cnc/path"] == 1
     run = read_bag(result.bag_path)
     assert run.integrity.complete and run.program.name == "paper000_circle_high"
+    with AnyReader([result.bag_path], default_typestore=project_typestore()) as reader:
+        end_ns = max(t for c, t, _ in reader.messages() if c.topic == "/cnc/joint_states")
+        diagnostics = [t for c, t, _ in reader.messages() if c.topic == "/diagnostics"]
+    assert diagnostics and max(diagnostics) <= end_ns, "wall-stamped diagnostics logged inside the run's time"
 
 
 def test_same_scenario_and_seed_give_the_same_bag_contents(tmp_path: Path) -> None:

@@ -1,17 +1,20 @@
 """Recorder node: writes a run's topics to MCAP (rosbag2 layout) as raw CDR, losing nothing."""
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
 
 from cnc_contour_control.errors import BagError
-from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, spin_node, wall_time_s
+from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, message_class, spin_node, wall_time_s
 from cnc_plant_sim.nodes.plant_node import RUN_FINISHED
 from cnc_tools.bag import BagWriter
 from cnc_tools.recording import Completion, header_stamp_ns, per_tick_topics, run_topics
 
+
+
+#: Topics stamped in wall time: logged at the simulation time of the latest message recorded before them.
+WALL_STAMPED = ("/diagnostics",)
 
 
 class RecorderNode(SuiteNode):
@@ -29,16 +32,21 @@ class RecorderNode(SuiteNode):
         self.writer = BagWriter(output, topics)
         self.completion = Completion(per_tick_topics(topics, self.get_namespace()))
         self.ended_at_s: float | None = None
+        self.latest_sim_ns = 0
         for topic, type_name in topics.items():
             qos = LATCHED_QOS if type_name.endswith("/Path") else LOCKSTEP_QOS
-            self.create_subscription(_message_class(type_name), topic, self._writer_for(topic), qos, raw=True)
+            self.create_subscription(message_class(type_name, topic), topic, self._writer_for(topic), qos, raw=True)
         self.create_timer(0.05, self.guarded(self._check_done))
 
     def _writer_for(self, topic: str) -> Any:
         def write(cdr: bytes) -> None:
-            self.writer.write(topic, header_stamp_ns(cdr), cdr)
-            if topic == "/diagnostics":
+            if topic in WALL_STAMPED:
+                self.writer.write(topic, self.latest_sim_ns, cdr)
                 self._watch_run_end(cdr)
+                return
+            stamp_ns = header_stamp_ns(cdr)
+            self.latest_sim_ns = max(self.latest_sim_ns, stamp_ns)
+            self.writer.write(topic, stamp_ns, cdr)
 
         return self.guarded(write)
 
@@ -63,11 +71,6 @@ class RecorderNode(SuiteNode):
         """Close the bag (MCAP summary and metadata.yaml) on every way out."""
         self.writer.close()
         super().destroy_node()
-
-
-def _message_class(type_name: str) -> type:
-    package, _, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
 def main(args: list[str] | None = None) -> None:

@@ -1,13 +1,12 @@
 """Replay node: republishes a bag's topics, raw, at their recorded times (as ``ros2 bag play``)."""
 from __future__ import annotations
 
-import importlib
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 
 from cnc_contour_control.errors import BagError
-from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, spin_node, wall_time_s
+from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, message_class, spin_node, wall_time_s
 from cnc_tools.replay import (
     RATE_BOUNDS,
     SECONDS_MAX,
@@ -98,16 +97,6 @@ class ReplayNode(SuiteNode):
         self.get_logger().info(text)
         self._timer.cancel()
         self.finished = True
-
-
-def message_class(type_name: str, topic: str = "") -> type:
-    """The rclpy message class of ``pkg/msg/Name``; ``BagError`` if this environment lacks it."""
-    package, _, name = type_name.split("/") if type_name.count("/") == 2 else ("", "", type_name)
-    try:
-        return getattr(importlib.import_module(f"{package}.msg"), name)  # type: ignore[no-any-return]
-    except (ImportError, AttributeError, TypeError, ValueError) as err:
-        raise BagError(f"replay: message type {type_name!r} of {topic or 'a topic'} is not available "
-                       f"in this ROS environment ({type(err).__name__}: {err})") from err
 
 
 def main(args: list[str] | None = None) -> None:
