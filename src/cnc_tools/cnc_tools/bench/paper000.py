@@ -2,8 +2,8 @@
 
 ``paper000-pid``
     The six Table 5 scenarios (line, circle, corner × low, high feed) with the
-    paper's PID, through the node graph (recorded, scored from the bag), or
-    the engine with ``--engine``; our max and RMS contour error [BLU] beside
+    paper's PID, every seed through the node graph (recorded, scored from the
+    bag), or the engine with ``--engine``; our max and RMS contour error [BLU] beside
     Table 5's PID columns and the ratio ours/paper.
 ``paper000``
     Table 5 for PID and FLC over several seeds (mean ± sample standard
@@ -73,9 +73,11 @@ def _rows(cases: Sequence[Case]) -> list[Table5Row]:
     return [row for row in TABLE5 if row.case in names]
 
 
-def _how(settings: Settings, graph: bool) -> str:
-    if settings.engine or not graph:
+def _how(plan: SweepPlan) -> str:
+    if plan.graph_seeds == 0:
         return "engine (in-process), scored by the project scorer"
+    if plan.graph_seeds >= len(plan.seeds):
+        return "node graph, recorded to MCAP and scored from the bag"
     return "first seed: node graph, recorded to MCAP and scored from the bag; other seeds: engine"
 
 
@@ -116,9 +118,10 @@ def paper000_pid_bench(options: argparse.Namespace) -> int:
     started = time.perf_counter()
     settings = settings_of(options, default_seeds=1)
     cases = table5_cases(settings.quick)
-    print(f"paper000-pid: {len(cases)} scenarios x seeds {list(settings.seeds)}; {_how(settings, True)}; "
+    plan = settings.plan(graph_seeds=len(settings.seeds))
+    print(f"paper000-pid: {len(cases)} scenarios x seeds {list(settings.seeds)}; {_how(plan)}; "
           f"run files in {settings.out_dir}", flush=True)
-    sweep = run_sweep(cases, ["pid"], SweepPlan(settings.seeds, not settings.engine, settings.out_dir))
+    sweep = run_sweep(cases, ["pid"], plan)
     table = pid_table(sweep, _rows(cases))
     print(f"\nPID (Eq. 14, Table 4 gains), contour error [BLU = 10 µm], {VIEWS['paper'].description}; "
           f"mean ± sample std over seeds; 'whole run': {VIEWS['whole_run'].description}")
@@ -265,11 +268,11 @@ def paper000_bench(options: argparse.Namespace) -> int:
     settings = settings_of(options, default_seeds=DEFAULT_SEEDS)
     cases, experiments = table5_cases(settings.quick), experiment_cases(settings.quick)
     rows = _rows(cases)
-    print(f"paper000: seeds {list(settings.seeds)}; main table: {_how(settings, True)}; "
+    print(f"paper000: seeds {list(settings.seeds)}; main table: {_how(settings.plan(graph_seeds=1))}; "
           f"run files in {settings.out_dir}", flush=True)
-    sweep = run_sweep(cases, ["pid", "flc"], settings.plan(graph=True))
-    run_sweep(experiments, ["pid", "flc"], settings.plan(graph=False), sweep)
-    run_sweep(cases, ["pid+ff", "flc+ff", *RULE_BASE_CONTROLLERS], settings.plan(graph=False), sweep)
+    sweep = run_sweep(cases, ["pid", "flc"], settings.plan(graph_seeds=1))
+    run_sweep(experiments, ["pid", "flc"], settings.plan(graph_seeds=0), sweep)
+    run_sweep(cases, ["pid+ff", "flc+ff", *RULE_BASE_CONTROLLERS], settings.plan(graph_seeds=0), sweep)
     figures = _figures(sweep, [c for c in FIGURE_CASES if c in {k.name for k in cases}] or [cases[0].name],
                        ["pid", "flc"], settings.out_dir / "figures")
     tables = _print_all(sweep, rows, settings)

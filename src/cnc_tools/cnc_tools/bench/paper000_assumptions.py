@@ -17,7 +17,7 @@ from typing import Any
 
 from cnc_tools.bench import register_bench
 from cnc_tools.bench.paper000_runs import CONTROLLERS, VIEWS, Controller
-from cnc_tools.bench.paper000_sweep import Case, Settings, Sweep, SweepPlan, run_sweep, settings_of, table5_cases
+from cnc_tools.bench.paper000_sweep import Case, Settings, Sweep, run_sweep, settings_of, table5_cases
 from cnc_tools.bench.report import format_table, machine, write_json
 
 #: Seeds when ``--seeds`` is not given.
@@ -106,7 +106,7 @@ VARIANTS: tuple[Variant, ...] = (
 def run_variant(variant: Variant, settings: Settings) -> Sweep:
     """The six cases (``--quick``: one) with PID and FLC under ``variant``, in the engine."""
     cases = [Case(c.name, c.path, variant.overrides(c.name)) for c in table5_cases(settings.quick)]
-    return run_sweep(cases, ["pid", "flc"], SweepPlan(settings.seeds, False, settings.out_dir),
+    return run_sweep(cases, ["pid", "flc"], settings.plan(graph_seeds=0),
                      lookup=variant.controllers())
 
 

@@ -1,7 +1,7 @@
 """Sweeps of the paper-000 benches: cases × controllers × seeds, run and scored, then summarised.
 
-A sweep runs every (case, controller, seed) once. The first seed of a sweep
-may go through the node graph (recorded, scored from the bag); the rest run
+A sweep runs every (case, controller, seed) once. The first ``graph_seeds``
+seeds go through the node graph (recorded, scored from the bag); the rest run
 in the engine. Where a run went through the graph, the engine runs it too and
 the sweep keeps the largest difference of the two scores (they should agree:
 same cores, same tick order, same scorer).
@@ -42,10 +42,10 @@ class Case:
 
 @dataclass(frozen=True)
 class SweepPlan:
-    """What a sweep runs: seeds, and whether the first seed goes through the node graph."""
+    """What a sweep runs: seeds, and how many of the first go through the node graph."""
 
     seeds: tuple[int, ...]
-    graph_first_seed: bool
+    graph_seeds: int
     out_dir: Path
 
 
@@ -80,8 +80,8 @@ def run_sweep(cases: Sequence[Case], controllers: Sequence[str], plan: SweepPlan
     for case in cases:
         for name in controllers:
             controller = lookup[name] if lookup is not None else get_controller(name)
-            for seed in plan.seeds:
-                graph = plan.graph_first_seed and seed == plan.seeds[0]
+            for k, seed in enumerate(plan.seeds):
+                graph = k < plan.graph_seeds
                 if graph:
                     print(f"  node graph: {case.name} {name} seed {seed} ...", flush=True)
                 _one(sweep, case, controller, seed, graph, plan.out_dir)
@@ -130,9 +130,9 @@ class Settings:
     out_dir: Path
     json: Path | None
 
-    def plan(self, graph: bool) -> SweepPlan:
-        """Sweep plan: the first seed through the node graph if ``graph`` and not ``--engine``."""
-        return SweepPlan(self.seeds, graph and not self.engine, self.out_dir)
+    def plan(self, graph_seeds: int) -> SweepPlan:
+        """Sweep plan: the first ``graph_seeds`` seeds through the node graph (none with ``--engine``)."""
+        return SweepPlan(self.seeds, 0 if self.engine else graph_seeds, self.out_dir)
 
 
 def settings_of(options: argparse.Namespace, default_seeds: int) -> Settings:
