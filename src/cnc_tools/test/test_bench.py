@@ -106,7 +106,7 @@ def per_tick_engine(run: Scenario) -> dict[str, np.ndarray]:
 
 @pytest.mark.parametrize(("name", "sample_time_s"), [
     ("paper000_circle_high", 0.01), ("paper000_circle_high", 0.001), ("paper000_corner_high", 0.01),
-    ("paper000_circle_low", 0.01),
+    ("paper000_circle_low", 0.01), ("helix_3axis", 0.01),
 ])
 def test_engine_equals_the_per_tick_computation(name: str, sample_time_s: float) -> None:
     run = scenario(ROOT / "scenarios" / f"{name}.yaml", sample_time_s)

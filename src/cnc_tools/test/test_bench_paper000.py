@@ -19,7 +19,7 @@ from cnc_contour_control.geometry import LineSegment, Program
 from cnc_contour_control.laws.fuzzy import RULE_BASES
 from cnc_tools.bench import BENCHES
 from cnc_tools.bench.paper000_assumptions import VARIANTS
-from cnc_tools.bench.paper000_cli import main as cli_main
+from cnc_tools.cli import main as cli_main
 from cnc_tools.bench.paper000_data import EXPERIMENTS, TABLE2_AXES, TABLE4_GAINS, TABLE5, table5_row
 from cnc_tools.bench.paper000_runs import (
     CONTROLLERS,
@@ -175,7 +175,7 @@ def test_quick_pid_row_is_well_formed_and_printed_beside_the_paper(tmp_path: Pat
 
 
 def test_quick_paper000_scores_pid_and_flc_the_same_way(tmp_path: Path) -> None:
-    assert cli_main(["paper000", "--quick", "--engine", "--json", str(tmp_path / "out.json"),
+    assert cli_main(["bench", "paper000", "--quick", "--engine", "--json", str(tmp_path / "out.json"),
                      "--out", str(tmp_path / "run")]) == 0
     figures = json.loads((tmp_path / "out.json").read_text())
     runs = {r["controller"]: r for r in figures["runs"] if r["scenario"].startswith("paper000_line_low")}

@@ -1,4 +1,4 @@
-"""The ``cnc-contour bench NAME [--quick] [--json PATH] [--out DIR]`` subcommand."""
+"""The ``cnc-contour bench NAME [--quick] [--json PATH] [--out DIR] [--engine] [--seeds N]`` subcommand."""
 from __future__ import annotations
 
 import argparse
@@ -13,6 +13,8 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="shorter runs and fewer repetitions (< 30 s)")
     parser.add_argument("--json", type=Path, help="also write the measured figures to this JSON file")
     parser.add_argument("--out", type=Path, help="folder for run files (default bags/bench/<name>/<timestamp>)")
+    parser.add_argument("--engine", action="store_true", help="run in-process instead of the node graph (paper benches)")
+    parser.add_argument("--seeds", type=int, help="plant seeds 1..N per row (paper benches)")
 
 
 @command("bench", _configure)

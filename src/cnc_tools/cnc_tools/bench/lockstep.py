@@ -7,7 +7,10 @@ Measured side by side in one run, on the paper-000 circle
    ticks, wall time and real-time factor from the plant's summary, wall time
    per tick, and per hop: a tick's critical path is plant → interpolator →
    servo → plant, :data:`HOPS` = 3 hops (the servos run in parallel, and
-   ``joint_states`` reaches them while the interpolator works);
+   ``joint_states`` reaches them while the interpolator works). Also the CPU
+   time (user + system) all node processes spend per tick, with the cost of
+   starting and stopping them taken out by a 2-tick run, and the cores that
+   keeps busy (CPU time / wall time);
 2. a bare rclpy round trip between two processes
    (:mod:`cnc_tools.bench.pingpong`, the graph's QoS and executor), with a
    ``Reference`` and with a ``Float64``; one hop = median round trip / 2;
@@ -18,6 +21,7 @@ Measured side by side in one run, on the paper-000 circle
 from __future__ import annotations
 
 import argparse
+import resource
 import statistics
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -66,6 +70,8 @@ class GraphFigures:
     real_time_factor: float
     wall_per_tick_s: float
     per_hop_s: float
+    cpu_per_tick_s: float
+    cores_busy: float
 
 
 @dataclass(frozen=True)
@@ -99,13 +105,32 @@ def scenario_at(sample_time_s: float, duration_s: float | None) -> Scenario:
     return load_scenario(project_root() / SCENARIO, overrides)
 
 
-def measure_graph(scenario: Scenario, run_dir: Path) -> GraphFigures:
-    """Run the node graph once and derive the per-tick and per-hop wall time."""
+def children_cpu_s() -> float:
+    """User + system CPU seconds of this process's children that have been reaped."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def graph_run(scenario: Scenario, run_dir: Path) -> tuple[dict[str, Any], float]:
+    """The plant's summary of one node-graph run and the CPU seconds its processes used."""
+    before = children_cpu_s()
     summary = run_graph(scenario, run_dir).summary
+    return summary, children_cpu_s() - before
+
+
+def startup_cpu_s(run_dir: Path) -> float:
+    """CPU seconds of starting, connecting and stopping the graph: a run of 2 ticks."""
+    return graph_run(scenario_at(0.01, 0.01), run_dir)[1]
+
+
+def measure_graph(scenario: Scenario, run_dir: Path, startup_s: float) -> GraphFigures:
+    """Run the node graph once and derive the per-tick and per-hop wall time and the CPU per tick."""
+    summary, cpu_s = graph_run(scenario, run_dir)
     ticks, wall_s = int(summary["ticks"]), float(summary["wall_time_s"])
-    per_tick = wall_s / ticks
+    per_tick, tick_cpu_s = wall_s / ticks, max(cpu_s - startup_s, 0.0)
     return GraphFigures(scenario.sample_time_s, ticks, float(summary["simulated_time_s"]), wall_s,
-                        float(summary["real_time_factor"]), per_tick, per_tick / HOPS)
+                        float(summary["real_time_factor"]), per_tick, per_tick / HOPS,
+                        tick_cpu_s / ticks, tick_cpu_s / wall_s)
 
 
 def measure_hop(run_dir: Path, message: str, plan: Plan) -> HopFigures:
@@ -130,10 +155,13 @@ def lockstep_bench(options: argparse.Namespace) -> int:
     load_at_start = machine()["load_average_1min"]
     run_dir = options.out or project_root() / "bags" / "bench" / "lockstep" / timestamp()
     print(f"lockstep bench ({'quick' if options.quick else 'full'}) on {SCENARIO}; run files in {run_dir}", flush=True)
+    print("  node graph start-up (2 ticks) ...", flush=True)
+    startup_s = startup_cpu_s(run_dir / "graph_startup")
     graph = []
     for t in SAMPLE_TIMES_S:
         print(f"  node graph at T = {t * 1e3:g} ms ...", flush=True)
-        graph.append(measure_graph(scenario_at(t, plan.graph_duration_s[t]), run_dir / f"graph_T{t * 1e3:g}ms"))
+        scenario = scenario_at(t, plan.graph_duration_s[t])
+        graph.append(measure_graph(scenario, run_dir / f"graph_T{t * 1e3:g}ms", startup_s))
     print("  bare rclpy ping-pong ...", flush=True)
     hops = [measure_hop(run_dir / "pingpong", message, plan) for message in ("reference", "float64")]
     print("  engine ...", flush=True)
@@ -169,9 +197,10 @@ def print_figures(figures: dict[str, Any]) -> None:
     print(f"\nmachine: {m['cpus']} cores, {m['cpu']}, Python {m['python']}, {m['rmw']}; 1-min load average "
           f"{m['load_average_1min_at_start']:.2f} at start, {m['load_average_1min']:.2f} at end")
     print(f"\nnode graph, {figures['scenario']} (2 axes), {HOPS} hops per tick (plant -> interpolator -> servo -> plant)")
-    print(format_table(["T [ms]", "ticks", "wall [s]", "RTF", "wall/tick [us]", "per hop [us]"], [
-        [g["sample_time_s"] * 1e3, g["ticks"], g["wall_time_s"], g["real_time_factor"],
-         g["wall_per_tick_s"] * 1e6, g["per_hop_s"] * 1e6] for g in figures["graph"]]))
+    print(format_table(["T [ms]", "ticks", "wall [s]", "RTF", "wall/tick [us]", "per hop [us]", "CPU/tick [us]",
+                        "cores busy"], [
+        [g["sample_time_s"] * 1e3, g["ticks"], g["wall_time_s"], g["real_time_factor"], g["wall_per_tick_s"] * 1e6,
+         g["per_hop_s"] * 1e6, g["cpu_per_tick_s"] * 1e6, g["cores_busy"]] for g in figures["graph"]]))
     print("\nbare rclpy hop, 2 processes, LOCKSTEP_QOS, SingleThreadedExecutor.spin_once")
     print(format_table(["message", "round trips", "median RTT [us]", "p90 RTT [us]", "one-way hop [us]"], [
         [h["message"], h["iterations"], h["round_trip_median_s"] * 1e6, h["round_trip_p90_s"] * 1e6,

@@ -17,9 +17,8 @@ Eqs. 9/10 (a line's ends extended: Eq. 9 is the whole line) while the
 reference moves, start transient included. ``docs/reproduction.md`` lists
 every assumption and what it changes.
 
-Options: ``--quick`` (line_low only, one seed), ``--engine``, ``--seeds N``
-(when the ``bench`` subcommand offers them; ``python -m
-cnc_tools.bench.paper000_cli NAME ...`` always does), ``--out``, ``--json``.
+Options of ``cnc-contour bench``: ``--quick`` (line_low only, one seed),
+``--engine``, ``--seeds N``, ``--out``, ``--json``.
 """
 from __future__ import annotations
 
