@@ -88,6 +88,11 @@ class GatedPublisher:
         self._held.append(msg)
         self.flush()
 
+    @property
+    def is_open(self) -> bool:
+        """True once enough readers were matched (the gate never closes again)."""
+        return self._open
+
     def flush(self) -> None:
         """Publish what is held once enough readers are matched (checked until they are)."""
         if not self._open and self.publisher.get_subscription_count() >= self.min_subscribers:
@@ -112,7 +117,7 @@ class SuiteNode(Node):
         minimum = self.declare("min_subscribers", default_min, describe(
             f"readers of {topic} to wait for before publishing", 0, 1000, True, True))
         gated = GatedPublisher(self.create_publisher(msg_type, topic, LOCKSTEP_QOS), minimum)
-        self.create_timer(0.01, gated.flush)
+        timer = self.create_timer(0.01, lambda: gated.flush() or (gated.is_open and timer.cancel()))
         return gated
 
     def declare(self, name: str, default: Any, descriptor: ParameterDescriptor) -> Any:
@@ -164,6 +169,21 @@ def message_class(type_name: str, topic: str = "") -> type:
                        f"in this ROS environment ({type(err).__name__}: {err})") from err
 
 
+def make_executor(context: Any) -> Any:
+    """The executor of a node process: rclpy's EventsExecutor unless CNC_EXECUTOR=single.
+
+    The events executor keeps its ready-queue in C++ instead of rebuilding a
+    wait set per callback, which is most of a lockstep tick's cost in Python.
+    """
+    import os
+
+    if os.environ.get("CNC_EXECUTOR", "events") == "single":
+        return SingleThreadedExecutor(context=context)
+    from rclpy.experimental import EventsExecutor
+
+    return EventsExecutor(context=context)
+
+
 def wall_time_s() -> float:
     """Monotonic wall time, for watchdogs only (never for the control laws)."""
     return time.monotonic()
@@ -176,7 +196,7 @@ def spin_node(factory: Callable[[], SuiteNode], args: Sequence[str] | None = Non
     code = 0
     try:
         node = factory()
-        executor = SingleThreadedExecutor()
+        executor = make_executor(node.context)
         executor.add_node(node)
         while rclpy.ok() and not node.finished:
             executor.spin_once(timeout_sec=0.1)

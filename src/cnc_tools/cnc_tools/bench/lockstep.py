@@ -201,7 +201,7 @@ def print_figures(figures: dict[str, Any]) -> None:
                         "cores busy"], [
         [g["sample_time_s"] * 1e3, g["ticks"], g["wall_time_s"], g["real_time_factor"], g["wall_per_tick_s"] * 1e6,
          g["per_hop_s"] * 1e6, g["cpu_per_tick_s"] * 1e6, g["cores_busy"]] for g in figures["graph"]]))
-    print("\nbare rclpy hop, 2 processes, LOCKSTEP_QOS, SingleThreadedExecutor.spin_once")
+    print("\nbare rclpy hop, 2 processes, LOCKSTEP_QOS, the nodes' executor (make_executor)")
     print(format_table(["message", "round trips", "median RTT [us]", "p90 RTT [us]", "one-way hop [us]"], [
         [h["message"], h["iterations"], h["round_trip_median_s"] * 1e6, h["round_trip_p90_s"] * 1e6,
          h["one_way_hop_s"] * 1e6] for h in figures["bare_hop"]]))

@@ -12,7 +12,7 @@ matched), then runs ``--warmup`` untimed and ``--iterations`` timed round
 trips: publish message k, spin until message k comes back. It writes the
 round-trip times [s] as JSON to ``--out``. Both sides use the lockstep
 graph's QoS (:data:`~cnc_contour_control.nodes.common.LOCKSTEP_QOS`) and the
-nodes' executor (a SingleThreadedExecutor driven by ``spin_once``), so the
+nodes' executor (``make_executor``, driven by ``spin_once``), so the
 round trip holds what one lockstep hop costs without the nodes' own work.
 """
 from __future__ import annotations
@@ -88,12 +88,14 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one role until it is done (ping) or interrupted (echo); return the exit code."""
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
+
+    from cnc_contour_control.nodes.common import make_executor
 
     args = _parse(argv)
     rclpy.init(args=None)
     node = rclpy.create_node(f"pingpong_{args.role}")
-    executor = SingleThreadedExecutor()
+    executor = make_executor(node.context)
     executor.add_node(node)
     try:
         return _echo(node, executor, args) if args.role == "echo" else _ping(node, executor, args)
