@@ -73,15 +73,22 @@ class StampMatcher:
     timeout_s : float
         Wall-time a tick may wait, from its first input, before
         :meth:`overdue` reports it.
+    startup_timeout_s : float, optional
+        The same for the first tick, which also waits for discovery of the
+        graph (default: ``timeout_s``).
     """
 
-    def __init__(self, required: Sequence[str], timeout_s: float) -> None:
+    def __init__(self, required: Sequence[str], timeout_s: float, startup_timeout_s: float | None = None) -> None:
         if not required:
             raise ConfigError("StampMatcher needs at least one required input")
         if not timeout_s > 0.0:
             raise ConfigError(f"timeout_s must be > 0, got {timeout_s!r}")
+        startup = timeout_s if startup_timeout_s is None else startup_timeout_s
+        if not startup >= timeout_s:
+            raise ConfigError(f"startup_timeout_s must be >= timeout_s ({timeout_s}), got {startup!r}")
         self.required = tuple(required)
         self.timeout_s = float(timeout_s)
+        self.startup_timeout_s = float(startup)
         self._pending: dict[int, _Pending] = {}
         self._last_released_ns: int | None = None
 
@@ -114,10 +121,15 @@ class StampMatcher:
             return None
         stamp_ns = min(self._pending)
         pending = self._pending[stamp_ns]
-        if now_s - pending.first_arrival_s <= self.timeout_s:
+        if now_s - pending.first_arrival_s <= self.current_timeout_s:
             return None
         missing = [name for name in self.required if name not in pending.items]
         return stamp_ns, missing
+
+    @property
+    def current_timeout_s(self) -> float:
+        """The start-up timeout until the first tick is released, then the per-tick one."""
+        return self.startup_timeout_s if self._last_released_ns is None else self.timeout_s
 
     @property
     def pending_count(self) -> int:

@@ -46,7 +46,9 @@ class ServoNode(SuiteNode):
         self.controller = ServoController(self._config_from({}))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         inputs = ["joint_states", "reference"] + (["compensation"] if use_compensation else [])
-        self.matcher = StampMatcher(inputs, timeout_s)
+        startup_s = self.declare("startup_timeout_s", 30.0, describe(
+            "wall time the first tick may wait (graph discovery), s", 0.01, 3600.0, True))
+        self.matcher = StampMatcher(inputs, timeout_s, startup_s)
         self.last_stamp_ns: int | None = None
         self.command_pub = self.gated_publisher(AxisCommand, f"servo/{self.axis}/command", 1)
         self._subscribe(JointState, "joint_states")
@@ -114,7 +116,7 @@ class ServoNode(SuiteNode):
             topics = ", ".join(self.resolve_topic_name(name) for name in missing)
             self.fault(
                 f"servo {self.axis}: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s "
-                f"within {self.matcher.timeout_s} s"
+                f"within {self.matcher.current_timeout_s} s"
             )
 
 

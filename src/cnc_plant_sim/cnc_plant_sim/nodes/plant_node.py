@@ -49,7 +49,9 @@ class PlantNode(SuiteNode):
         self.expected_subscribers = self.declare("expected_subscribers", 1, describe("joint_states subscribers to wait for before tick 0", 0, 1000, True, True))
         self.summary_file = self.declare("summary_file", "", describe("write the run summary here as JSON", read_only=True))
         timeout_s = self.declare("command_timeout_s", 5.0, describe("wall time to wait for a tick's commands, s", 0.01, 600.0, True))
-        self.matcher = StampMatcher(self.axes, timeout_s)
+        startup_s = self.declare("startup_timeout_s", 90.0, describe(
+            "wall time the first tick may wait (graph discovery), s", 0.01, 3600.0, True))
+        self.matcher = StampMatcher(self.axes, timeout_s, startup_s)
         self.commands = [0.0] * len(self.axes)
         self.received = [False] * len(self.axes)
         self.started = False
@@ -145,7 +147,7 @@ class PlantNode(SuiteNode):
         if overdue is not None:
             stamp_ns, missing = overdue
             topics = ", ".join(self.resolve_topic_name(f"servo/{a}/command") for a in missing)
-            self.fault(f"plant: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s within {self.matcher.timeout_s} s")
+            self.fault(f"plant: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s within {self.matcher.current_timeout_s} s")
 
     def _finish(self) -> None:
         self.clock.finished_wall_s = wall_time_s()

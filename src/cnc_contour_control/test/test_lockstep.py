@@ -1,0 +1,86 @@
+"""Lockstep bookkeeping: matching by stamp, stale inputs, timeouts that name what is missing."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.lockstep import (
+    StampMatcher,
+    duration_to_ns,
+    ns_to_s,
+    require_finite_values,
+    require_same_axes,
+    seconds_to_ns,
+)
+
+
+def test_a_tick_is_released_once_all_inputs_hold_its_stamp_in_any_order() -> None:
+    matcher = StampMatcher(("joint_states", "reference"), timeout_s=1.0)
+    assert matcher.add("reference", 10, "r0", now_s=0.0) is None
+    assert matcher.add("reference", 20, "r1", now_s=0.0) is None
+    assert matcher.add("joint_states", 10, "j0", now_s=0.0) == {"reference": "r0", "joint_states": "j0"}
+    assert matcher.add("joint_states", 20, "j1", now_s=0.0) == {"reference": "r1", "joint_states": "j1"}
+    assert matcher.pending_count == 0
+
+
+def test_late_duplicates_of_released_ticks_are_ignored() -> None:
+    matcher = StampMatcher(("a", "b"), timeout_s=1.0)
+    matcher.add("a", 10, 1, 0.0)
+    matcher.add("b", 10, 2, 0.0)
+    assert matcher.add("a", 10, 3, 0.0) is None and matcher.add("b", 5, 4, 0.0) is None
+    assert matcher.pending_count == 0
+
+
+def test_overdue_names_the_missing_inputs_of_the_oldest_tick() -> None:
+    matcher = StampMatcher(("joint_states", "reference", "compensation"), timeout_s=1.0)
+    matcher.add("joint_states", 10, None, now_s=0.0)
+    matcher.add("reference", 10, None, now_s=0.5)
+    assert matcher.overdue(now_s=1.0) is None
+    assert matcher.overdue(now_s=1.01) == (10, ["compensation"])
+
+
+def test_the_first_tick_gets_the_startup_timeout_later_ticks_the_short_one() -> None:
+    matcher = StampMatcher(("a", "b"), timeout_s=1.0, startup_timeout_s=30.0)
+    matcher.expect(0, now_s=0.0)
+    assert matcher.overdue(now_s=29.0) is None and matcher.current_timeout_s == 30.0
+    assert matcher.overdue(now_s=30.5) == (0, ["a", "b"])
+    matcher.add("a", 0, None, 30.6)
+    matcher.add("b", 0, None, 30.6)
+    matcher.expect(10, now_s=31.0)
+    assert matcher.current_timeout_s == 1.0 and matcher.overdue(now_s=32.1) == (10, ["a", "b"])
+
+
+@pytest.mark.parametrize(("kwargs", "words"), [
+    ({"required": (), "timeout_s": 1.0}, ["at least one"]),
+    ({"required": ("a",), "timeout_s": 0.0}, ["timeout_s", "> 0", "0.0"]),
+    ({"required": ("a",), "timeout_s": 2.0, "startup_timeout_s": 1.0}, ["startup_timeout_s", ">= timeout_s", "1.0"]),
+])
+def test_bad_matcher_settings_are_refused(kwargs: dict, words: list[str]) -> None:
+    with pytest.raises(ConfigError) as caught:
+        StampMatcher(**kwargs)
+    assert all(word in str(caught.value) for word in words)
+
+
+def test_an_unknown_input_is_a_fault_naming_it() -> None:
+    with pytest.raises(FaultError, match="'cutting_force'.*'a'"):
+        StampMatcher(("a",), 1.0).add("cutting_force", 0, None, 0.0)
+
+
+def test_time_conversions_are_exact_in_integer_nanoseconds() -> None:
+    assert seconds_to_ns(0.001) == 1_000_000 and seconds_to_ns(0.01) == 10_000_000
+    assert ns_to_s(7 * 1_000_000) == 0.007
+    assert duration_to_ns(6.4731966938) == 6_473_196_694
+    with pytest.raises(ConfigError, match="whole number of nanoseconds"):
+        seconds_to_ns(1e-10)
+    with pytest.raises(ConfigError, match="duration_s must be > 0"):
+        duration_to_ns(-1.0)
+
+
+def test_non_finite_values_and_wrong_axes_are_faults_naming_the_field() -> None:
+    require_finite_values([0.0, 1.0], "x")
+    with pytest.raises(FaultError, match=r"joint_states.position\[1\]: nan"):
+        require_finite_values([0.0, math.nan], "joint_states.position")
+    with pytest.raises(FaultError, match=r"\['x', 'z'\], expected \['x', 'y'\]"):
+        require_same_axes(["x", "z"], ["x", "y"], "joint_states")
