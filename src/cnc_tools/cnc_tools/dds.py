@@ -43,6 +43,11 @@ def apply_loopback_policy(env: MutableMapping[str, str], domain_id: int | None =
         env.setdefault("ROS_DOMAIN_ID", str(random_domain_id()))
 
 
+#: Highest domain we pick: its RTPS ports (7400 + 250·d + ...) stay below Linux's
+#: ephemeral port range (32768 and up), so no socket bound to port 0 can take them.
+MAX_RANDOM_DOMAIN_ID = 100
+
+
 def random_domain_id() -> int:
-    """A domain in 1..200 (Fast DDS's port mapping allows up to 232)."""
-    return random.SystemRandom().randint(1, 200)
+    """A domain in 1..100 (ROS 2 advises 0..101 on Linux for the reason above)."""
+    return random.SystemRandom().randint(1, MAX_RANDOM_DOMAIN_ID)
