@@ -30,7 +30,7 @@ from cnc_plant_sim.plant import make_plant
 from cnc_tools import friction_id as fid
 from cnc_tools.bag import RecordedRun, read_bag
 from cnc_tools.cli import command, project_root, timestamp
-from cnc_tools.dds import loopback_env
+from cnc_tools.dds import MAX_RANDOM_DOMAIN_ID, loopback_env
 from cnc_tools.engine import run_engine
 from cnc_tools.runner import run_graph
 from cnc_tools.scenario import load_scenario
@@ -87,7 +87,7 @@ def run_all(runs: Sequence[fid.SpeedRun], constants: fid.AxisConstants, config: 
             report(i, point)
         return points
     domains: queue.Queue[int | None] = queue.Queue()
-    for domain in (random.SystemRandom().sample(range(1, 201), jobs) if jobs > 1 else [None]):
+    for domain in (random.SystemRandom().sample(range(1, MAX_RANDOM_DOMAIN_ID + 1), jobs) if jobs > 1 else [None]):
         domains.put(domain)
 
     def task(run: fid.SpeedRun) -> fid.FrictionPoint:
