@@ -139,11 +139,12 @@ class SuiteNode(Node):
 
     def fault(self, message: str) -> None:
         """Report a fault on /diagnostics and the log, and stop the node."""
-        if self.fault_message is None:
+        first = self.fault_message is None
+        self.finished = True  # before the report: whoever sees the report sees a finished node
+        if first:
             self.fault_message = message
             self.get_logger().error(f"FAULT: {message}")
             self.report(DiagnosticStatus.ERROR, message)
-        self.finished = True
 
     def guarded(self, callback: Callable[..., None]) -> Callable[..., None]:
         """Wrap a callback so a suite error becomes a fault, not a traceback."""

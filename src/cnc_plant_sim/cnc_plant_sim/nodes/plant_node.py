@@ -153,8 +153,8 @@ class PlantNode(SuiteNode):
         self.clock.finished_wall_s = wall_time_s()
         self._write_summary()
         self.get_logger().info(f"run finished: {self.clock.tick} ticks")
-        self.report(DiagnosticStatus.OK, RUN_FINISHED, {"ticks": str(self.clock.tick)})
         self.finished = True
+        self.report(DiagnosticStatus.OK, RUN_FINISHED, {"ticks": str(self.clock.tick)})
 
     def _write_progress(self) -> None:
         if self.started and not self.finished:

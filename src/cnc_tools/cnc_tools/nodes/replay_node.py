@@ -93,10 +93,10 @@ class ReplayNode(SuiteNode):
 
     def _finish(self) -> None:
         ok, text, values = replay_summary(self.schedule, self.recording)
+        self._timer.cancel()
+        self.finished = True  # before the report: whoever sees the report sees a finished node
         self.report(DiagnosticStatus.OK if ok else DiagnosticStatus.WARN, text, values)
         self.get_logger().info(text)
-        self._timer.cancel()
-        self.finished = True
 
 
 def main(args: list[str] | None = None) -> None:
