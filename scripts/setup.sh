@@ -35,9 +35,11 @@ _cnc_install_python() {
   want="$mode $(python3 --version 2>&1) $(_cnc_hash "$CNC_REQ"/*.txt)"
   [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && return 0
   _cnc_log "installing pinned requirements ($mode)"
+  # (pip's notes about unreachable local index folders of this machine's pip config are dropped)
   "$CNC_VENV/bin/python" -m pip install -q --disable-pip-version-check \
     -c "$CNC_REQ/constraints.txt" -r "$CNC_REQ/python.txt" \
-    $( [ "$mode" = wheels ] && echo "-r $CNC_REQ/ros-jazzy.txt" )
+    $( [ "$mode" = wheels ] && echo "-r $CNC_REQ/ros-jazzy.txt" ) \
+    2> >(grep -v "^WARNING: Location 'file://.*' is ignored" >&2)
   [ "$mode" = wheels ] && _cnc_fix_cmake_paths
   echo "$want" > "$stamp"
 }
