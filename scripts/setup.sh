@@ -14,7 +14,7 @@ _cnc_make_venv() {
   local system_site="$1"
   if [ ! -x "$CNC_VENV/bin/python" ]; then
     _cnc_log "creating virtual environment $CNC_VENV"
-    python3 -m venv $system_site "$CNC_VENV"
+    python3 -m venv $system_site "$CNC_VENV" || { _cnc_log "python3 -m venv failed"; return 1; }
   fi
 }
 
@@ -39,8 +39,9 @@ _cnc_install_python() {
   "$CNC_VENV/bin/python" -m pip install -q --disable-pip-version-check \
     -c "$CNC_REQ/constraints.txt" -r "$CNC_REQ/python.txt" \
     $( [ "$mode" = wheels ] && echo "-r $CNC_REQ/ros-jazzy.txt" ) \
-    2> >(grep -v "^WARNING: Location 'file://.*' is ignored" >&2)
-  [ "$mode" = wheels ] && _cnc_fix_cmake_paths
+    2> >(grep -v "^WARNING: Location 'file://.*' is ignored" >&2) \
+    || { _cnc_log "pip install failed"; return 1; }
+  if [ "$mode" = wheels ]; then _cnc_fix_cmake_paths || return 1; fi
   echo "$want" > "$stamp"
 }
 
@@ -48,11 +49,11 @@ _cnc_prepare_ros() {
   if [ -f /opt/ros/jazzy/setup.bash ]; then
     # shellcheck disable=SC1091
     set +u; source /opt/ros/jazzy/setup.bash; set -u
-    _cnc_make_venv --system-site-packages
-    _cnc_install_python system
+    _cnc_make_venv --system-site-packages || return 1
+    _cnc_install_python system || return 1
   else
-    _cnc_make_venv ""
-    _cnc_install_python wheels
+    _cnc_make_venv "" || return 1
+    _cnc_install_python wheels || return 1
     export AMENT_PREFIX_PATH="$CNC_VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
     export CMAKE_PREFIX_PATH="$CNC_VENV${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
   fi
