@@ -22,6 +22,17 @@ def ns_to_s(stamp_ns: int) -> float:
     return stamp_ns * 1e-9
 
 
+def split_ns(stamp_ns: int) -> tuple[int, int]:
+    """Integer nanoseconds to (sec, nanosec), the fields of builtin_interfaces/Time."""
+    sec, nanosec = divmod(int(stamp_ns), NS_PER_S)
+    return sec, nanosec
+
+
+def join_ns(sec: int, nanosec: int) -> int:
+    """(sec, nanosec) of builtin_interfaces/Time to integer nanoseconds."""
+    return int(sec) * NS_PER_S + int(nanosec)
+
+
 def tick_stamp_ns(tick: int, sample_time_ns: int) -> int:
     """Stamp of tick ``tick`` in integer nanoseconds."""
     return tick * sample_time_ns

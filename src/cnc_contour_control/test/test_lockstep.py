@@ -9,10 +9,12 @@ from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.lockstep import (
     StampMatcher,
     duration_to_ns,
+    join_ns,
     ns_to_s,
     require_finite_values,
     require_same_axes,
     seconds_to_ns,
+    split_ns,
 )
 
 
@@ -76,6 +78,12 @@ def test_time_conversions_are_exact_in_integer_nanoseconds() -> None:
         seconds_to_ns(1e-10)
     with pytest.raises(ConfigError, match="duration_s must be > 0"):
         duration_to_ns(-1.0)
+
+
+@pytest.mark.parametrize("stamp_ns", [0, 999_999_999, 1_000_000_000, 6_473_196_694, 2**62])
+def test_stamps_split_into_time_fields_and_join_back(stamp_ns: int) -> None:
+    sec, nanosec = split_ns(stamp_ns)
+    assert 0 <= nanosec < 1_000_000_000 and join_ns(sec, nanosec) == stamp_ns
 
 
 def test_non_finite_values_and_wrong_axes_are_faults_naming_the_field() -> None:

@@ -38,6 +38,7 @@ from cnc_tools.recorded_run import (
     ReferenceSeries,
 )
 from cnc_tools.typestore import ColumnBlock, decode_columns, project_typestore
+from cnc_contour_control.lockstep import NS_PER_S
 
 __all__ = [
     "PATH_TYPE", "TRANSIENT_LOCAL_QOS", "BagIntegrity", "BagWriter", "CommandSeries", "FloatArray", "IntArray",
@@ -232,7 +233,7 @@ def _columns(raw: RawBag, topic: str, spec: _Fields, axes: tuple[str, ...]) -> d
         if missing:
             raise BagError(f"{topic}: the recorded {raw.msgtypes[topic]} has no fields {missing}")
         sec = block.numbers["header.stamp.sec"].astype(np.int64)
-        out["stamp_ns"][block.rows] = sec * 1_000_000_000 + block.numbers["header.stamp.nanosec"]
+        out["stamp_ns"][block.rows] = sec * NS_PER_S + block.numbers["header.stamp.nanosec"]
         _fill_axes(out, block, spec, axes, topic)
         for name in spec.scalars:
             out.setdefault(name, np.zeros(count, block.numbers[name].dtype))[block.rows] = block.numbers[name]

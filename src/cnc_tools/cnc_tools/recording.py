@@ -4,6 +4,7 @@ from __future__ import annotations
 import struct
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from cnc_contour_control.lockstep import join_ns
 
 #: Topics of a run (relative to the namespace) and their types; command topics are per axis.
 RUN_TOPICS: dict[str, str] = {
@@ -42,7 +43,7 @@ def header_stamp_ns(cdr: bytes | memoryview) -> int:
     not on when messages happened to arrive.
     """
     sec, nanosec = struct.unpack_from("<iI", cdr, 4)
-    return sec * 1_000_000_000 + nanosec
+    return join_ns(sec, nanosec)
 
 
 @dataclass

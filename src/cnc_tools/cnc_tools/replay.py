@@ -30,8 +30,8 @@ from cnc_contour_control.errors import BagError, ConfigError
 from cnc_tools.bag import PATH_TYPE
 from cnc_tools.raw_bag import locate, read_raw
 from cnc_tools.recorded_run import BagIntegrity
+from cnc_contour_control.lockstep import NS_PER_S
 
-NS_PER_S = 1_000_000_000
 #: Bounds of ``rate`` (the node's parameter range too).
 RATE_BOUNDS = (1e-3, 1e4)
 #: Upper bound of ``start_offset_s`` and ``skip_empty_s``, s (the node's parameter range too).

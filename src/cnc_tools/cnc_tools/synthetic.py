@@ -11,6 +11,7 @@ from numpy.typing import NDArray
 from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
 from cnc_tools.bag import BagIntegrity, BagWriter, JointStateSeries, RecordedRun, ReferenceSeries
 from cnc_tools.typestore import project_typestore
+from cnc_contour_control.lockstep import seconds_to_ns, split_ns
 
 NS = "/cnc"
 TOPICS = {
@@ -62,7 +63,7 @@ def circle_trajectory(radius_m: float, offset_m: float, n: int = 2000, dt_s: flo
     position = np.zeros((n, n_axes))
     position[:, 0] = (radius_m + offset_m) * np.cos(theta - lag_rad)
     position[:, 1] = (radius_m + offset_m) * np.sin(theta - lag_rad)
-    stamps = (np.arange(n, dtype=np.int64) + 1) * int(round(dt_s * 1e9))
+    stamps = (np.arange(n, dtype=np.int64) + 1) * seconds_to_ns(dt_s, "dt_s")
     return Trajectory(stamps, position, reference, velocity)
 
 
@@ -86,8 +87,8 @@ def path_message(program: Program) -> object:
 
 def header(stamp_ns: int, frame_id: str) -> object:
     types = project_typestore().types
-    stamp = types["builtin_interfaces/msg/Time"](sec=int(stamp_ns // 1_000_000_000),
-                                                 nanosec=int(stamp_ns % 1_000_000_000))
+    sec, nanosec = split_ns(stamp_ns)
+    stamp = types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
     return types["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
 
 
@@ -170,5 +171,5 @@ def offset_trajectory(program: Program, normal_offsets_m: Sequence[float], n_per
         points.append(seg.point(s) + offset * normal)
         vels.append(tangent * seg.feed_m_s)
     position = np.concatenate(points)
-    stamps = (np.arange(position.shape[0], dtype=np.int64) + 1) * int(round(dt_s * 1e9))
+    stamps = (np.arange(position.shape[0], dtype=np.int64) + 1) * seconds_to_ns(dt_s, "dt_s")
     return Trajectory(stamps, position, np.concatenate(refs), np.concatenate(vels))

@@ -21,7 +21,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from cnc_contour_control.errors import CncError, FaultError
-from cnc_contour_control.lockstep import NS_PER_S
+from cnc_contour_control.lockstep import join_ns, split_ns
 
 #: Lockstep data: reliable and deep, so nothing is dropped while a stage is busy.
 LOCKSTEP_QOS = QoSProfile(
@@ -43,12 +43,13 @@ EXIT_FAULT = 3
 
 def stamp_to_ns(stamp: Time) -> int:
     """builtin_interfaces/Time to integer nanoseconds."""
-    return int(stamp.sec) * NS_PER_S + int(stamp.nanosec)
+    return join_ns(stamp.sec, stamp.nanosec)
 
 
 def ns_to_stamp(stamp_ns: int) -> Time:
     """Integer nanoseconds to builtin_interfaces/Time."""
-    return Time(sec=stamp_ns // NS_PER_S, nanosec=stamp_ns % NS_PER_S)
+    sec, nanosec = split_ns(stamp_ns)
+    return Time(sec=sec, nanosec=nanosec)
 
 
 def describe(

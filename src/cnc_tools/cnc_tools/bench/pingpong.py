@@ -25,6 +25,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+from cnc_contour_control.lockstep import join_ns, split_ns
 
 #: Exit code of a ping that got no answer in time.
 EXIT_TIMEOUT = 3
@@ -58,7 +59,7 @@ def _float64() -> Any:
 
 
 def _set_stamp(msg: Any, seq: int) -> None:
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(seq, 1_000_000_000)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = split_ns(seq)
 
 
 def _set_data(msg: Any, seq: int) -> None:
@@ -67,7 +68,7 @@ def _set_data(msg: Any, seq: int) -> None:
 
 MESSAGES: dict[str, MessageKind] = {
     "reference": MessageKind(_reference, _set_stamp,
-                             lambda m: m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec),
+                             lambda m: join_ns(m.header.stamp.sec, m.header.stamp.nanosec)),
     "float64": MessageKind(_float64, _set_data, lambda m: int(m.data)),
 }
 
