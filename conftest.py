@@ -8,6 +8,6 @@ import pytest
 
 def pytest_configure(config: pytest.Config) -> None:
     """Before any node exists: the loopback DDS policy and this session's own domain."""
-    from cnc_tools.dds import apply_loopback_policy, random_domain_id
+    from cnc_tools.runs.dds import apply_loopback_policy, random_domain_id
 
     apply_loopback_policy(os.environ, random_domain_id())

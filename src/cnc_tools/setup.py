@@ -22,7 +22,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "cnc-contour = cnc_tools.cli:main",
+            "cnc-contour = cnc_tools.cli.main:main",
             "recorder = cnc_tools.nodes.recorder_node:main",
             "replay = cnc_tools.nodes.replay_node:main",
         ],

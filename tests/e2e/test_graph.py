@@ -12,9 +12,9 @@ from sensor_msgs.msg import JointState
 
 from cnc_contour_control.errors import FaultError
 from cnc_contour_control.nodes.common import stamp_to_ns
-from cnc_tools.engine import run_engine, tick_count
-from cnc_tools.runner import GraphRun, graph_nodes, run_graph
-from cnc_tools.scenario import load_scenario
+from cnc_tools.runs.engine import run_engine, tick_count
+from cnc_tools.runs.graph import GraphRun, graph_nodes, run_graph
+from cnc_tools.runs.scenario import load_scenario
 from cnc_tools.testing import TopicProbe, dds_ports, ephemeral_port_range, udp_sockets
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -116,7 +116,7 @@ def test_three_axis_gcode_program_runs_through_the_graph_like_the_engine(tmp_pat
     assert scenario.axes == ("x", "y", "z")
     result = run_graph(scenario, tmp_path, record=True)
     assert result.faults == []
-    from cnc_tools.bag import read_bag
+    from cnc_tools.bagio.bag import read_bag
 
     recorded = read_bag(result.bag_path)
     engine = run_engine(scenario)

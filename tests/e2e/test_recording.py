@@ -15,12 +15,12 @@ from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.errors import BagError
-from cnc_tools.bag import read_bag
-from cnc_tools.engine import tick_count
-from cnc_tools.runner import GraphRun, graph_nodes, recorder_spec, run_graph
-from cnc_tools.scenario import load_scenario
+from cnc_tools.bagio.bag import read_bag
+from cnc_tools.runs.engine import tick_count
+from cnc_tools.runs.graph import GraphRun, graph_nodes, recorder_spec, run_graph
+from cnc_tools.runs.scenario import load_scenario
 from cnc_tools.testing import TopicProbe
-from cnc_tools.typestore import project_typestore
+from cnc_tools.bagio.typestore import project_typestore
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"
@@ -94,7 +94,7 @@ def test_recorder_refuses_an_existing_output_folder(tmp_path: Path) -> None:
     existing.mkdir()
     (existing / "keep.txt").write_text("precious")
     recorder = Path(os.environ["AMENT_PREFIX_PATH"].split(os.pathsep)[0])
-    from cnc_tools.runner import find_executable
+    from cnc_tools.runs.graph import find_executable
 
     result = subprocess.run([str(find_executable("cnc_tools", "recorder")), "--ros-args", "-p", f"output:={existing}"],
                             capture_output=True, text=True, timeout=60)
@@ -108,7 +108,7 @@ def test_recorder_refuses_an_existing_output_folder(tmp_path: Path) -> None:
 
 def test_cnc_contour_run_prints_the_score_and_the_paths(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    result = subprocess.run([sys.executable, "-m", "cnc_tools.cli", "run", str(CIRCLE), "--out", str(out),
+    result = subprocess.run([sys.executable, "-m", "cnc_tools.cli.main", "run", str(CIRCLE), "--out", str(out),
                              "--set", "duration_s=2.0"], capture_output=True, text=True, timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
     for line in ("contour error", "circular test", "bag:", "json:", "plots:"):

@@ -15,11 +15,9 @@ from cnc_contour_control.laws.fuzzy import (
     FuzzyConfig,
     FuzzyLaw,
     FuzzySurface,
-    bench,
-    main,
     memberships,
 )
-from cnc_contour_control.laws.fuzzy_gains import TABLE4_GAINS, equivalent_gains
+from cnc_contour_control.laws.fuzzy_gains import TABLE4_GAINS, equivalent_gains, format_gains_table
 
 E_C = (-21.0, -14.0, -7.0, 0.0, 7.0, 14.0, 21.0)
 DE_C = (-4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5)
@@ -344,17 +342,10 @@ def test_equivalent_gains_follow_the_scales(params, kp_factor, kd_factor):
     assert scaled.kd == pytest.approx(kd_factor * base.kd)
 
 
-# --- command line -----------------------------------------------------------------------
+# --- the gains table ---------------------------------------------------------------------
 
 
-def test_gains_table_is_printed_beside_table4(capsys):
-    assert main(["--gains"]) == 0
-    out = capsys.readouterr().out
+def test_gains_table_is_printed_beside_table4():
+    out = format_gains_table()
     assert "Table 4 (paper)    2.40   0.10   6.70" in out
     assert "paper000           2.38   0.10   6.67" in out
-
-
-def test_bench_reports_microseconds_per_step():
-    cost = bench(n_steps=1000)
-    assert set(cost) >= {"fuzzy"}
-    assert all(us > 0.0 for us in cost.values())

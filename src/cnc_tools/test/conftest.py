@@ -1,4 +1,4 @@
-"""Fixtures of the cnc_tools tests; the synthetic data itself lives in :mod:`cnc_tools.synthetic`."""
+"""Fixtures of the cnc_tools tests; the synthetic data itself lives in :mod:`cnc_tools.bagio.synthetic`."""
 from __future__ import annotations
 
 from pathlib import Path
@@ -6,7 +6,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from cnc_tools.synthetic import (
+from cnc_tools.bagio.synthetic import (
     COMMAND_TYPE,
     NS,
     TOPICS,

@@ -16,8 +16,8 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from ruamel.yaml import YAML
 
 from cnc_contour_control.errors import BagError, ConfigError
-from cnc_tools.bag import BagWriter, read_bag
-from cnc_tools.typestore import (
+from cnc_tools.bagio.bag import BagWriter, read_bag
+from cnc_tools.bagio.typestore import (
     candidate_msg_dirs,
     custom_type_definitions,
     decode_columns,

@@ -16,11 +16,11 @@ from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.lockstep import NS_PER_S, ns_to_s, seconds_to_ns
 from cnc_contour_control.servo import ServoController
 from cnc_plant_sim.plant import make_plant
-from cnc_tools.bench import BENCHES, get_bench
+from cnc_tools.bench.registry import BENCHES, get_bench
 from cnc_tools.bench.report import format_table, write_json
-from cnc_tools.cli import main
-from cnc_tools.engine import run_engine, tick_count, tick_stamps_s
-from cnc_tools.scenario import Scenario, load_scenario
+from cnc_tools.cli.main import main
+from cnc_tools.runs.engine import run_engine, tick_count, tick_stamps_s
+from cnc_tools.runs.scenario import Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 SHIPPED = sorted((ROOT / "scenarios").glob("*.yaml"))

@@ -17,11 +17,11 @@ from numpy.testing import assert_allclose
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.geometry import LineSegment, Program
 from cnc_contour_control.laws.fuzzy import RULE_BASES
-from cnc_tools.bench import BENCHES
-from cnc_tools.bench.paper000_assumptions import VARIANTS
-from cnc_tools.cli import main as cli_main
-from cnc_tools.bench.paper000_data import EXPERIMENTS, TABLE2_AXES, TABLE4_GAINS, TABLE5, table5_row
-from cnc_tools.bench.paper000_runs import (
+from cnc_tools.bench.registry import BENCHES
+from cnc_tools.reproductions.paper000.assumptions import VARIANTS
+from cnc_tools.cli.main import main as cli_main
+from cnc_tools.reproductions.paper000.data import EXPERIMENTS, TABLE2_AXES, TABLE4_GAINS, TABLE5, table5_row
+from cnc_tools.reproductions.paper000.runs import (
     CONTROLLERS,
     VIEWS,
     apply_view,
@@ -32,9 +32,9 @@ from cnc_tools.bench.paper000_runs import (
     scenario_for,
     score_views,
 )
-from cnc_tools.bench.paper000_sweep import settings_of, table5_cases
-from cnc_tools.engine import run_engine
-from cnc_tools.scoring import score_run
+from cnc_tools.reproductions.paper000.sweep import settings_of, table5_cases
+from cnc_tools.runs.engine import run_engine
+from cnc_tools.analysis.scoring import score_run
 
 ROOT = Path(__file__).resolve().parents[3]
 LINE_LOW = ROOT / "scenarios" / "paper000_line_low.yaml"

@@ -10,8 +10,8 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.geometry import ArcSegment, Program
-from cnc_tools.circular import Circle, analyse_circle, circle_of, fit_circle, reversal_indices
-from cnc_tools.scoring import score_run
+from cnc_tools.analysis.circular import Circle, analyse_circle, circle_of, fit_circle, reversal_indices
+from cnc_tools.analysis.scoring import score_run
 
 R_M = 0.02
 AXES = ("x", "y")

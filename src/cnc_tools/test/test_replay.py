@@ -13,8 +13,8 @@ import pytest
 from rosbags.highlevel import AnyReader
 
 from cnc_contour_control.errors import BagError, ConfigError
-from cnc_tools.bag import PATH_TYPE, BagIntegrity, BagWriter
-from cnc_tools.replay import (
+from cnc_tools.bagio.bag import PATH_TYPE, BagIntegrity, BagWriter
+from cnc_tools.bagio.replay import (
     RawMessage,
     Recording,
     ReplayConfig,
@@ -22,7 +22,7 @@ from cnc_tools.replay import (
     load_recording,
     skip_empty,
 )
-from cnc_tools.typestore import project_typestore
+from cnc_tools.bagio.typestore import project_typestore
 
 JS, CLOCK = "sensor_msgs/msg/JointState", "rosgraph_msgs/msg/Clock"
 MS = 1_000_000
@@ -96,7 +96,7 @@ def test_topics_filter_and_an_unknown_topic_named_with_the_bag_s_topics(tmp_path
 
 
 def test_a_missing_bag_is_a_bag_error_naming_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    from cnc_tools.cli import main
+    from cnc_tools.cli.main import main
 
     with pytest.raises(BagError, match=f"bag {tmp_path / 'nothing'} does not exist"):
         load_recording(tmp_path / "nothing")
@@ -287,7 +287,7 @@ def test_node_replays_the_salvaged_prefix_of_a_truncated_bag_and_reports_the_los
 def test_the_command_replays_a_bag_in_its_own_process_and_exits(tmp_path: Path, synth) -> None:  # noqa: ANN001
     bag = _small_run(tmp_path, synth, n=10)
     recorded = _recorded(bag)
-    command = [sys.executable, "-m", "cnc_tools.cli", "replay", str(bag), "--rate", "20", "--wait-for-subscribers", "1",
+    command = [sys.executable, "-m", "cnc_tools.cli.main", "replay", str(bag), "--rate", "20", "--wait-for-subscribers", "1",
                "--topics", "/cnc/path", "/cnc/joint_states"]
     with _raw_probe({"/cnc/path": PATH_TYPE, "/cnc/joint_states": JS}) as probe:
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)

@@ -8,9 +8,9 @@ import pytest
 from matplotlib.image import imread
 
 from cnc_contour_control.errors import ConfigError
-from cnc_tools.bag import read_bag
-from cnc_tools.report import FIGURES, nice_magnification, write_report
-from cnc_tools.scoring import score_run
+from cnc_tools.bagio.bag import read_bag
+from cnc_tools.analysis.report import FIGURES, nice_magnification, write_report
+from cnc_tools.analysis.scoring import score_run
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 R_M = 0.02

@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from cnc_contour_control.errors import ConfigError, ProgramError
-from cnc_tools.scenario import load_scenario
+from cnc_tools.runs.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 SHIPPED = sorted((ROOT / "scenarios").glob("*.yaml"))

@@ -12,10 +12,10 @@ from numpy.testing import assert_allclose, assert_array_equal
 
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.geometry import LineSegment, Program
-from cnc_tools.bag import BagIntegrity, BagWriter, read_bag
-from cnc_tools.metrics import METRICS, trapezoid_weights_s
-from cnc_tools.scoring import score_run, tracking_errors
-from cnc_tools.typestore import message_layout, project_typestore
+from cnc_tools.bagio.bag import BagIntegrity, BagWriter, read_bag
+from cnc_tools.analysis.metrics import METRICS, trapezoid_weights_s
+from cnc_tools.analysis.scoring import score_run, tracking_errors
+from cnc_tools.bagio.typestore import message_layout, project_typestore
 
 R_M = 0.02
 

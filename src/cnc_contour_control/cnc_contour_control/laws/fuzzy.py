@@ -15,23 +15,13 @@ output in drive units (DAC). The law is defined per sample: ``de`` is the
 change over one sample and ``ki`` the gain per sample, so the paper's centres
 and gains assume its sample time T = 0.01 s.
 
-Run ``python -m cnc_contour_control.laws.fuzzy --bench`` for the cost per step
-and ``--gains`` for the equivalent gains of every registered rule base beside
-the paper's Table 4.
+``cnc-contour bench laws`` measures the cost per step beside the PID's and
+prints the equivalent gains of every rule base beside the paper's Table 4
+(:mod:`cnc_contour_control.laws.fuzzy_gains`).
 """
 from __future__ import annotations
 
-if __name__ == "__main__":
-    # ``python -m`` imports the package first, which imports this module and
-    # registers the law; run that module's CLI instead of registering twice.
-    from cnc_contour_control.laws.fuzzy import main as _main
-
-    raise SystemExit(_main())
-
-import argparse
 import dataclasses
-import math
-import timeit
 from bisect import bisect_right
 from collections.abc import Mapping, Sequence
 from typing import Any, Union
@@ -43,7 +33,7 @@ from cnc_contour_control.config import (
     require_positive,
 )
 from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.laws.registry import LAWS, register_law
+from cnc_contour_control.laws.registry import register_law
 
 #: Names of the seven fuzzy sets, from most negative to most positive.
 SET_NAMES: tuple[str, ...] = ("NL", "NM", "NS", "ZR", "PS", "PM", "PL")
@@ -368,49 +358,4 @@ class FuzzyLaw:
 def make_fuzzy_law(params: Mapping[str, Any]) -> FuzzyLaw:
     """Build a :class:`FuzzyLaw` from a mapping of :class:`FuzzyConfig` keys."""
     return FuzzyLaw(build_config(FuzzyConfig, params, "fuzzy"))
-
-
-def _bench_law(law: Any, n_steps: int) -> float:
-    """Return the mean cost of ``law.step`` in microseconds over a sweep of errors."""
-    errors = [25.0 * math.sin(0.05 * k) + 0.3 * math.sin(1.7 * k) for k in range(1000)]
-    step = law.step
-
-    def run() -> None:
-        for e in errors:
-            step(e, 0.01)
-
-    repeats = max(1, n_steps // len(errors))
-    best = min(timeit.repeat(run, number=repeats, repeat=5))
-    return best / (repeats * len(errors)) * 1e6
-
-
-def bench(n_steps: int = 200_000) -> dict[str, float]:
-    """Return microseconds per step of the fuzzy law and, if registered, the PID law."""
-    result = {"fuzzy": _bench_law(make_fuzzy_law({}), n_steps)}
-    if "pid" in LAWS:
-        result["pid"] = _bench_law(LAWS["pid"]({}), n_steps)
-    return result
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``--bench`` prints the cost per step, ``--gains`` the equivalent gains."""
-    parser = argparse.ArgumentParser(
-        prog="python -m cnc_contour_control.laws.fuzzy",
-        description="Fuzzy servo law of paper 000.",
-    )
-    parser.add_argument("--bench", action="store_true", help="print us/step of FLC, PID, ratio")
-    parser.add_argument("--gains", action="store_true", help="print equivalent gains, Table 4")
-    parser.add_argument("--steps", type=int, default=200_000, help="steps per benchmark run")
-    args = parser.parse_args(argv)
-    if args.gains or not args.bench:
-        from cnc_contour_control.laws.fuzzy_gains import format_gains_table
-
-        print(format_gains_table())
-    if args.bench:
-        cost = bench(args.steps)
-        for name, us in cost.items():
-            print(f"{name:6s} {us:7.3f} us/step")
-        if "pid" in cost:
-            print(f"ratio  {cost['fuzzy'] / cost['pid']:7.2f} (goal <= 3)")
-    return 0
 

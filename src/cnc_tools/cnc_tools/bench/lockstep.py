@@ -3,7 +3,7 @@
 Measured side by side in one run, on the paper-000 circle
 (``scenarios/paper000_circle_high.yaml``, two axes):
 
-1. the node graph (:func:`cnc_tools.runner.run_graph`) at T = 10 ms and 1 ms:
+1. the node graph (:func:`cnc_tools.runs.graph.run_graph`) at T = 10 ms and 1 ms:
    ticks, wall time and real-time factor from the plant's summary, wall time
    per tick, and per hop: a tick's critical path is plant → interpolator →
    servo → plant, :data:`HOPS` = 3 hops (the servos run in parallel, and
@@ -27,13 +27,12 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from cnc_tools.bench import register_bench
 from cnc_tools.bench.peers import round_trips
 from cnc_tools.bench.report import format_table, goal_text, machine, write_json
-from cnc_tools.cli import project_root, timestamp
-from cnc_tools.engine import run_engine
-from cnc_tools.runner import run_graph
-from cnc_tools.scenario import Scenario, load_scenario
+from cnc_tools.runs.folders import project_root, timestamp
+from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.graph import run_graph
+from cnc_tools.runs.scenario import Scenario, load_scenario
 
 SCENARIO = "scenarios/paper000_circle_high.yaml"
 #: Hops on a tick's critical path: plant -> interpolator -> servo -> plant.
@@ -148,7 +147,6 @@ def measure_engine(scenario: Scenario, repeats: int) -> EngineFigures:
                          max(factors), statistics.median(r.wall_time_s / r.ticks for r in results))
 
 
-@register_bench("lockstep")
 def lockstep_bench(options: argparse.Namespace) -> int:
     """Measure the node graph, the bare hop and the engine; print the table; write JSON if asked."""
     plan = QUICK if options.quick else FULL

@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 from cnc_contour_control.errors import FaultError
-from cnc_tools.dds import loopback_env
+from cnc_tools.runs.dds import loopback_env
 
 
 class Peers:

@@ -18,12 +18,11 @@ from pathlib import Path
 
 from rosbags.highlevel import AnyReader
 
-from cnc_tools.bag import read_bag
-from cnc_tools.bench import register_bench
+from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bench.report import format_table, goal_text, machine, write_json
-from cnc_tools.scoring import score_run
-from cnc_tools.synthetic import circle_program, circle_trajectory, write_run_bag
-from cnc_tools.typestore import project_typestore
+from cnc_tools.analysis.scoring import score_run
+from cnc_tools.bagio.synthetic import circle_program, circle_trajectory, write_run_bag
+from cnc_tools.bagio.typestore import project_typestore
 
 RATIO_GOAL = 0.5
 SCORE_TIME_GOAL_S = 1.0
@@ -53,7 +52,6 @@ def scoring_s(bag: Path) -> float:
     return time.perf_counter() - started
 
 
-@register_bench("scoring")
 def scoring(options: argparse.Namespace) -> int:
     """Scoring throughput vs the bare rosbags loop, and the time to score a 60 s, 1 kHz, 3-axis run."""
     duration_s = 10.0 if options.quick else 60.0

@@ -8,8 +8,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from cnc_contour_control.errors import BagError
 from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, message_class, spin_node, wall_time_s
 from cnc_plant_sim.nodes.plant_node import RUN_FINISHED
-from cnc_tools.bag import BagWriter
-from cnc_tools.recording import Completion, header_stamp_ns, per_tick_topics, run_topics
+from cnc_tools.bagio.bag import BagWriter
+from cnc_tools.bagio.recording import Completion, header_stamp_ns, per_tick_topics, run_topics
 
 
 

@@ -5,13 +5,13 @@ the per-topic message counts) and ``<name>.mcap`` (ros2 profile, ``ros2msg``
 schemas, CDR messages in chunks, message indexes and a summary), written by
 ``rosbags.rosbag2.Writer``; ``ros2 bag``, Foxglove, ``rosbags`` and ``mcap`` read it.
 
-Reading (:mod:`cnc_tools.raw_bag`) goes through ``rosbags``' ``AnyReader`` (the
+Reading (:mod:`cnc_tools.bagio.raw_bag`) goes through ``rosbags``' ``AnyReader`` (the
 file's index). When that fails (a truncated or damaged file) the salvage scan
-(:mod:`cnc_tools.mcap_salvage`) keeps every intact message of the readable
+(:mod:`cnc_tools.bagio.mcap_salvage`) keeps every intact message of the readable
 prefix. ``BagIntegrity`` says how the file was read and how many messages were
 lost, or that the loss is unknown. A damaged file is never reported complete.
 This module decodes the raw messages into a :class:`RecordedRun`
-(:mod:`cnc_tools.recorded_run`). No rclpy: the recorder hands over raw CDR bytes.
+(:mod:`cnc_tools.run_record`). No rclpy: the recorder hands over raw CDR bytes.
 """
 from __future__ import annotations
 
@@ -27,8 +27,8 @@ from rosbags.typesys.store import Typestore
 
 from cnc_contour_control.errors import BagError, CncError
 from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
-from cnc_tools.raw_bag import RawBag, locate, read_raw
-from cnc_tools.recorded_run import (
+from cnc_tools.bagio.raw_bag import RawBag, locate, read_raw
+from cnc_tools.run_record import (
     BagIntegrity,
     CommandSeries,
     FloatArray,
@@ -37,7 +37,7 @@ from cnc_tools.recorded_run import (
     RecordedRun,
     ReferenceSeries,
 )
-from cnc_tools.typestore import ColumnBlock, decode_columns, project_typestore
+from cnc_tools.bagio.typestore import ColumnBlock, decode_columns, project_typestore
 from cnc_contour_control.lockstep import NS_PER_S
 
 __all__ = [

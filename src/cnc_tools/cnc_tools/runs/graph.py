@@ -21,8 +21,8 @@ from typing import Any
 import yaml
 
 from cnc_contour_control.errors import CncError, FaultError
-from cnc_tools.dds import loopback_env
-from cnc_tools.scenario import Scenario
+from cnc_tools.runs.dds import loopback_env
+from cnc_tools.runs.scenario import Scenario
 
 NAMESPACE = "/cnc"
 

@@ -5,11 +5,10 @@ import argparse
 from pathlib import Path
 
 from cnc_contour_control.errors import ConfigError
-from cnc_tools.cli import command
-from cnc_tools.replay import Recording, ReplayConfig, ReplaySchedule, load_recording
+from cnc_tools.bagio.replay import Recording, ReplayConfig, ReplaySchedule, load_recording
 
 
-def _configure(parser: argparse.ArgumentParser) -> None:
+def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bag", type=Path, help="bag folder (or its .mcap file); a damaged bag replays its readable prefix")
     parser.add_argument("--rate", type=float, default=1.0, help="playback speed relative to the recording (default 1)")
     parser.add_argument("--start-offset", type=float, default=0.0, metavar="S",
@@ -22,7 +21,6 @@ def _configure(parser: argparse.ArgumentParser) -> None:
                         help="start once every replayed topic has N readers (default 0: at once)")
 
 
-@command("replay", _configure)
 def replay(args: argparse.Namespace) -> int:
     """Replay a bag; exit 0 when done, 1 if the bag was damaged (its prefix was replayed), 3 on a fault."""
     if not 0 <= args.wait_for_subscribers <= 1000:

@@ -5,10 +5,10 @@
   plus the feedforward of :func:`feedforward_axes`) and ``flc:<rule base>``
   for every alternative rule base of ``fuzzy.RULE_BASES``.
 - A run goes through the node graph (recorded to MCAP, read back with
-  :func:`cnc_tools.bag.read_bag`) or through the in-process engine; the
+  :func:`cnc_tools.bagio.bag.read_bag`) or through the in-process engine; the
   engine's arrays are put into the same :class:`RecordedRun` a bag gives
   (:func:`engine_recorded_run`), so both are scored by the one scorer,
-  :func:`cnc_tools.scoring.score_run`.
+  :func:`cnc_tools.analysis.scoring.score_run`.
 - A *view* (:data:`VIEWS`) chooses what is scored, by cutting the recorded
   run before it reaches the scorer: the paper's view (``paper``: the contour
   of Eqs. 9/10 while the reference moves) or the project's default
@@ -32,13 +32,13 @@ from cnc_contour_control.lockstep import NS_PER_S, seconds_to_ns
 from cnc_contour_control.servo import ServoConfig
 from cnc_contour_control.units import M_PER_BLU_PAPER000
 from cnc_plant_sim.plant import PlantConfig
-from cnc_tools.bag import read_bag
-from cnc_tools.bench.paper000_data import TABLE4_GAINS
-from cnc_tools.engine import EngineResult, run_engine
-from cnc_tools.recorded_run import BagIntegrity, CommandSeries, JointStateSeries, RecordedRun, ReferenceSeries
-from cnc_tools.runner import run_graph
-from cnc_tools.scenario import Scenario, build_scenario, load_scenario
-from cnc_tools.scoring import Score, score_run
+from cnc_tools.bagio.bag import read_bag
+from cnc_tools.reproductions.paper000.data import TABLE4_GAINS
+from cnc_tools.runs.engine import EngineResult, run_engine
+from cnc_tools.run_record import BagIntegrity, CommandSeries, JointStateSeries, RecordedRun, ReferenceSeries
+from cnc_tools.runs.graph import run_graph
+from cnc_tools.runs.scenario import Scenario, build_scenario, load_scenario
+from cnc_tools.analysis.scoring import Score, score_run
 
 
 # =========================================================================== controllers
@@ -253,7 +253,7 @@ def blu(score: Score) -> tuple[float, float]:
 
 
 def score_views(run: RecordedRun, views: Mapping[str, View] = VIEWS) -> dict[str, tuple[RecordedRun, Score]]:
-    """Each view of ``run`` and its score (:func:`cnc_tools.scoring.score_run`, the project's scorer)."""
+    """Each view of ``run`` and its score (:func:`cnc_tools.analysis.scoring.score_run`, the project's scorer)."""
     out = {}
     for name, view in views.items():
         cut = apply_view(run, view)

@@ -1,9 +1,9 @@
 """Raw reading of a bag: locate its MCAP file, read the CDR bytes of wanted topics with their log times.
 
 Reading goes through ``rosbags``' ``AnyReader`` (the file's index). When that
-fails (a truncated or damaged file) the salvage scan (:mod:`cnc_tools.mcap_salvage`)
+fails (a truncated or damaged file) the salvage scan (:mod:`cnc_tools.bagio.mcap_salvage`)
 keeps every intact message of the readable prefix. Either way the result says,
-in a :class:`~cnc_tools.recorded_run.BagIntegrity`, how the file was read and
+in a :class:`~cnc_tools.run_record.BagIntegrity`, how the file was read and
 how many messages were lost. Shared by ``read_bag`` (scoring) and replay. No rclpy.
 """
 from __future__ import annotations
@@ -17,9 +17,9 @@ from rosbags.typesys.store import Typestore
 from ruamel.yaml import YAML
 
 from cnc_contour_control.errors import BagError
-from cnc_tools.mcap_salvage import scan_mcap, scan_typestore
-from cnc_tools.recorded_run import BagIntegrity
-from cnc_tools.typestore import project_typestore
+from cnc_tools.bagio.mcap_salvage import scan_mcap, scan_typestore
+from cnc_tools.run_record import BagIntegrity
+from cnc_tools.bagio.typestore import project_typestore
 
 TopicFilter = Callable[[str], bool]
 

@@ -47,7 +47,7 @@ from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.units import M_PER_MM
 from cnc_plant_sim.friction import FrictionModel, TableFriction, make_friction
 from cnc_plant_sim.friction import table as table_friction
-from cnc_tools.scenario import Scenario, build_scenario
+from cnc_tools.runs.scenario import Scenario, build_scenario
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -500,7 +500,7 @@ TABLE_HEADER = """\
 # Force in DAC units against velocity in mm/s, linear interpolation between points, each
 # branch constant beyond its ends; V = 0 exactly takes the breakaway level of the branch.
 # As a plant friction model:  plant: {axis_overrides: {<axis>: {friction: table, friction_params: <friction_params>}}}
-# As a feedforward table:     u_ff(k) = F(v_ref(k)) with v_ref in mm/s (cnc_tools.friction_id.load_table)
+# As a feedforward table:     u_ff(k) = F(v_ref(k)) with v_ref in mm/s (cnc_tools.identification.friction.load_table)
 """
 
 

@@ -1,4 +1,4 @@
-"""Subcommands of ``cnc-contour`` (each registers itself in :data:`cnc_tools.cli.COMMANDS`)."""
+"""``cnc-contour run SCENARIO``: a scenario through the node graph (or the engine), recorded, scored, plotted."""
 from __future__ import annotations
 
 import argparse
@@ -6,14 +6,15 @@ import json
 from pathlib import Path
 
 from cnc_contour_control.errors import CncError
-from cnc_tools.cli import command, parse_overrides, project_root, timestamp
-from cnc_tools.pipeline import report_runs, score_bag
-from cnc_tools.engine import run_engine
-from cnc_tools.runner import run_graph
-from cnc_tools.scenario import load_scenario
+from cnc_tools.cli.common import parse_overrides
+from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.folders import project_root, timestamp
+from cnc_tools.runs.graph import run_graph
+from cnc_tools.runs.outputs import report_runs, score_bag
+from cnc_tools.runs.scenario import load_scenario
 
 
-def _configure_run(parser: argparse.ArgumentParser) -> None:
+def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("scenario", type=Path, help="scenario YAML file")
     parser.add_argument("--engine", action="store_true", help="run in-process (no DDS) instead of the node graph")
     parser.add_argument("--out", type=Path, help="run folder (default bags/<scenario>/<timestamp>)")
@@ -21,7 +22,6 @@ def _configure_run(parser: argparse.ArgumentParser) -> None:
                         help="override a scenario key, e.g. --set servo.law_params.kp=3 --set mode=realtime")
 
 
-@command("run", _configure_run)
 def run(args: argparse.Namespace) -> int:
     """Run a scenario through the node graph (or the engine) and print its summary."""
     scenario = load_scenario(args.scenario, parse_overrides(args.overrides))
@@ -83,57 +83,3 @@ def print_summary(name: str, how: str, summary: dict[str, object]) -> None:
     width = max(len(k) for k, _ in rows)
     for key, value in rows:
         print(f"  {key:<{width}}  {value}")
-
-
-def _configure_show(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scenario", type=Path)
-
-
-@command("check", _configure_show)
-def check(args: argparse.Namespace) -> int:
-    """Validate a scenario and print what it resolves to."""
-    scenario = load_scenario(args.scenario)
-    print(json.dumps({"name": scenario.name, "axes": scenario.axes, "sample_time_s": scenario.sample_time_s,
-                      "duration_s": scenario.duration_s, "segments": len(scenario.program.segments),
-                      "length_mm": scenario.program.total_length_m * 1e3}, indent=2))
-    return 0
-
-
-def _configure_score(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("bags", nargs="+", type=Path, help="bag folders (or .mcap files)")
-    parser.add_argument("--metrics", nargs="*", help="metric names (default: all registered)")
-    parser.add_argument("--out", type=Path, help="write score.json and score.csv per bag under this folder")
-
-
-@command("score", _configure_score)
-def score(args: argparse.Namespace) -> int:
-    """Score recorded runs: exact contour error from the recorded path and positions."""
-    status = 0
-    for bag in args.bags:
-        out = args.out / bag.resolve().parent.name if args.out else None
-        scored = score_bag(bag, out, args.metrics)
-        print(scored.score.to_table())
-        if not scored.run.integrity.complete:
-            status = 1
-        if scored.json_path:
-            print(f"json: {scored.json_path}\ncsv:  {scored.csv_path}")
-    return status
-
-
-def _configure_report(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("bags", nargs="+", type=Path, help="bag folders; several are drawn side by side")
-    parser.add_argument("--out", type=Path, default=Path("reports") / timestamp(), help="folder for the PNGs")
-
-
-@command("report", _configure_report)
-def report(args: argparse.Namespace) -> int:
-    """PNG plots of one or more recorded runs."""
-    scored = [score_bag(bag) for bag in args.bags]
-    for path in report_runs(scored, args.out):
-        print(path)
-    return 0
-
-
-from cnc_tools.bench import command as _bench_command  # noqa: F401,E402
-from cnc_tools import replay_command as _replay_command  # noqa: F401,E402
-from cnc_tools import friction_id_command as _friction_id_command  # noqa: F401,E402

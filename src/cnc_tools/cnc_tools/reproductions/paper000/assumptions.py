@@ -15,9 +15,8 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from cnc_tools.bench import register_bench
-from cnc_tools.bench.paper000_runs import CONTROLLERS, VIEWS, Controller
-from cnc_tools.bench.paper000_sweep import Case, Settings, Sweep, run_sweep, settings_of, table5_cases
+from cnc_tools.reproductions.paper000.runs import CONTROLLERS, VIEWS, Controller
+from cnc_tools.reproductions.paper000.sweep import Case, Settings, Sweep, run_sweep, settings_of, table5_cases
 from cnc_tools.bench.report import format_table, machine, write_json
 
 #: Seeds when ``--seeds`` is not given.
@@ -134,7 +133,6 @@ def print_variants(rows: Sequence[dict[str, Any]], cases: Sequence[str]) -> None
                        [[r["variant"], r["assumption"], r["description"]] for r in rows]))
 
 
-@register_bench("paper000-assumptions")
 def paper000_assumptions_bench(options: argparse.Namespace) -> int:
     """Every variant of :data:`VARIANTS`: PID and FLC on the Table 5 cases, in the engine."""
     started = time.perf_counter()

@@ -17,7 +17,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 from cnc_contour_control.errors import BagError
-from cnc_tools.typestore import project_typestore
+from cnc_tools.bagio.typestore import project_typestore
 
 MAGIC = b"\x89MCAP0\r\n"
 _OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_STATISTICS = 0x02, 0x03, 0x04, 0x05, 0x06, 0x0B

@@ -1,6 +1,6 @@
 """``cnc-contour identify-friction``: paper 000's friction identification through the node graph.
 
-Runs every planned speed (:mod:`cnc_tools.friction_id`) on the nominal plant
+Runs every planned speed (:mod:`cnc_tools.identification.friction`) on the nominal plant
 and on the varied plants, through the node graph (one recorded bag per run)
 or with ``--engine`` in-process, then writes ``points.csv``, ``curve.csv``,
 ``friction_velocity.png`` and the fitted ``friction_table.yaml`` and prints
@@ -27,13 +27,13 @@ from matplotlib.figure import Figure
 from cnc_contour_control.errors import CncError, ConfigError, FaultError
 from cnc_plant_sim.friction import PiecewiseQuadraticFriction
 from cnc_plant_sim.plant import make_plant
-from cnc_tools import friction_id as fid
-from cnc_tools.bag import RecordedRun, read_bag
-from cnc_tools.cli import command, project_root, timestamp
-from cnc_tools.dds import MAX_RANDOM_DOMAIN_ID, loopback_env
-from cnc_tools.engine import run_engine
-from cnc_tools.runner import run_graph
-from cnc_tools.scenario import load_scenario
+from cnc_tools.identification import friction as fid
+from cnc_tools.bagio.bag import RecordedRun, read_bag
+from cnc_tools.runs.folders import project_root, timestamp
+from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID, loopback_env
+from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.graph import run_graph
+from cnc_tools.runs.scenario import load_scenario
 
 Report = Callable[[int, fid.FrictionPoint], None]
 
@@ -287,7 +287,7 @@ def _speeds(text: str) -> tuple[float, ...]:
         raise argparse.ArgumentTypeError(f"--speeds takes comma-separated numbers in mm/s, got {text!r}") from err
 
 
-def _configure(parser: argparse.ArgumentParser) -> None:
+def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--axis", default="x", help="axis to identify (default x)")
     parser.add_argument("--speeds", type=_speeds, default=fid.DEFAULT_SPEEDS_MM_S, metavar="V1,V2,...",
                         help="speed magnitudes in mm/s, each run in both directions "
@@ -321,7 +321,6 @@ def _progress(total: int) -> Report:
     return report
 
 
-@command("identify-friction", _configure)
 def identify_friction(args: argparse.Namespace) -> int:
     """Identify an axis's friction–velocity curve (paper 000, Section 2) and write points, plot and table."""
     config = _config(args)

@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from cnc_contour_control.errors import ConfigError
-from cnc_tools.bench.paper000_data import TABLE5
-from cnc_tools.bench.paper000_runs import (
+from cnc_tools.reproductions.paper000.data import TABLE5
+from cnc_tools.reproductions.paper000.runs import (
     Controller,
     RunScore,
     engine_recorded_run,
@@ -26,9 +26,9 @@ from cnc_tools.bench.paper000_runs import (
     run_and_score,
     scenario_for,
 )
-from cnc_tools.cli import project_root, timestamp
-from cnc_tools.recorded_run import RecordedRun
-from cnc_tools.scoring import Score
+from cnc_tools.runs.folders import project_root, timestamp
+from cnc_tools.run_record import RecordedRun
+from cnc_tools.analysis.scoring import Score
 
 
 @dataclass(frozen=True)

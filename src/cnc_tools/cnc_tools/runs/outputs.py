@@ -5,8 +5,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from cnc_tools.bag import RecordedRun, read_bag
-from cnc_tools.scoring import Score, score_run
+from cnc_tools.bagio.bag import RecordedRun, read_bag
+from cnc_tools.analysis.scoring import Score, score_run
 
 
 @dataclass(frozen=True)
@@ -34,6 +34,6 @@ def score_bag(bag: Path, out_dir: Path | None = None, metrics: Sequence[str] | N
 
 def report_runs(scored: Sequence[ScoredRun], out_dir: Path) -> list[Path]:
     """The PNG figures of one or more scored runs, side by side."""
-    from cnc_tools.report import write_report  # matplotlib: loaded only when plotting
+    from cnc_tools.analysis.report import write_report  # matplotlib: loaded only when plotting
 
     return write_report([s.run for s in scored], out_dir, scores=[s.score for s in scored])

@@ -22,9 +22,9 @@ from numpy.typing import NDArray
 
 from cnc_contour_control.geometry import ArcSegment, Program
 from cnc_contour_control.units import M_PER_BLU_PAPER000, M_PER_MM, M_PER_UM
-from cnc_tools.bag import BagIntegrity, RecordedRun
-from cnc_tools.circular import CircularTest, analyse_circle, circle_of
-from cnc_tools.metrics import Metric, evaluate, get_metrics, length_units, trapezoid_weights_s
+from cnc_tools.bagio.bag import BagIntegrity, RecordedRun
+from cnc_tools.analysis.circular import CircularTest, analyse_circle, circle_of
+from cnc_tools.analysis.metrics import Metric, evaluate, get_metrics, length_units, trapezoid_weights_s
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -29,7 +29,7 @@ from cnc_contour_control.interpolation import ReferenceTrajectory
 from cnc_contour_control.lockstep import NS_PER_S, duration_to_ns, seconds_to_ns
 from cnc_contour_control.servo import ServoController
 from cnc_plant_sim.plant import Plant, make_plant
-from cnc_tools.scenario import Scenario
+from cnc_tools.runs.scenario import Scenario
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -32,10 +32,9 @@ from typing import Any
 import numpy as np
 
 from cnc_contour_control.units import M_PER_BLU_PAPER000
-from cnc_tools.bench import register_bench
-from cnc_tools.bench.paper000_data import EXPERIMENTS, TABLE5, Table5Row
-from cnc_tools.bench.paper000_runs import CONTROLLERS, VIEWS
-from cnc_tools.bench.paper000_sweep import (
+from cnc_tools.reproductions.paper000.data import EXPERIMENTS, TABLE5, Table5Row
+from cnc_tools.reproductions.paper000.runs import CONTROLLERS, VIEWS
+from cnc_tools.reproductions.paper000.sweep import (
     Case,
     Settings,
     Sweep,
@@ -47,9 +46,9 @@ from cnc_tools.bench.paper000_sweep import (
     wins,
 )
 from cnc_tools.bench.report import format_table, machine, write_json
-from cnc_tools.cli import project_root
-from cnc_tools.recorded_run import RecordedRun
-from cnc_tools.report import write_report
+from cnc_tools.runs.folders import project_root
+from cnc_tools.run_record import RecordedRun
+from cnc_tools.analysis.report import write_report
 
 #: Seeds of ``paper000`` when ``--seeds`` is not given.
 DEFAULT_SEEDS = 5
@@ -111,7 +110,6 @@ def _pid_cells(entry: dict[str, Any]) -> list[object]:
     return cells + [stat_text(entry["max"]["whole_run_blu"]), stat_text(entry["rms"]["whole_run_blu"])]
 
 
-@register_bench("paper000-pid")
 def paper000_pid_bench(options: argparse.Namespace) -> int:
     """Table 5's PID columns: the six scenarios with the paper's PID, recorded and scored."""
     started = time.perf_counter()
@@ -260,7 +258,6 @@ def _labelled(run: RecordedRun, label: str) -> RecordedRun:
     return dataclasses.replace(run, name=label)
 
 
-@register_bench("paper000")
 def paper000_bench(options: argparse.Namespace) -> int:
     """Table 5 for PID and FLC, the experiments, feedforward, the rule bases, figures and wall time."""
     started = time.perf_counter()
@@ -304,4 +301,3 @@ def _print_all(sweep: Sweep, rows: Sequence[Table5Row], settings: Settings) -> d
     return tables
 
 
-from cnc_tools.bench import paper000_assumptions as _assumptions  # noqa: E402,F401  (registers "paper000-assumptions")

@@ -4,11 +4,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cnc_tools.bench import BENCHES, get_bench
-from cnc_tools.cli import command
+from cnc_tools.bench.registry import BENCHES, get_bench
 
 
-def _configure(parser: argparse.ArgumentParser) -> None:
+def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("name", help=f"benchmark, one of {sorted(BENCHES)}")
     parser.add_argument("--quick", action="store_true", help="shorter runs and fewer repetitions (< 30 s)")
     parser.add_argument("--json", type=Path, help="also write the measured figures to this JSON file")
@@ -17,7 +16,6 @@ def _configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seeds", type=int, help="plant seeds 1..N per row (paper benches)")
 
 
-@command("bench", _configure)
 def bench(args: argparse.Namespace) -> int:
     """Run one benchmark and print its table."""
     return get_bench(args.name)(args)

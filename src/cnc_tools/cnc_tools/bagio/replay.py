@@ -4,7 +4,7 @@
 ``ros2 bag play`` would. This module decides *what* is published *when*; the
 node only reads its clock and publishes the bytes. No rclpy, no message types.
 
-Reading reuses :func:`cnc_tools.raw_bag.read_raw`: the index when the file is
+Reading reuses :func:`cnc_tools.bagio.raw_bag.read_raw`: the index when the file is
 intact, else the salvage scan, whose readable prefix is replayed and whose loss
 the recording's ``integrity`` states.
 
@@ -27,9 +27,9 @@ from pathlib import Path
 
 from cnc_contour_control.config import require_range
 from cnc_contour_control.errors import BagError, ConfigError
-from cnc_tools.bag import PATH_TYPE
-from cnc_tools.raw_bag import locate, read_raw
-from cnc_tools.recorded_run import BagIntegrity
+from cnc_tools.bagio.bag import PATH_TYPE
+from cnc_tools.bagio.raw_bag import locate, read_raw
+from cnc_tools.run_record import BagIntegrity
 from cnc_contour_control.lockstep import NS_PER_S
 
 #: Bounds of ``rate`` (the node's parameter range too).

@@ -1,0 +1,1 @@
+"""Analysis of a run record: scoring, metrics, circular test, plots (no rclpy, no rosbags)."""

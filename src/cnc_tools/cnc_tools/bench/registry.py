@@ -1,0 +1,31 @@
+"""The benches of ``cnc-contour bench NAME``, listed explicitly (speed benches and paper reproductions)."""
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+
+from cnc_contour_control.config import require_choice
+from cnc_tools.bench.laws import laws
+from cnc_tools.bench.lockstep import lockstep_bench
+from cnc_tools.bench.scoring import scoring
+from cnc_tools.reproductions.paper000.assumptions import paper000_assumptions_bench
+from cnc_tools.reproductions.paper000.bench import paper000_bench, paper000_pid_bench
+
+#: A bench: parsed options in, exit code out.
+Bench = Callable[[argparse.Namespace], int]
+
+#: Benches by name.
+BENCHES: dict[str, Bench] = {
+    "lockstep": lockstep_bench,
+    "scoring": scoring,
+    "laws": laws,
+    "paper000-pid": paper000_pid_bench,
+    "paper000": paper000_bench,
+    "paper000-assumptions": paper000_assumptions_bench,
+}
+
+
+def get_bench(name: str) -> Bench:
+    """The bench called ``name``; an unknown name is a ConfigError listing the valid ones."""
+    require_choice("bench", name, BENCHES)
+    return BENCHES[name]

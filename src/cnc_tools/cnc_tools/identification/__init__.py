@@ -1,0 +1,1 @@
+"""Identification of plant parameters from runs."""

@@ -1,0 +1,1 @@
+"""Reproductions of the papers, one folder per paper (data, runs, tables)."""
