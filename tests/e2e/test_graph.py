@@ -33,7 +33,7 @@ def _by_stamp(messages: list, value) -> dict[int, object]:
 def test_lockstep_graph_matches_engine_to_1e9(tmp_path: Path) -> None:
     scenario = load_scenario(CIRCLE, {"duration_s": 2.0})
     with TopicProbe(PROBED) as probe:
-        result = run_graph(scenario, tmp_path, extra_subscribers=1)
+        result = run_graph(scenario, tmp_path, extra_subscribers=1, namespace="/cnc")  # where the probe listens
         expected = tick_count(scenario)
         probe.wait_for(lambda: len(probe.received("/cnc/servo/y/command")) >= expected, 10.0, "all commands")
     engine = run_engine(scenario)
@@ -43,12 +43,12 @@ def test_lockstep_graph_matches_engine_to_1e9(tmp_path: Path) -> None:
     stamps = sorted(positions)
     assert len(stamps) == expected, "every tick's joint state arrived, none dropped"
     graph_position = np.array([positions[s] for s in stamps])
-    np.testing.assert_allclose(graph_position, engine.position_m, rtol=0.0, atol=1e-9)
+    np.testing.assert_allclose(graph_position, engine.joint_states.position_m, rtol=0.0, atol=1e-9)
     for i, axis in enumerate(scenario.axes):
         commands = _by_stamp(probe.received(f"/cnc/servo/{axis}/command"), lambda m: m.command)
         graph_command = np.array([commands[s] for s in stamps])
-        np.testing.assert_allclose(graph_command, engine.command[:, i], rtol=0.0, atol=1e-9)
-    assert np.ptp(engine.position_m[:, 1]) > 1e-3, "the axes really moved"
+        np.testing.assert_allclose(graph_command, engine.command_array()[:, i], rtol=0.0, atol=1e-9)
+    assert np.ptp(engine.joint_states.position_m[:, 1]) > 1e-3, "the axes really moved"
 
 
 def test_dds_sockets_stay_on_loopback(tmp_path: Path) -> None:
@@ -120,5 +120,5 @@ def test_three_axis_gcode_program_runs_through_the_graph_like_the_engine(tmp_pat
 
     recorded = read_bag(result.bag_path)
     engine = run_engine(scenario)
-    np.testing.assert_allclose(recorded.joint_states.position_m, engine.position_m, rtol=0.0, atol=1e-9)
-    assert np.ptp(engine.position_m[:, 2]) > 1.5e-3, "Z really moved"
+    np.testing.assert_allclose(recorded.joint_states.position_m, engine.joint_states.position_m, rtol=0.0, atol=1e-9)
+    assert np.ptp(engine.joint_states.position_m[:, 2]) > 1.5e-3, "Z really moved"

@@ -44,27 +44,29 @@ def test_circle_at_1ms_loses_no_message_and_reads_back_with_rosbags_and_mcap(tmp
     result = run_graph(scenario, tmp_path, record=True)
     ticks = tick_count(scenario)
     assert result.summary["ticks"] == ticks and result.faults == []
+    ns = result.namespace  # the run's own: /cnc/run_<id>, /clock and /diagnostics included
     counts = {topic: len(raw) for topic, raw in _raw_by_topic(result.bag_path).items()}
-    for topic in ("/cnc/joint_states", "/cnc/reference", "/cnc/servo/x/command", "/cnc/servo/y/command", "/clock"):
-        assert counts[topic] == ticks, (topic, counts[topic], ticks)
-    assert counts["/cnc/path"] == 1
+    for name in ("joint_states", "reference", "servo/x/command", "servo/y/command", "clock"):
+        assert counts[f"{ns}/{name}"] == ticks, (name, counts[f"{ns}/{name}"], ticks)
+    assert counts[f"{ns}/path"] == 1
     with open(_mcap(result.bag_path), "rb") as stream:
         decoded = Counter(channel.topic for _, channel, _, _ in
                           make_reader(stream, decoder_factories=[DecoderFactory()]).iter_decoded_messages())
-    assert decoded["/cnc/joint_states"] == ticks and decoded["/cnc/path"] == 1
+    assert decoded[f"{ns}/joint_states"] == ticks and decoded[f"{ns}/path"] == 1
     run = read_bag(result.bag_path)
     assert run.integrity.complete and run.program.name == "paper000_circle_high"
     with AnyReader([result.bag_path], default_typestore=project_typestore()) as reader:
-        end_ns = max(t for c, t, _ in reader.messages() if c.topic == "/cnc/joint_states")
-        diagnostics = [t for c, t, _ in reader.messages() if c.topic == "/diagnostics"]
+        end_ns = max(t for c, t, _ in reader.messages() if c.topic == f"{ns}/joint_states")
+        diagnostics = [t for c, t, _ in reader.messages() if c.topic == f"{ns}/diagnostics"]
     assert diagnostics and max(diagnostics) <= end_ns, "wall-stamped diagnostics logged inside the run's time"
 
 
 def test_same_scenario_and_seed_give_the_same_bag_contents(tmp_path: Path) -> None:
     scenario = load_scenario(CIRCLE, {"duration_s": 1.0})
-    first = _raw_by_topic(run_graph(scenario, tmp_path / "a", record=True).bag_path)
-    second = _raw_by_topic(run_graph(scenario, tmp_path / "b", record=True).bag_path)
-    first.pop("/diagnostics", None), second.pop("/diagnostics", None)  # wall-clock stamps
+    ns = "/cnc/seeded"  # one after the other, so one namespace for both: the same topic names
+    first = _raw_by_topic(run_graph(scenario, tmp_path / "a", record=True, namespace=ns).bag_path)
+    second = _raw_by_topic(run_graph(scenario, tmp_path / "b", record=True, namespace=ns).bag_path)
+    first.pop(f"{ns}/diagnostics", None), second.pop(f"{ns}/diagnostics", None)  # wall-clock stamps
     assert first == second
 
 

@@ -82,15 +82,57 @@ def build_config(cls: type[T], mapping: Mapping[str, Any] | None, context: str =
         raise ConfigError(f"{context or cls.__name__}: {err}") from err
 
 
-def read_yaml_mapping(path: str | Path, what: str, error: type[CncError] = ConfigError) -> dict[str, Any]:
-    """The mapping in the YAML file ``path``; ``error`` naming ``what`` and the file otherwise."""
+#: Largest scenario, program or G-code file read, bytes (4 MiB): far above any real one, and parsed in seconds.
+MAX_INPUT_FILE_BYTES = 4 * 1024 * 1024
+
+
+def read_text_file(path: str | Path, what: str, error: type[CncError] = ConfigError,
+                   limit_bytes: int = MAX_INPUT_FILE_BYTES) -> str:
+    """The UTF-8 text of ``path``; ``error`` naming ``what``, the file and the reason otherwise.
+
+    Refused: a missing file, one larger than ``limit_bytes`` (checked before
+    reading), and binary content (not UTF-8, or holding NUL bytes).
+    """
     file = Path(path)
     if not file.is_file():
         raise error(f"{what} {str(file)!r} does not exist")
     try:
-        content = yaml.safe_load(file.read_text())
+        size = file.stat().st_size
+        if size > limit_bytes:
+            raise error(f"{what} {str(file)!r} is {size} bytes; the limit is {limit_bytes} bytes "
+                        f"({limit_bytes / 2**20:g} MiB)")
+        data = file.read_bytes()
+    except OSError as err:
+        raise error(f"{what} {str(file)!r} cannot be read: {err.strerror}") from err
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise error(f"{what} {str(file)!r} is not a text file (not UTF-8 at byte {err.start})") from err
+    if "\0" in text:
+        raise error(f"{what} {str(file)!r} is not a text file (NUL character at offset {text.index(chr(0))})")
+    return text
+
+
+def read_yaml_mapping(path: str | Path, what: str, error: type[CncError] = ConfigError) -> dict[str, Any]:
+    """The mapping in the YAML file ``path``; ``error`` naming ``what`` and the file otherwise.
+
+    The file is read by :func:`read_text_file` (size limit, text only).
+    """
+    file = Path(path)
+    text = read_text_file(file, what, error)
+    try:
+        content = yaml.load(text, Loader=_SAFE_LOADER)  # noqa: S506 - a safe loader (libyaml's when present)
     except yaml.YAMLError as err:
-        raise error(f"{what} {str(file)!r} is not valid YAML: {err}") from err
+        raise error(f"{what} {str(file)!r} is not valid YAML: {_one_line(err)}") from err
     if not isinstance(content, dict):
         raise error(f"{what} {str(file)!r} must hold a mapping, got {type(content).__name__}")
     return content
+
+
+#: PyYAML's safe loader, libyaml's C implementation when installed (same results, several times faster).
+_SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def _one_line(err: Exception) -> str:
+    """An error's text on one line."""
+    return " ".join(str(err).split())

@@ -29,9 +29,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from cnc_contour_control.config import require_non_negative, require_positive, require_range
+from cnc_contour_control.config import require_non_negative, require_positive
 from cnc_contour_control.errors import ConfigError, ProgramError
 from cnc_contour_control.geometry import Program, Segment
+from cnc_contour_control.params import check_ranges, param
 from cnc_contour_control.units import m_s_to_mm_min
 
 FloatArray = NDArray[np.float64]
@@ -50,8 +51,10 @@ class AxisLimits:
         Largest axis acceleration, m/s^2, > 0.
     """
 
-    max_velocity_m_s: tuple[float, ...]
-    max_acceleration_m_s2: tuple[float, ...]
+    max_velocity_m_s: tuple[float, ...] = param(
+        unit="m/s", read_only=True, description="largest speed of each axis, in axis order, each > 0")
+    max_acceleration_m_s2: tuple[float, ...] = param(
+        unit="m/s^2", read_only=True, description="largest acceleration of each axis, in axis order, each > 0")
 
     def __post_init__(self) -> None:
         velocity = _positive_tuple("max_velocity_m_s", self.max_velocity_m_s)
@@ -89,21 +92,24 @@ class InterpolatorConfig:
         the axis velocities by up to ``feed * angle`` (see the module notes).
     arc_centripetal_fraction : float
         Share of each axis's acceleration budget given to centripetal
-        acceleration on arcs, in (0, 1); the rest is for speed changes.
+        acceleration on arcs, in [0.01, 0.99]; the rest is for speed changes.
+        (Near 0 or 1 one of the two budgets vanishes and an arc crawls.)
     clamp_feed : bool
         If True, slow a segment whose programmed feed exceeds the axis velocity
         limits; if False, refuse the program.
     """
 
-    corner_angle_tolerance_deg: float = 1.0e-4
-    arc_centripetal_fraction: float = 0.5
-    clamp_feed: bool = False
+    corner_angle_tolerance_deg: float = param(
+        1.0e-4, unit="deg", low=0.0, high=10.0, read_only=True,
+        description="junctions whose tangents differ by at most this angle are passed without a stop")
+    arc_centripetal_fraction: float = param(
+        0.5, low=0.01, high=0.99, read_only=True,
+        description="share of each axis's acceleration for centripetal use on arcs (the rest changes speed)")
+    clamp_feed: bool = param(
+        False, read_only=True, description="slow down a segment whose feed exceeds the axis limits instead of refusing it")
 
     def __post_init__(self) -> None:
-        require_range("corner_angle_tolerance_deg", self.corner_angle_tolerance_deg, 0.0, 10.0)
-        fraction = require_range("arc_centripetal_fraction", self.arc_centripetal_fraction, 0.0, 1.0)
-        if fraction in (0.0, 1.0):
-            raise ConfigError(f"arc_centripetal_fraction must be in (0, 1), got {self.arc_centripetal_fraction!r}")
+        check_ranges(self)
         if not isinstance(self.clamp_feed, (bool, np.bool_)):
             raise ConfigError(f"clamp_feed must be true or false, got {self.clamp_feed!r}")
 

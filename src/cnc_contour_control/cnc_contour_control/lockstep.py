@@ -68,6 +68,26 @@ def require_same_axes(received: Sequence[str], expected: Sequence[str], what: st
         raise FaultError(f"{what} carries axes {list(received)}, expected {list(expected)}")
 
 
+#: A message may be stamped at most this far after the last completed tick (see :func:`stamp_horizon_ns`).
+HORIZON_TICKS = 10
+#: ... and never less than this (real-time periods stretch under load).
+MIN_HORIZON_NS = NS_PER_S
+#: The largest sample time the nodes accept (their ``sample_time_s`` range), for stages that do not know T.
+MAX_SAMPLE_TIME_NS = NS_PER_S
+
+
+def stamp_horizon_ns(sample_time_ns: int | None = None) -> int:
+    """How far past the last completed tick an input's stamp may lie: max(1 s, 10 T).
+
+    In lockstep the next tick is exactly T ahead; in real time the measured
+    period stretches under load, hence the margin. A stage that does not know T
+    (``None``) takes the largest T the nodes accept. A stamp beyond it comes from
+    outside the run (or a broken clock) and is a fault, never a stalled run.
+    """
+    period_ns = MAX_SAMPLE_TIME_NS if sample_time_ns is None else int(sample_time_ns)
+    return max(MIN_HORIZON_NS, HORIZON_TICKS * period_ns)
+
+
 @dataclass
 class _Pending:
     first_arrival_s: float
@@ -77,19 +97,30 @@ class _Pending:
 class StampMatcher:
     """Collects the inputs of each tick and releases a tick once all are there.
 
+    Rules (each broken one is a :class:`FaultError` naming the input): an
+    input stamped at or before the last released tick is stale and ignored
+    (callers check its values first); one stamped more than ``max_ahead_ns``
+    after the last released (or expected) tick, or a second input of the same
+    name for a pending tick, or a pending tick passed by a later complete one,
+    comes from outside the run.
+
     Parameters
     ----------
     required : sequence of str
         Names of the inputs (topics) every tick needs.
     timeout_s : float
-        Wall-time a tick may wait, from its first input, before
-        :meth:`overdue` reports it.
+        Wall-time a tick may wait, from its first input or the release of the
+        tick before (whichever is later), before :meth:`overdue` reports it.
     startup_timeout_s : float, optional
         The same for the first tick, which also waits for discovery of the
         graph (default: ``timeout_s``).
+    max_ahead_ns : int, optional
+        Horizon for stamps, in ns after the last released or expected tick
+        (default: none; see :func:`stamp_horizon_ns`).
     """
 
-    def __init__(self, required: Sequence[str], timeout_s: float, startup_timeout_s: float | None = None) -> None:
+    def __init__(self, required: Sequence[str], timeout_s: float, startup_timeout_s: float | None = None,
+                 max_ahead_ns: int | None = None) -> None:
         if not required:
             raise ConfigError("StampMatcher needs at least one required input")
         if not timeout_s > 0.0:
@@ -97,34 +128,71 @@ class StampMatcher:
         startup = timeout_s if startup_timeout_s is None else startup_timeout_s
         if not startup >= timeout_s:
             raise ConfigError(f"startup_timeout_s must be >= timeout_s ({timeout_s}), got {startup!r}")
+        if max_ahead_ns is not None and not max_ahead_ns >= 0:
+            raise ConfigError(f"max_ahead_ns must be >= 0, got {max_ahead_ns!r}")
         self.required = tuple(required)
         self.timeout_s = float(timeout_s)
         self.startup_timeout_s = float(startup)
+        self.max_ahead_ns = max_ahead_ns
         self._pending: dict[int, _Pending] = {}
         self._last_released_ns: int | None = None
+        self._expected_ns: int | None = None
+        self._released_at_s: float | None = None
+
+    @property
+    def last_released_ns(self) -> int | None:
+        """Stamp of the last tick released (None before the first)."""
+        return self._last_released_ns
 
     def add(self, name: str, stamp_ns: int, item: Any, now_s: float) -> dict[str, Any] | None:
         """Store one input; return all inputs of the tick if it is now complete.
 
-        Inputs stamped at or before the last released tick are stale and ignored
-        (they can only be late duplicates). Raises :class:`FaultError` for an
-        unknown input name.
+        Returns None for a stale input (stamped at or before the last released
+        tick). Raises :class:`FaultError` for an unknown input name and for the
+        rules in the class docstring.
         """
         if name not in self.required:
             raise FaultError(f"unexpected input {name!r}; this stage takes {list(self.required)}")
         if self._last_released_ns is not None and stamp_ns <= self._last_released_ns:
             return None
+        self._check_horizon(name, stamp_ns)
         pending = self._pending.setdefault(stamp_ns, _Pending(now_s))
+        if name in pending.items:
+            raise FaultError(f"{name}: a second message for tick t={ns_to_s(stamp_ns):.6f} s "
+                             "(another publisher outside the run?)")
         pending.items[name] = item
         if len(pending.items) < len(self.required):
             return None
-        del self._pending[stamp_ns]
-        self._last_released_ns = stamp_ns
-        return pending.items
+        return self._release(stamp_ns, now_s)
+
+    def _release(self, stamp_ns: int, now_s: float) -> dict[str, Any]:
+        items = self._pending.pop(stamp_ns).items
+        self._last_released_ns, self._released_at_s = stamp_ns, now_s
+        for waited_ns in [s for s, p in self._pending.items() if s < stamp_ns and not p.items]:
+            del self._pending[waited_ns]  # an expected tick that never came (the run started later)
+        passed = sorted(s for s in self._pending if s < stamp_ns)
+        if passed:
+            names = ", ".join(self._pending[passed[0]].items)
+            raise FaultError(f"{names} stamped t={ns_to_s(passed[0]):.6f} s never completed a tick and was "
+                             f"passed by tick t={ns_to_s(stamp_ns):.6f} s (a message from outside the run?)")
+        for later_ns, later in self._pending.items():
+            for name in later.items:
+                self._check_horizon(name, later_ns)
+        return items
+
+    def _check_horizon(self, name: str, stamp_ns: int) -> None:
+        known = [s for s in (self._last_released_ns, self._expected_ns) if s is not None]
+        if self.max_ahead_ns is None or not known:
+            return
+        base_ns = max(known)
+        if stamp_ns - base_ns > self.max_ahead_ns:
+            raise FaultError(f"{name} stamped t={ns_to_s(stamp_ns):.6f} s, more than {ns_to_s(self.max_ahead_ns)} s "
+                             f"after tick t={ns_to_s(base_ns):.6f} s (a message from outside the run?)")
 
     def expect(self, stamp_ns: int, now_s: float) -> None:
         """Start waiting for tick ``stamp_ns`` now, before any of its inputs arrived."""
         self._pending.setdefault(stamp_ns, _Pending(now_s))
+        self._expected_ns = stamp_ns if self._expected_ns is None else max(self._expected_ns, stamp_ns)
 
     def overdue(self, now_s: float) -> tuple[int, list[str]] | None:
         """The oldest incomplete tick waiting longer than the timeout, with its missing inputs."""
@@ -132,7 +200,9 @@ class StampMatcher:
             return None
         stamp_ns = min(self._pending)
         pending = self._pending[stamp_ns]
-        if now_s - pending.first_arrival_s <= self.current_timeout_s:
+        since_s = pending.first_arrival_s if self._released_at_s is None else max(pending.first_arrival_s,
+                                                                                   self._released_at_s)
+        if now_s - since_s <= self.current_timeout_s:
             return None
         missing = [name for name in self.required if name not in pending.items]
         return stamp_ns, missing

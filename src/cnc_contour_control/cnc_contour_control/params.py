@@ -27,6 +27,9 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from cnc_contour_control.config import require_finite, require_range
+from cnc_contour_control.errors import ConfigError
+
 _KEY = "param"
 
 
@@ -121,6 +124,18 @@ def param_specs(cls: type) -> tuple[ParamSpec, ...]:
     return tuple(specs)
 
 
+def flat_specs(cls: type, prefix: str = "") -> tuple[ParamSpec, ...]:
+    """:func:`param_specs` with nested config sections expanded into dotted names (``gains.kp``), in order."""
+    specs: list[ParamSpec] = []
+    for spec in param_specs(cls):
+        name = f"{prefix}{spec.name}"
+        if spec.nested is not None:
+            specs.extend(flat_specs(spec.nested, f"{name}."))
+        else:
+            specs.append(dataclasses.replace(spec, name=name))
+    return tuple(specs)
+
+
 def config_values(config: Any) -> dict[str, Any]:
     """A config instance as plain values in its own units (nested configs as mappings, tuples as lists)."""
     return {f.name: _plain(getattr(config, f.name)) for f in dataclasses.fields(config)}
@@ -144,3 +159,30 @@ def in_range(spec: ParamSpec, value: Any) -> bool:
         return True
     low, high = spec.info.low, spec.info.high
     return (low is None or value >= low) and (high is None or value <= high)
+
+
+def check_ranges(config: Any, context: str = "") -> None:
+    """Validate every numeric field of ``config`` against its declared range (call from ``__post_init__``).
+
+    A field whose :class:`ParamInfo` has ``low`` and/or ``high`` must be a
+    finite number within them; it is stored back as a float (an int field
+    keeps its value). Errors name the option, the bound and the value:
+    ``"pid.kp must be in [0.0, 1000000.0], got -1"``. So the declared range is
+    the validation, written once.
+    """
+    for f in dataclasses.fields(config):
+        info = f.metadata.get(_KEY)
+        if info is None or (info.low is None and info.high is None):
+            continue
+        value, where = getattr(config, f.name), f"{context}.{f.name}" if context else f.name
+        if isinstance(value, bool):
+            raise ConfigError(f"{where} must be a number, got {value!r}")
+        number = require_finite(f.name, value, context)
+        if info.low is not None and info.high is not None:
+            require_range(f.name, value, info.low, info.high, context)
+        elif info.low is not None and number < info.low:
+            raise ConfigError(f"{where} must be >= {info.low}, got {value!r}")
+        elif info.high is not None and number > info.high:
+            raise ConfigError(f"{where} must be <= {info.high}, got {value!r}")
+        if f.type in (float, "float"):
+            object.__setattr__(config, f.name, number)

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.config import build_config, require_choice, require_finite, require_positive, require_range
+from cnc_contour_control.config import build_config, read_text_file, require_choice, require_finite, require_positive, require_range
 from cnc_contour_control.errors import ConfigError, ProgramError
 from cnc_contour_control.gcode import parse_gcode
 from cnc_contour_control.geometry import ArcSegment, FloatArray, LineSegment, Program, Segment
@@ -38,7 +38,7 @@ DIRECTIONS: dict[str, bool] = {"cw": True, "ccw": False}
 
 
 def _axes(value: Any, context: str) -> tuple[str, ...]:
-    names = (value,) if isinstance(value, str) else tuple(value)
+    names = (value,) if isinstance(value, str) else tuple(value) if isinstance(value, (list, tuple)) else ()
     if not names or not all(isinstance(n, str) and n for n in names) or len(set(names)) != len(names):
         raise ConfigError(f"{context}.axes must be distinct non-empty axis names, got {value!r}")
     return names
@@ -271,11 +271,9 @@ def _from_gcode_file(body: dict[str, Any], name: str, base_dir: Path | None) -> 
     path = Path(str(body.pop("gcode_file")))
     if not path.is_absolute() and base_dir is not None:
         path = Path(base_dir) / path
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(f"program.gcode_file: cannot read {str(path)!r}: {err.strerror}") from err
-    return _gcode(text, body, name)
+    if not path.is_file():
+        raise ConfigError(f"program.gcode_file: cannot read {str(path)!r}: no such file")
+    return _gcode(read_text_file(path, "program.gcode_file"), body, name)
 
 
 #: Source key -> builder of the program from the rest of the section.

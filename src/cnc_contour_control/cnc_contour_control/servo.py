@@ -3,33 +3,33 @@
 One sample::
 
     error_m     = ref_position_m − position_m
-    feedback    = law.step(error_m · counts_per_m, dt_s)
+    feedback    = law.step(sample)            sample: error, position, velocity, references in counts,
+                                                      dt_s, the previously applied command
     feedforward = ff1 · v_ref · counts_per_m + ff2 · a_ref · counts_per_m
     total       = feedback + feedforward + compensation
-    command     = quantise(clip(total, ±output_limit), quantum)
+    command     = quantise(total, quantum, output_limit)   clip to ±limit, round, never beyond the limit
 
 Everything after ``error_m`` is in the law's units: length in counts (BLU for
 paper 000, ``counts_per_m = 1e5``), command in drive units (DAC for paper
 000, whose 8-bit DAC gives ``output_limit = 127`` and ``quantum = 1``).
 Quantisation rounds half away from zero; a quantised value beyond the limit
-(when the limit is not a multiple of the quantum) steps back one quantum.
+(when the limit is not a multiple of the quantum) steps back one quantum. The
+command of one sample is the law's ``applied_command`` in the next.
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.config import (
-    build_config,
-    require_choice,
-    require_finite,
-    require_non_negative,
-    require_positive,
-)
+from cnc_contour_control.config import build_config, require_choice
 from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.laws import LAWS, FeedbackLaw, make_law
+from cnc_contour_control.laws import LAWS, FeedbackLaw, LawSample, law_config, make_law
+from cnc_contour_control.params import check_ranges, param
+
+#: Largest feedforward gain a config accepts [drive units per count/s or count/s²].
+MAX_FEEDFORWARD = 1.0e6
 
 
 @dataclass(frozen=True)
@@ -43,30 +43,35 @@ class ServoConfig:
     law : str
         Feedback law name in :data:`cnc_contour_control.laws.LAWS`.
     law_params : Mapping
-        Params of the law (validated by building it).
+        Gains of the law: keys of its config class (``law_config_class(law)``), validated by building it.
     counts_per_m : float
-        Law length units per metre (BLU: 1e5), > 0.
+        Law length units per metre (BLU: 1e5), in [1e-3, 1e12].
     ff1 : float
-        Velocity feedforward [drive units per (count/s)] of the reference velocity.
+        Velocity feedforward [drive units per (count/s)] of the reference velocity, in [-1e6, 1e6].
     ff2 : float
-        Acceleration feedforward [drive units per (count/s²)].
+        Acceleration feedforward [drive units per (count/s²)], in [-1e6, 1e6].
     output_limit : float
-        Symmetric saturation of the command [drive units], > 0.
+        Symmetric saturation of the command [drive units], in [1e-9, 1e12].
     quantum : float
-        Command resolution [drive units], >= 0 (0: no quantisation).
+        Command resolution [drive units], in [0, 1e6] (0: no quantisation).
     command_unit : str
         Name of the drive unit (``"dac"``).
     """
 
-    axis_name: str
-    law: str = "pid"
-    law_params: Mapping[str, Any] = field(default_factory=dict)
-    counts_per_m: float = 1.0e5
-    ff1: float = 0.0
-    ff2: float = 0.0
-    output_limit: float = 127.0
-    quantum: float = 1.0
-    command_unit: str = "dac"
+    axis_name: str = param(description="axis this servo drives", read_only=True)
+    law: str = param("pid", description=f"feedback law, one of {sorted(LAWS)}", read_only=True)
+    law_params: Mapping[str, Any] = param(default_factory=dict, description="the law's gains (its config's keys)")
+    counts_per_m: float = param(1.0e5, unit="count/m", low=1.0e-3, high=1.0e12, read_only=True,
+                                description="law length units per metre (1e5: BLU of 10 um)")
+    ff1: float = param(0.0, unit="drive/(count/s)", low=-MAX_FEEDFORWARD, high=MAX_FEEDFORWARD,
+                       description="velocity feedforward of the reference velocity")
+    ff2: float = param(0.0, unit="drive/(count/s^2)", low=-MAX_FEEDFORWARD, high=MAX_FEEDFORWARD,
+                       description="acceleration feedforward of the reference acceleration")
+    output_limit: float = param(127.0, unit="drive", low=1.0e-9, high=1.0e12, read_only=True,
+                                description="symmetric saturation of the command")
+    quantum: float = param(1.0, unit="drive", low=0.0, high=1.0e6, read_only=True,
+                           description="command resolution (0: no quantisation)")
+    command_unit: str = param("dac", description="name of the drive unit (dac, V, N)", read_only=True)
 
     def __post_init__(self) -> None:
         for name in ("axis_name", "command_unit"):
@@ -78,33 +83,36 @@ class ServoConfig:
         if not isinstance(params, Mapping):
             raise ConfigError(f"law_params must be a mapping, got {self.law_params!r}")
         object.__setattr__(self, "law_params", dict(params))
-        require_positive("counts_per_m", self.counts_per_m)
-        require_finite("ff1", self.ff1)
-        require_finite("ff2", self.ff2)
-        require_positive("output_limit", self.output_limit)
-        require_non_negative("quantum", self.quantum)
-        self.make_law()
+        check_ranges(self)
+        self.law_config()
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any], context: str = "servo") -> ServoConfig:
         """Build from a mapping; unknown keys (also in ``law_params``) are an error."""
         return build_config(cls, mapping, context=context)
 
+    def law_config(self) -> Any:
+        """The law's validated config (an instance of ``law_config_class(law)``) from ``law_params``."""
+        return law_config(self.law, self.law_params)
+
     def make_law(self) -> FeedbackLaw:
         """A fresh feedback law from ``law`` and ``law_params``."""
         return make_law(self.law, self.law_params)
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class ServoOutput:
-    """One servo sample and its parts (drive units unless named otherwise).
+    """One servo sample and its parts (drive units unless named otherwise); read-only by convention.
+
+    Not frozen: a frozen dataclass costs four times as much to build, and one
+    is built per axis and tick (``./dev bench laws``).
 
     Attributes
     ----------
     command : float
         Saturated, quantised command sent to the drive.
     feedback : float
-        The law's output.
+        The law's output (:attr:`LawOutput.feedback`).
     feedforward : float
         Velocity + acceleration feedforward.
     compensation : float
@@ -126,16 +134,30 @@ class ServoOutput:
     error_m: float
 
 
-def quantise(value: float, quantum: float) -> float:
-    """Round ``value`` to a multiple of ``quantum``, halves away from zero (``quantum`` 0: unchanged)."""
+def quantise(value: float, quantum: float, limit: float = math.inf) -> float:
+    """``value`` clipped to ``±limit`` and rounded to a multiple of ``quantum``, never beyond the limit.
+
+    Halves round away from zero; a rounded value beyond the limit (when the
+    limit is not a multiple of the quantum) steps back one quantum. ``quantum``
+    0: clipped only. The servo runs exactly this on every command.
+    """
+    if value > limit:
+        value = limit
+    elif value < -limit:
+        value = -limit
     if quantum <= 0.0:
         return value
     steps = math.floor(abs(value) / quantum + 0.5)
+    if steps * quantum > limit:
+        steps -= 1
     return math.copysign(steps * quantum, value) if steps else 0.0
 
 
+#: One servo sample as a tuple: (command, feedback, feedforward, compensation, disturbance_estimate, saturated, error_m).
+ServoParts = tuple[float, float, float, float, float, bool, float]
+
 _INPUT_NAMES = ("dt_s", "ref_position_m", "ref_velocity_m_s", "ref_acceleration_m_s2",
-                "position_m", "compensation")
+                "position_m", "velocity_m_s", "compensation")
 
 
 class ServoController:
@@ -148,71 +170,83 @@ class ServoController:
     """
 
     def __init__(self, config: ServoConfig) -> None:
-        self.config = config
         self.law = config.make_law()
+        self._law_step = self.law.step
+        self._law_sample = LawSample()
+        self._apply(config)
+
+    def _apply(self, config: ServoConfig) -> None:
+        self.config = config
         self._counts = float(config.counts_per_m)
-        self._ff1 = float(config.ff1) * self._counts
-        self._ff2 = float(config.ff2) * self._counts
+        self._ff1 = float(config.ff1)
+        self._ff2 = float(config.ff2)
         self._limit = float(config.output_limit)
         self._quantum = float(config.quantum)
-        self._max_steps = math.floor(self._limit / self._quantum) if self._quantum > 0 else 0
-        self._has_estimate = hasattr(self.law, "disturbance_estimate")
 
     def reset(self) -> None:
-        """Reset the law's state."""
+        """Reset the law's state and forget the applied command."""
         self.law.reset()
+        self._law_sample.applied_command = 0.0
 
-    def step(
-        self,
-        dt_s: float,
-        ref_position_m: float,
-        ref_velocity_m_s: float,
-        ref_acceleration_m_s2: float,
-        position_m: float,
-        compensation: float = 0.0,
-    ) -> ServoOutput:
-        """One sample: references [m, m/s, m/s²] and measured position [m] to a command.
+    def retune(self, config: ServoConfig) -> None:
+        """Take ``config``'s gains, feedforward and limits keeping the law's state (a run-time change).
+
+        Raises
+        ------
+        ConfigError
+            If ``config`` is for another axis or another law (that needs a new controller).
+        """
+        old = self.config
+        for name in ("axis_name", "law"):
+            if getattr(config, name) != getattr(old, name):
+                raise ConfigError(f"servo {old.axis_name}: retune keeps {name} {getattr(old, name)!r}, "
+                                  f"got {getattr(config, name)!r} (build a new controller)")
+        self.law.retune(config.law_config())
+        self._apply(config)
+
+    def step(self, dt_s: float, ref_position_m: float, ref_velocity_m_s: float, ref_acceleration_m_s2: float,
+             position_m: float, velocity_m_s: float, compensation: float) -> ServoOutput:
+        """One sample: references [m, m/s, m/s²], measured position [m] and velocity [m/s] to a command.
 
         ``compensation`` is in drive units. Raises :class:`FaultError` naming the
         first non-finite input (or a ``dt_s <= 0``); the law's state is untouched then.
         """
-        command, feedback, feedforward, saturated, error_m = self._sample(
-            dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2, position_m, compensation)
-        estimate = self.law.disturbance_estimate if self._has_estimate else 0.0  # type: ignore[attr-defined]
-        return ServoOutput(command, feedback, feedforward, compensation, estimate, saturated, error_m)
+        return ServoOutput(*self.parts(dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2, position_m,
+                                       velocity_m_s, compensation))
 
-    def command(
-        self,
-        dt_s: float,
-        ref_position_m: float,
-        ref_velocity_m_s: float,
-        ref_acceleration_m_s2: float,
-        position_m: float,
-        compensation: float = 0.0,
-    ) -> float:
-        """:meth:`step`'s command alone (same arithmetic, same state update), for the in-process engine."""
-        return self._sample(dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2,
-                            position_m, compensation)[0]
+    def parts(self, dt_s: float, ref_position_m: float, ref_velocity_m_s: float, ref_acceleration_m_s2: float,
+              position_m: float, velocity_m_s: float, compensation: float) -> ServoParts:
+        """:meth:`step` as a plain tuple in :class:`ServoOutput`'s field order (the engine's per-tick call).
 
-    def _sample(self, dt_s: float, ref_position_m: float, ref_velocity_m_s: float,
-                ref_acceleration_m_s2: float, position_m: float,
-                compensation: float) -> tuple[float, float, float, bool, float]:
-        """(command, feedback, feedforward, saturated, error_m) of one sample; updates the law."""
-        checksum = dt_s + ref_position_m + ref_velocity_m_s + ref_acceleration_m_s2 + position_m + compensation
+        (command, feedback, feedforward, compensation, disturbance_estimate, saturated, error_m).
+        """
+        checksum = (dt_s + ref_position_m + ref_velocity_m_s + ref_acceleration_m_s2 + position_m + velocity_m_s
+                    + compensation)
         if checksum - checksum != 0.0 or dt_s <= 0.0:  # a NaN or an infinity among the inputs (or an overflow)
-            self._check_inputs((dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2,
-                                position_m, compensation))
+            self._check_inputs((dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2, position_m,
+                                velocity_m_s, compensation))
+        counts, sample = self._counts, self._law_sample
         error_m = ref_position_m - position_m
-        feedback = self.law.step(error_m * self._counts, dt_s)
-        feedforward = self._ff1 * ref_velocity_m_s + self._ff2 * ref_acceleration_m_s2
-        total = feedback + feedforward + compensation
-        saturated = abs(total) > self._limit
-        command = math.copysign(self._limit, total) if saturated else total
-        quantum = self._quantum
-        if quantum > 0.0:  # quantise the saturated value, keeping it within the limit
-            steps = min(math.floor(abs(command) / quantum + 0.5), self._max_steps)
-            command = math.copysign(steps * quantum, command) if steps else 0.0
-        return command, feedback, feedforward, saturated, error_m
+        sample.dt_s = dt_s
+        sample.error_counts = error_m * counts
+        sample.position_counts = position_m * counts
+        sample.velocity_counts_s = velocity_m_s * counts
+        sample.ref_velocity_counts_s = ref_v = ref_velocity_m_s * counts
+        sample.ref_acceleration_counts_s2 = ref_a = ref_acceleration_m_s2 * counts
+        out = self._law_step(sample)
+        feedforward = self._ff1 * ref_v + self._ff2 * ref_a
+        total = out.feedback + feedforward + compensation
+        limit = self._limit
+        command = quantise(total, self._quantum, limit)
+        sample.applied_command = command
+        return (command, out.feedback, feedforward, compensation, out.disturbance_estimate,
+                total > limit or total < -limit, error_m)
+
+    def command(self, dt_s: float, ref_position_m: float, ref_velocity_m_s: float, ref_acceleration_m_s2: float,
+                position_m: float, velocity_m_s: float, compensation: float) -> float:
+        """:meth:`step`'s command alone (the same computation)."""
+        return self.parts(dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2, position_m, velocity_m_s,
+                          compensation)[0]
 
     def _check_inputs(self, values: tuple[float, ...]) -> None:
         """Raise :class:`FaultError` naming the first non-finite input, or a ``dt_s <= 0``."""

@@ -1,33 +1,50 @@
-"""Launch the lockstep contour graph (plant, interpolator, one servo per axis) for ROS 2 users.
+"""Launch a scenario's lockstep contour graph for ROS 2 users, with the runner's own parameter files.
 
-    ros2 launch cnc_contour_control contour_graph.launch.py program_file:=/path/program.yaml
+    cnc-contour params scenarios/paper000_circle_high.yaml --out /tmp/circle
+    ros2 launch cnc_contour_control contour_graph.launch.py params_dir:=/tmp/circle
 
-Without the ``ros2`` CLI (PyPI wheels), use ``cnc-contour run <scenario.yaml>``, which starts
-the same executables with a parameters file per node.
+``params_dir`` is a folder written by ``cnc-contour params`` (or a run folder
+of ``cnc-contour run``): ``graph.yaml`` lists the nodes (plant, interpolator,
+one servo per axis: the scenario's stage pipeline) and each node has its
+parameters file there, the same files the runner starts its processes with.
+Each stage waits for its readers before it publishes: record with
+``ros2 bag record`` or add a reader by hand only if the folder counted it
+(``cnc-contour params --extra-subscribers N``).
+
+Without the ``ros2`` command line (PyPI wheels), ``cnc-contour run <scenario.yaml>``
+starts the same executables with the same files. ``launch`` is imported only
+inside :func:`generate_launch_description`, so :func:`graph_nodes` (what this
+file starts) can be read and tested where ``launch`` is not installed.
 """
-from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
-from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import Node
+from __future__ import annotations
+
+from typing import Any
+
+from cnc_contour_control.graph_files import GraphNode, read_manifest
 
 
-def generate_launch_description() -> LaunchDescription:
-    """Plant, interpolator and an X and a Y servo in namespace /cnc."""
-    program = LaunchConfiguration("program_file")
-    period = LaunchConfiguration("sample_time_s")
-    servos = [
-        Node(package="cnc_contour_control", executable="servo", name=f"servo_{axis}", namespace="cnc",
-             parameters=[{"axis": axis, "sample_time_s": period}])
-        for axis in ("x", "y")
-    ]
+def graph_nodes(params_dir: str) -> list[GraphNode]:
+    """The nodes to start from ``params_dir``: package, executable, name, namespace, parameters file."""
+    return read_manifest(params_dir)
+
+
+def node_actions(context: Any) -> list[Any]:
+    """One ``launch_ros`` Node per node of the folder named by the ``params_dir`` argument."""
+    from launch.substitutions import LaunchConfiguration
+    from launch_ros.actions import Node
+
+    folder = LaunchConfiguration("params_dir").perform(context)
+    return [Node(package=node.package, executable=node.executable, name=node.name, namespace=node.namespace,
+                 parameters=[str(node.parameters_file)], output="screen")
+            for node in graph_nodes(folder)]
+
+
+def generate_launch_description() -> Any:
+    """The ``params_dir`` argument and the graph's nodes, read from it when the launch runs."""
+    from launch import LaunchDescription
+    from launch.actions import DeclareLaunchArgument, OpaqueFunction
+
     return LaunchDescription([
-        DeclareLaunchArgument("program_file", description="YAML program or G-code file"),
-        DeclareLaunchArgument("sample_time_s", default_value="0.01"),
-        DeclareLaunchArgument("duration_s", default_value="10.0"),
-        Node(package="cnc_plant_sim", executable="plant", name="plant", namespace="cnc",
-             parameters=[{"sample_time_s": period, "duration_s": LaunchConfiguration("duration_s"),
-                          "expected_subscribers": 3}]),
-        Node(package="cnc_contour_control", executable="interpolator", name="interpolator", namespace="cnc",
-             parameters=[{"program_file": program, "min_subscribers": 2}]),
-        *servos,
+        DeclareLaunchArgument("params_dir", description="folder written by `cnc-contour params` or a run folder"),
+        OpaqueFunction(function=node_actions),
     ])

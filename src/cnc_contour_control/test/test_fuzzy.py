@@ -8,19 +8,22 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.laws import LAWS, FeedbackLaw, make_law
+from cnc_contour_control.laws import LAWS, FeedbackLaw, LawSample, make_law
 from cnc_contour_control.laws.fuzzy import (
+    PAPER000_DE_CENTRES_PER_SAMPLE,
+    PAPER000_SAMPLE_TIME_S,
     RULE_BASES,
     SET_NAMES,
     FuzzyConfig,
     FuzzyLaw,
     FuzzySurface,
+    fuzzy_params_from_per_sample,
     memberships,
 )
 from cnc_contour_control.laws.fuzzy_gains import TABLE4_GAINS, equivalent_gains, format_gains_table
 
 E_C = (-21.0, -14.0, -7.0, 0.0, 7.0, 14.0, 21.0)
-DE_C = (-4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5)
+DE_C = (-450.0, -300.0, -150.0, 0.0, 150.0, 300.0, 450.0)  # Table 3's BLU per sample / 10 ms
 U_C = (-55.0, -35.0, -15.0, 0.0, 15.0, 35.0, 55.0)
 #: A diagonal (MacVicar-Whelan) rule base: C_ij = set i + j - 3, saturated.
 PAPER = RULE_BASES["paper000"]
@@ -35,11 +38,16 @@ def pd_law(**params: object) -> FuzzyLaw:
     return FuzzyLaw(FuzzyConfig(ki=0.0, **params))  # type: ignore[arg-type]
 
 
+def step(law: FuzzyLaw, error: float, dt_s: float = 0.01) -> float:
+    """One law step on ``error`` [BLU] over ``dt_s``; the feedback [DAC]."""
+    return law.step(LawSample(dt_s=dt_s, error_counts=error)).feedback
+
+
 def law_output(law: FuzzyLaw, e: float, de: float) -> float:
-    """Drive ``law`` to the state e(k) = e, e(k-1) = e - de and return u(k)."""
+    """Drive ``law`` to the state e(k) = e, e(k-1) = e - de over 1 s (rate = change) and return u(k)."""
     law.reset()
-    law.step(e - de, 0.01)
-    return law.step(e, 0.01)
+    step(law, e - de, 1.0)
+    return step(law, e, 1.0)
 
 
 # --- membership functions ---------------------------------------------------------------
@@ -98,7 +106,7 @@ def test_output_table_maps_names_to_centres():
         (1e6, 0.0, 55.0),
         (-1e300, -1e300, -55.0),
         (math.inf, -math.inf, 55.0),
-        (21.0 + 1e-9, 4.5 + 1e-9, 55.0),
+        (21.0 + 1e-9, 450.0 + 1e-9, 55.0),
         (7.0, 1e9, 55.0),  # PS row, de = PL
         (7.0, -1e9, 0.0),  # PS row, de = NL
         (-7.0, 1e9, 0.0),
@@ -156,13 +164,13 @@ def test_output_is_non_decreasing_in_de_on_the_error_centres(i, de1, de2, name):
 def test_min_inference_is_not_monotone_in_de_between_error_centres():
     """Documented property of Mamdani min + Eq. 8, not a bug (docs/fuzzy_rule_base.md).
 
-    At e = -19.55 (NL 0.79, NM 0.21) and de = 1.8 (PS 0.8, PM 0.2) both
-    NM-row rules (output NS) fire with weight ~0.2; at de = 3.0 only one does,
+    At e = -19.55 (NL 0.79, NM 0.21) and de = 180 BLU/s (PS 0.8, PM 0.2) both
+    NM-row rules (output NS) fire with weight ~0.2; at de = 300 only one does,
     so the NL rules weigh more and F falls by 3.3 DAC although de rose.
     """
     surface = FuzzySurface(FuzzyConfig())
-    assert surface(-19.55, 1.8) == pytest.approx(-43.37, abs=0.01)
-    assert surface(-19.55, 3.0) == pytest.approx(-46.71, abs=0.01)
+    assert surface(-19.55, 180.0) == pytest.approx(-43.37, abs=0.01)
+    assert surface(-19.55, 300.0) == pytest.approx(-46.71, abs=0.01)
 
 
 @settings(max_examples=200, deadline=None)
@@ -182,24 +190,24 @@ def test_law_step_equals_surface_plus_integral(errors, name):
         rule_base=name, e_scale=1.5, de_scale=0.7, u_scale=1.2, ki=0.3, integral_limit=40.0
     )
     law, surface = FuzzyLaw(config), FuzzySurface(config)
-    previous, integral = 0.0, 0.0
+    previous, integral, dt_s = 0.0, 0.0, 0.004
     for error in errors:
-        integral = min(40.0, max(-40.0, integral + 0.3 * error))
-        expected = surface(error, error - previous) + integral
-        assert law.step(error, 0.01) == pytest.approx(expected, rel=1e-12, abs=1e-9)
+        integral = min(40.0, max(-40.0, integral + 0.3 * dt_s * error))
+        expected = surface(error, (error - previous) / dt_s) + integral
+        assert step(law, error, dt_s) == pytest.approx(expected, rel=1e-12, abs=1e-9)
         assert law.integral == pytest.approx(integral)
         previous = error
 
 
 def test_integral_accumulates_and_is_clamped():
-    law = FuzzyLaw(FuzzyConfig(ki=1.0, integral_limit=5.0))
+    law = FuzzyLaw(FuzzyConfig(ki=100.0, integral_limit=5.0))  # ki·T = 1 at T = 10 ms
     integrals = []
     for _ in range(4):
-        law.step(2.0, 0.01)
+        step(law, 2.0)
         integrals.append(law.integral)
     assert integrals == [2.0, 4.0, 5.0, 5.0]
     for _ in range(20):
-        law.step(-3.0, 0.01)
+        step(law, -3.0)
     assert law.integral == -5.0
     law.reset()
     assert law.integral == 0.0
@@ -208,24 +216,24 @@ def test_integral_accumulates_and_is_clamped():
 def test_zero_integral_limit_disables_the_integral():
     law = FuzzyLaw(FuzzyConfig(ki=0.5, integral_limit=0.0))
     for error in (3.0, 9.0, -2.0):
-        law.step(error, 0.01)
+        step(law, error)
         assert law.integral == 0.0
 
 
 def test_first_step_after_reset_uses_zero_previous_error():
     law = pd_law()
-    law.step(10.0, 0.01)
+    step(law, 10.0)
     law.reset()
-    assert law.step(7.0, 0.01) == FuzzySurface(FuzzyConfig())(7.0, 7.0)
+    assert step(law, 7.0) == FuzzySurface(FuzzyConfig())(7.0, 700.0)
 
 
 @pytest.mark.parametrize("bad", [math.nan, math.inf, -math.inf])
 def test_non_finite_error_is_a_fault_and_keeps_the_state(bad):
     law = FuzzyLaw(FuzzyConfig())
-    law.step(3.0, 0.01)
+    step(law, 3.0)
     before = law.integral
     with pytest.raises(FaultError, match="error must be finite"):
-        law.step(bad, 0.01)
+        step(law, bad)
     assert law.integral == before
 
 
@@ -294,9 +302,9 @@ def test_centres_must_increase_strictly(key):
         ({"e_centres": (1.0, 2.0, 3.0)}, r"e_centres must have 7 values"),
         ({"de_centres": "abcdefg"}, r"de_centres must have 7 values"),
         ({"u_centres": (0, 1, 2, math.nan, 4, 5, 6)}, r"u_centres\[3\] must be finite"),
-        ({"e_scale": 0.0}, "e_scale must be > 0, got 0.0"),
-        ({"u_scale": -1.0}, "u_scale must be > 0, got -1.0"),
-        ({"ki": -0.1}, "ki must be >= 0, got -0.1"),
+        ({"e_scale": 0.0}, r"fuzzy\.e_scale must be in \[1e-09, 1000000000\.0\], got 0\.0"),
+        ({"u_scale": -1.0}, r"u_scale must be in \[1e-09, 1000000000\.0\], got -1\.0"),
+        ({"ki": -0.1}, r"ki must be in \[0\.0, 1000000\.0\], got -0\.1"),
         ({"integral_limit": math.inf}, "integral_limit must be finite"),
     ],
 )
@@ -310,11 +318,13 @@ def test_bad_numbers_are_named(params, message):
 
 def test_equivalent_gains_of_paper000_round_to_table4():
     gains = equivalent_gains(FuzzyConfig())
-    assert gains.kp == pytest.approx(TABLE4_GAINS["kp"], abs=0.05)
-    assert gains.kd == pytest.approx(TABLE4_GAINS["kd"], abs=0.05)
-    assert gains.ki == TABLE4_GAINS["ki"]
+    per_sample = gains.per_sample(0.01)
+    assert per_sample["kp"] == gains.kp == pytest.approx(TABLE4_GAINS["kp"], abs=0.05)
+    assert per_sample["kd"] == pytest.approx(TABLE4_GAINS["kd"], abs=0.05)
+    assert per_sample["ki"] == pytest.approx(TABLE4_GAINS["ki"], rel=1e-12)
+    assert (gains.kd, gains.ki) == pytest.approx((0.0667, 10.0), abs=1e-4)  # seconds, per second
     assert gains.k2_min == 0.0
-    assert (gains.k1_min, gains.k1_max, gains.k2_max) == pytest.approx((15 / 7, 55 / 21, 20 / 1.5))
+    assert (gains.k1_min, gains.k1_max, gains.k2_max) == pytest.approx((15 / 7, 55 / 21, 20 / 150))
 
 
 def test_sector_bounds_match_finite_differences_of_the_law_near_the_origin():
@@ -349,3 +359,39 @@ def test_gains_table_is_printed_beside_table4():
     out = format_gains_table()
     assert "Table 4 (paper)    2.40   0.10   6.70" in out
     assert "paper000           2.38   0.10   6.67" in out
+
+
+# --- time units ----------------------------------------------------------------------------
+
+
+def test_paper_per_sample_values_convert_to_the_defaults():
+    paper = {"de_centres": PAPER000_DE_CENTRES_PER_SAMPLE, "ki": 0.1, "e_scale": 2.0}
+    converted = fuzzy_params_from_per_sample(paper, PAPER000_SAMPLE_TIME_S)
+    assert converted["de_centres"] == pytest.approx(FuzzyConfig().de_centres)
+    assert converted["ki"] == pytest.approx(FuzzyConfig().ki)
+    assert converted["e_scale"] == 2.0
+    with pytest.raises(ConfigError, match="sample_time_s must be > 0"):
+        fuzzy_params_from_per_sample(paper, -0.01)
+
+
+@pytest.mark.parametrize("dt_s", [0.01, 0.001])
+def test_same_error_signal_same_output_at_any_period(dt_s):
+    """e(t) = 300·t (a rate of 300 BLU/s): the same output at t = 0.05 s whatever the period."""
+    law = FuzzyLaw(FuzzyConfig(ki=0.0))
+    n = round(0.05 / dt_s)
+    outputs = [step(law, 300.0 * k * dt_s, dt_s) for k in range(1, n + 1)]
+    assert outputs[-1] == pytest.approx(FuzzySurface(FuzzyConfig())(15.0, 300.0), rel=1e-9)
+
+
+def test_retune_swaps_the_map_and_keeps_the_state():
+    law, twin = FuzzyLaw(FuzzyConfig()), FuzzyLaw(FuzzyConfig(u_scale=2.0))
+    for error in (3.0, 5.0):
+        step(law, error)
+        step(twin, error)
+    law.retune(FuzzyConfig(u_scale=2.0))
+    assert law.integral == twin.integral
+    assert step(law, 6.0) == step(twin, 6.0)  # e(k-1) and u_I kept: as if tuned so from the start
+    law.retune(FuzzyConfig(integral_limit=0.1))
+    assert law.integral == 0.1  # the integral is clamped to the new limit
+    with pytest.raises(ConfigError, match="fuzzy law needs a FuzzyConfig to retune"):
+        law.retune({"ki": 1.0})

@@ -281,8 +281,8 @@ def test_bad_axis_limits_are_refused(kwargs: dict, message: str) -> None:
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"corner_angle_tolerance_deg": -1.0}, r"corner_angle_tolerance_deg must be in \[0.0, 10.0\], got -1.0"),
-    ({"arc_centripetal_fraction": 1.0}, r"arc_centripetal_fraction must be in \(0, 1\), got 1.0"),
-    ({"arc_centripetal_fraction": 0.0}, r"arc_centripetal_fraction must be in \(0, 1\), got 0.0"),
+    ({"arc_centripetal_fraction": 1.0}, r"arc_centripetal_fraction must be in \[0.01, 0.99\], got 1.0"),
+    ({"arc_centripetal_fraction": 0.0}, r"arc_centripetal_fraction must be in \[0.01, 0.99\], got 0.0"),
     ({"clamp_feed": "yes"}, "clamp_feed must be true or false, got 'yes'"),
 ])
 def test_bad_interpolator_config_is_refused(kwargs: dict, message: str) -> None:

@@ -15,6 +15,7 @@ from cnc_contour_control.lockstep import (
     require_same_axes,
     seconds_to_ns,
     split_ns,
+    stamp_horizon_ns,
 )
 
 
@@ -92,3 +93,72 @@ def test_non_finite_values_and_wrong_axes_are_faults_naming_the_field() -> None:
         require_finite_values([0.0, math.nan], "joint_states.position")
     with pytest.raises(FaultError, match=r"\['x', 'z'\], expected \['x', 'y'\]"):
         require_same_axes(["x", "z"], ["x", "y"], "joint_states")
+
+
+# --------------------------------------------------------------------------- messages from outside the run
+T_NS = 10_000_000
+
+
+def _released(matcher: StampMatcher, stamp_ns: int) -> None:
+    for name in matcher.required:
+        matcher.add(name, stamp_ns, name, 0.0)
+    assert matcher.last_released_ns == stamp_ns
+
+
+def test_a_stamp_beyond_the_horizon_is_a_fault_naming_the_input() -> None:
+    matcher = StampMatcher(("joint_states", "reference"), 1.0, max_ahead_ns=stamp_horizon_ns(T_NS))
+    _released(matcher, 0)
+    assert matcher.add("reference", T_NS, None, 0.0) is None, "the next tick is fine"
+    with pytest.raises(FaultError, match=r"joint_states stamped t=1000\.000000 s, more than 1\.0 s after tick t=0\.0"):
+        matcher.add("joint_states", 1000 * 1_000_000_000, None, 0.0)
+
+
+def test_a_far_future_input_held_before_the_first_tick_is_a_fault_once_the_first_tick_is_released() -> None:
+    matcher = StampMatcher(("joint_states", "reference"), 1.0, max_ahead_ns=stamp_horizon_ns(T_NS))
+    assert matcher.add("joint_states", 1000 * 1_000_000_000, None, 0.0) is None  # nothing to compare with yet
+    matcher.add("joint_states", 0, None, 0.0)
+    with pytest.raises(FaultError, match="joint_states stamped t=1000.000000 s"):
+        matcher.add("reference", 0, None, 0.0)
+
+
+def test_a_second_message_for_a_pending_tick_is_a_fault() -> None:
+    matcher = StampMatcher(("joint_states", "reference"), 1.0)
+    matcher.add("joint_states", T_NS, None, 0.0)
+    with pytest.raises(FaultError, match=r"joint_states: a second message for tick t=0\.010000 s"):
+        matcher.add("joint_states", T_NS, None, 0.0)
+
+
+def test_a_pending_tick_passed_by_a_later_complete_one_is_a_fault() -> None:
+    matcher = StampMatcher(("joint_states", "reference"), 1.0)
+    matcher.add("reference", 5_000_000, None, 0.0)  # between two ticks: not of this run
+    matcher.add("joint_states", T_NS, None, 0.0)
+    with pytest.raises(FaultError, match=r"reference stamped t=0\.005000 s never completed a tick and was passed"):
+        matcher.add("reference", T_NS, None, 0.0)
+
+
+def test_a_plant_accepts_only_the_tick_it_published_and_forgets_an_expected_tick_that_never_came() -> None:
+    matcher = StampMatcher(("x", "y"), 1.0, max_ahead_ns=0)
+    matcher.expect(0, 0.0)
+    with pytest.raises(FaultError, match=r"x stamped t=0\.010000 s, more than 0\.0 s after tick t=0\.0"):
+        matcher.add("x", T_NS, None, 0.0)
+    waiting = StampMatcher(("joint_states",), 1.0, max_ahead_ns=stamp_horizon_ns())
+    waiting.expect(0, 0.0)
+    assert waiting.add("joint_states", 3 * T_NS, "j", 0.0) == {"joint_states": "j"}  # a run starting later
+    assert waiting.pending_count == 0
+
+
+def test_a_held_future_input_does_not_time_out_before_its_tick_is_next() -> None:
+    matcher = StampMatcher(("joint_states", "reference"), timeout_s=1.0)
+    matcher.add("joint_states", 2 * T_NS, None, now_s=0.0)  # early, e.g. a fast producer
+    matcher.add("joint_states", T_NS, None, now_s=5.0)
+    matcher.add("reference", T_NS, None, now_s=5.0)
+    assert matcher.overdue(now_s=5.9) is None, "the clock of tick 2 starts when tick 1 is released"
+    assert matcher.overdue(now_s=6.1) == (2 * T_NS, ["reference"])
+
+
+def test_the_stamp_horizon_is_ten_ticks_and_at_least_a_second() -> None:
+    assert stamp_horizon_ns(T_NS) == 1_000_000_000
+    assert stamp_horizon_ns(500_000_000) == 5_000_000_000
+    assert stamp_horizon_ns() == 10_000_000_000, "a stage without T takes the largest T the nodes accept"
+    with pytest.raises(ConfigError, match="max_ahead_ns must be >= 0, got -1"):
+        StampMatcher(("a",), 1.0, max_ahead_ns=-1)

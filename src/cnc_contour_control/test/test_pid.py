@@ -1,5 +1,7 @@
-"""Incremental PID (paper 000, Eq. 14), the P law and the law registry."""
+"""Incremental PID (paper 000, Eq. 14) in time units, the P law, the law seam and the law registry."""
 from __future__ import annotations
+
+import dataclasses
 
 import pytest
 from hypothesis import given, settings
@@ -7,12 +9,22 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.laws import LAWS, FeedbackLaw, make_law, register_law
-from cnc_contour_control.laws.pid import PidConfig, PidLaw
+from cnc_contour_control.laws import LAWS, FeedbackLaw, LawEntry, LawSample, law_config_class, make_law
+from cnc_contour_control.laws.pid import PidConfig, PidLaw, pid_gains_from_per_sample, pid_gains_per_sample
+from cnc_contour_control.params import param_specs
+
+#: Table 4 of paper 000 (per sample at T = 10 ms) in time units.
+TABLE4 = {"kp": 2.4, "ki": 10.0, "kd": 0.067}
 
 
-def run(law: FeedbackLaw, errors: list[float]) -> list[float]:
-    return [law.step(e, 0.01) for e in errors]
+def run(law: FeedbackLaw, errors: list[float], dt_s: float | list[float] = 0.01) -> list[float]:
+    periods = dt_s if isinstance(dt_s, list) else [dt_s] * len(errors)
+    sample = LawSample()
+    out = []
+    for e, dt in zip(errors, periods):
+        sample.error_counts, sample.dt_s = e, dt
+        out.append(law.step(sample).feedback)
+    return out
 
 
 @pytest.mark.parametrize(("errors", "expected"), [
@@ -23,28 +35,52 @@ def run(law: FeedbackLaw, errors: list[float]) -> list[float]:
     # impulse: 9.2; 9.2 - 2.4 - 13.4 = -6.6; -6.6 + 6.7 = 0.1; stays
     ([1.0, 0.0, 0.0, 0.0], [9.2, -6.6, 0.1, 0.1]),
 ])
-def test_paper_gains_by_hand(errors: list[float], expected: list[float]) -> None:
+def test_paper_gains_by_hand_at_10ms(errors: list[float], expected: list[float]) -> None:
+    assert make_law("pid", {}).config == PidConfig(**TABLE4)
     assert_allclose(run(make_law("pid", {}), errors), expected, rtol=1e-12)
+
+
+def test_table4_conversion_both_ways() -> None:
+    assert pid_gains_from_per_sample(2.4, 0.1, 6.7, 0.01) == pytest.approx(TABLE4, rel=1e-15)
+    assert pid_gains_per_sample(**TABLE4, sample_time_s=0.01) == pytest.approx({"kp": 2.4, "ki": 0.1, "kd": 6.7})
+    with pytest.raises(ConfigError, match="sample_time_s must be > 0, got 0"):
+        pid_gains_from_per_sample(2.4, 0.1, 6.7, 0)
 
 
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.floats(-50, 50), min_size=1, max_size=30),
-       st.floats(0, 5), st.floats(0, 1), st.floats(0, 10))
+       st.floats(0, 5), st.floats(0, 100), st.floats(0, 0.1), st.sampled_from([0.01, 0.001, 0.0037]))
 def test_equals_positional_form_without_clamping(errors: list[float], kp: float, ki: float,
-                                                  kd: float) -> None:
+                                                  kd: float, dt_s: float) -> None:
     law = make_law("pid", {"kp": kp, "ki": ki, "kd": kd, "state_limit": 1e12})
     total, previous, expected = 0.0, 0.0, []
     for e in errors:
-        total += e
-        expected.append(kp * e + ki * total + kd * (e - previous))
+        total += e * dt_s
+        expected.append(kp * e + ki * total + kd * (e - previous) / dt_s)
         previous = e
-    assert_allclose(run(law, errors), expected, rtol=1e-9, atol=1e-7)
+    assert_allclose(run(law, errors, dt_s), expected, rtol=1e-9, atol=1e-6)
+
+
+def test_another_period_keeps_the_continuous_loop() -> None:
+    """A ramp of 1 count/s: the D term gives kd·1 whatever T, the I term ki·∫e whatever T."""
+    for dt_s in (0.01, 0.001):
+        n = round(0.5 / dt_s)
+        errors = [k * dt_s for k in range(1, n + 1)]  # e(t) = t
+        u = run(make_law("pid", {"kp": 0.0, "ki": 4.0, "kd": 0.5, "state_limit": 1e9}), errors, dt_s)
+        # u(t) = ki ∫ e + kd de/dt ≈ 4·t²/2 + 0.5 (rectangle rule: + ki·t·T/2)
+        assert u[-1] == pytest.approx(4.0 * 0.5**2 / 2 + 0.5 + 4.0 * 0.5 * dt_s / 2, rel=1e-9)
+
+
+def test_varying_period_uses_each_sample_dt() -> None:
+    law = make_law("pid", {"kp": 0.0, "ki": 0.0, "kd": 1.0, "state_limit": 1e9})
+    # e = 1 after 0.01 s (rate 100), then 2 after 0.02 s (rate 50): u = 100, then 100 + (50 - 100)
+    assert run(law, [1.0, 2.0], [0.01, 0.02]) == pytest.approx([100.0, 50.0])
 
 
 def test_state_is_clamped_before_it_is_stored() -> None:
-    law = make_law("pid", {"kp": 0.0, "ki": 1.0, "kd": 0.0, "state_limit": 10.0})
-    # without the clamp the integral would wind up to 25 and need 15 samples of -1 to come back
-    assert run(law, [5.0] * 5 + [-1.0, -1.0]) == [5.0, 10.0, 10.0, 10.0, 10.0, 9.0, 8.0]
+    law = make_law("pid", {"kp": 0.0, "ki": 100.0, "kd": 0.0, "state_limit": 10.0})
+    # ki·T = 1: without the clamp the integral would wind up to 25 and need 15 samples of -1 to come back
+    assert run(law, [5.0] * 5 + [-1.0, -1.0]) == pytest.approx([5.0, 10.0, 10.0, 10.0, 10.0, 9.0, 8.0])
 
 
 def test_large_error_saturates_both_ways() -> None:
@@ -59,32 +95,75 @@ def test_reset_clears_the_history() -> None:
     assert run(law, [1.0, 1.0]) == pytest.approx([9.2, 2.6])
 
 
+def test_retune_swaps_gains_and_keeps_the_state() -> None:
+    law, twin = make_law("pid", {}), make_law("pid", {})
+    run(law, [1.0, 2.0])
+    run(twin, [1.0, 2.0])
+    law.retune(PidConfig(kp=4.0, ki=10.0, kd=0.067))
+    [got] = run(law, [2.0])
+    [same_gains] = run(twin, [2.0])
+    assert got == pytest.approx(same_gains)  # the kp change acts on e(k) - e(k-1) = 0 only
+    assert run(law, [3.0]) == pytest.approx([got + 4.0 + 0.3 + 6.7])
+    with pytest.raises(ConfigError, match="pid law needs a PidConfig to retune, got dict"):
+        law.retune({"kp": 1.0})  # type: ignore[arg-type]
+
+
 def test_p_law_is_proportional_and_stateless() -> None:
     law = make_law("p", {"kp": 3.0})
     assert run(law, [1.0, -2.0, 0.5]) == [3.0, -6.0, 1.5]
     law.reset()
-    assert make_law("p", {}).step(1.0, 0.01) == 2.4
+    law.retune(law_config_class("p")(kp=1.0))
+    assert run(law, [2.0]) == [2.0]
+    assert run(make_law("p", {}), [1.0]) == [2.4]
 
 
-def test_laws_satisfy_the_protocol() -> None:
+def test_laws_satisfy_the_protocol_and_answer_with_an_output() -> None:
     for name in LAWS:
-        assert isinstance(make_law(name, {}), FeedbackLaw)
+        law = make_law(name, {})
+        assert isinstance(law, FeedbackLaw)
+        out = law.step(LawSample(error_counts=1.0))
+        assert out.disturbance_estimate == 0.0 and out.feedback > 0.0
+
+
+def test_law_config_classes_declare_every_field() -> None:
+    for name, entry in LAWS.items():
+        assert law_config_class(name) is entry.config_class
+        for spec in param_specs(entry.config_class):
+            assert spec.info.description, f"{name}.{spec.name} has no description"
+            if spec.kind is float:
+                assert spec.info.low is not None and spec.info.high is not None, f"{name}.{spec.name}"
+
+
+@pytest.mark.parametrize("name", sorted(LAWS))
+def test_declared_ranges_are_the_validation(name: str) -> None:
+    """At each bound a config is accepted; just beyond it, refused naming the field and the range."""
+    cls = law_config_class(name)
+    for spec in param_specs(cls):
+        if spec.kind is not float:
+            continue
+        for bound, beyond in ((spec.info.low, -1.0), (spec.info.high, 1.0)):
+            assert dataclasses.replace(cls(), **{spec.name: bound}) is not None
+            outside = bound + beyond * max(1.0, abs(bound)) * 1e-3
+            with pytest.raises(ConfigError, match=f"{name}.{spec.name} must be in"):
+                cls(**{spec.name: outside})
 
 
 def test_unknown_law_lists_valid_names() -> None:
-    with pytest.raises(ConfigError) as info:
-        make_law("pdd", {})
-    assert f"law must be one of {sorted(LAWS)}, got 'pdd'" in str(info.value)
-    assert {"p", "pid"} <= set(LAWS)
+    for call in (lambda: make_law("pdd", {}), lambda: law_config_class("pdd")):
+        with pytest.raises(ConfigError) as info:
+            call()
+        assert f"law must be one of {sorted(LAWS)}, got 'pdd'" in str(info.value)
+    assert {"p", "pid", "fuzzy"} <= set(LAWS)
 
 
 @pytest.mark.parametrize(("name", "params", "message"), [
-    ("pid", {"kp": -1}, "pid.kp must be >= 0, got -1"),
-    ("pid", {"ki": -0.1}, "pid.ki must be >= 0, got -0.1"),
+    ("pid", {"kp": -1}, "pid.kp must be in [0.0, 1000000.0], got -1"),
+    ("pid", {"ki": -0.1}, "pid.ki must be in [0.0, 1000000.0], got -0.1"),
     ("pid", {"kd": float("nan")}, "pid.kd must be finite, got nan"),
-    ("pid", {"state_limit": 0}, "pid.state_limit must be > 0, got 0"),
+    ("pid", {"kd": "fast"}, "pid.kd must be a number, got 'fast'"),
+    ("pid", {"state_limit": 0}, "pid.state_limit must be in [1e-09, 1000000000000.0], got 0"),
     ("pid", {"kx": 1}, "pid.kx: unknown key; valid keys are ['kd', 'ki', 'kp', 'state_limit']"),
-    ("p", {"kp": -2}, "p.kp must be >= 0, got -2"),
+    ("p", {"kp": -2}, "p.kp must be in [0.0, 1000000.0], got -2"),
     ("p", {"ki": 1}, "p.ki: unknown key; valid keys are ['kp']"),
 ])
 def test_bad_params_name_option_bound_value(name: str, params: dict, message: str) -> None:
@@ -93,14 +172,10 @@ def test_bad_params_name_option_bound_value(name: str, params: dict, message: st
     assert message in str(info.value)
 
 
-def test_register_law_adds_and_refuses_duplicates() -> None:
-    @register_law("test_zero")
-    def make_zero(params: object) -> PidLaw:
-        return PidLaw(PidConfig(kp=0.0, ki=0.0, kd=0.0))
-
+def test_a_law_added_to_the_registry_is_built_by_name() -> None:
+    LAWS["test_zero"] = LawEntry(PidConfig, lambda config: PidLaw(dataclasses.replace(config, kp=0.0, ki=0.0, kd=0.0)))
     try:
-        assert make_law("test_zero", {}).step(5.0, 0.01) == 0.0
-        with pytest.raises(ValueError, match="already registered"):
-            register_law("test_zero")(make_zero)
+        assert run(make_law("test_zero", {}), [5.0]) == [0.0]
+        assert law_config_class("test_zero") is PidConfig
     finally:
         del LAWS["test_zero"]

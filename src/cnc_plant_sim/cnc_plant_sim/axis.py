@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -38,6 +38,7 @@ import numpy.typing as npt
 
 from cnc_contour_control.config import build_config, require_non_negative, require_positive
 from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.params import param
 from cnc_contour_control.units import M_PER_BLU_PAPER000, M_PER_MM
 
 from cnc_plant_sim.friction import FrictionModel, make_friction
@@ -72,15 +73,18 @@ class AxisConfig:
         Symmetric saturation of the drive input [DAC], > 0; None: no limit.
     """
 
-    name: str
-    gain_blu_s_per_dac: float
-    time_constant_s: float
-    friction: str = "none"
-    friction_params: Mapping[str, Any] = field(default_factory=dict)
-    friction_scale: float = 1.0
-    blu_m: float = M_PER_BLU_PAPER000
-    substeps: int = 1
-    command_limit_dac: float | None = None
+    name: str = param(read_only=True, description="axis name")
+    gain_blu_s_per_dac: float = param(unit="BLU/s per DAC", read_only=True,
+                                      description="open-loop velocity gain K, > 0")
+    time_constant_s: float = param(unit="s", read_only=True, description="drive time constant tau, > 0")
+    friction: str = param("none", read_only=True, description="friction model (a name in FRICTIONS)")
+    friction_params: Mapping[str, Any] = param(default_factory=dict, read_only=True,
+                                               description="params of the friction model")
+    friction_scale: float = param(1.0, read_only=True, description="factor on the friction, >= 0")
+    blu_m: float = param(M_PER_BLU_PAPER000, unit="m", read_only=True, description="length of one BLU, > 0")
+    substeps: int = param(1, read_only=True, description="integration sub-steps per step, >= 1")
+    command_limit_dac: float | None = param(None, unit="DAC", read_only=True,
+                                            description="symmetric saturation of the drive input, > 0 (unset: none)")
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:

@@ -418,6 +418,22 @@ FRICTIONS: dict[str, FrictionFactory] = {
 }
 
 
+#: The config class whose fields are each model's params (a fixed paper model takes only ``scale``).
+FRICTION_CONFIGS: dict[str, type] = {
+    "paper000_x": _ScaleParams,
+    "paper000_y": _ScaleParams,
+    "coulomb_viscous": CoulombViscousFriction,
+    "table": TableFriction,
+    "none": NoFriction,
+}
+
+
+def friction_config_class(name: str) -> type:
+    """The class whose fields are the params of the friction model ``name`` (an unknown name lists the valid ones)."""
+    require_choice("friction", name, FRICTION_CONFIGS)
+    return FRICTION_CONFIGS[name]
+
+
 def make_friction(name: str, params: Mapping[str, Any] | None = None) -> FrictionModel:
     """Build the friction model ``name`` from ``params``; an unknown name lists the valid ones."""
     require_choice("friction", name, FRICTIONS)

@@ -1,69 +1,80 @@
-"""A multi-axis feed-drive plant with the paper's random parameter variation.
+"""Plants behind one protocol, built by name from a registry of factories.
 
-Plant models come from the registry :data:`PLANTS` by name; each gives the
-nominal :class:`~cnc_plant_sim.axis.AxisConfig` of every requested axis.
+A plant is anything that keeps :class:`Plant`: axis names in command order,
+a command unit, ``reset(positions_m)``, ``step(commands, dt_s)`` holding the
+commands over ``dt_s`` (zero-order hold), ``positions_m()`` and
+``velocities_m_s()`` (SI, axis order), ``forces_n()`` (the process force per
+axis in N, or None when the model has none) and ``describe()`` (the plant as
+drawn, plain types, for the run record).
 
-``paper000``
-    Paper 000, Table 2: X has K = 28.35 BLU/s per DAC unit, τ = 0.055 s and the
-    Eq. (15) X friction (``paper000_x``); Y has K = 28.96, τ = 0.056 s and the Y
-    friction (``paper000_y``). The paper has no Z axis: a Z axis, if asked for,
-    **uses Y's parameters and Y's friction** (our choice). BLU = 10 µm, no
-    drive saturation (the controller's 8-bit output saturates instead). Axis
-    names are matched case-insensitively (``x``/``X``). ``axis_overrides``
-    may change any :class:`AxisConfig` key of an axis.
-``custom``
-    Every axis is given fully in ``axis_overrides`` (at least
-    ``gain_blu_s_per_dac`` and ``time_constant_s``; the friction defaults to
-    ``none``).
-
-Variation: :func:`make_plant` draws, once per run and per axis in axis order,
-three numbers from ``numpy.random.default_rng(seed)``: a gain factor
-``1 + U(−gain_pct, gain_pct)/100``, a time-constant factor ``1 +
-U(−time_constant_pct, time_constant_pct)/100`` and a friction scale ``1 +
-U(−friction_pct, friction_pct)/100`` (in that order). Same seed, same plant;
-:meth:`Plant.reset` keeps the drawn parameters.
+:data:`PLANTS` maps a model name to a :class:`PlantEntry` (a factory from a
+validated :class:`PlantConfig` and a check of the model's own keys).
+Today's entries are the feed drives of :mod:`cnc_plant_sim.feed_drives`:
+``paper000`` (Table 2's axes, Eq. 15's friction) and ``custom`` (axes given
+in ``axis_overrides``). A new plant (a cutting process, an inner velocity
+loop) is a module with a class keeping :class:`Plant` and one line in
+:data:`PLANTS`. :func:`make_plant` builds any entry.
 """
 from __future__ import annotations
 
-import dataclasses
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 import numpy.typing as npt
 
-from cnc_contour_control.config import build_config, require_choice, require_range
-from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.config import build_config, require_choice
+from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.params import param
 
-from cnc_plant_sim.axis import AxisConfig, FeedDriveAxis, _require_int_at_least
+from cnc_plant_sim.axis import AxisConfig, _require_int_at_least
+from cnc_plant_sim.feed_drives import (
+    FEED_DRIVE_MODELS,
+    MAX_VARIATION_PCT,
+    FeedDrivePlant,
+    VariationConfig,
+)
 
-#: Largest allowed variation [%] (K and τ must stay positive).
-MAX_VARIATION_PCT = 50.0
+__all__ = ["MAX_VARIATION_PCT", "PLANTS", "FeedDrivePlant", "Plant", "PlantConfig", "PlantEntry",
+           "VariationConfig", "make_plant"]
 
 
-@dataclass(frozen=True)
-class VariationConfig:
-    """Half-widths [%] of the uniform random variation drawn once per run.
+@runtime_checkable
+class Plant(Protocol):
+    """What every plant model offers (SI units at the interface, commands in ``command_unit``).
 
-    Parameters
+    Attributes
     ----------
-    gain_pct, time_constant_pct, friction_pct : float
-        In [0, 50]; the paper uses 5, 5 and 8.
+    axis_names : tuple of str
+        Axis names in command order.
+    command_unit : str
+        Unit of the commands ``step`` takes (``"dac"``).
     """
 
-    gain_pct: float = 5.0
-    time_constant_pct: float = 5.0
-    friction_pct: float = 8.0
+    axis_names: tuple[str, ...]
+    command_unit: str
 
-    def __post_init__(self) -> None:
-        for name in ("gain_pct", "time_constant_pct", "friction_pct"):
-            require_range(name, getattr(self, name), 0.0, MAX_VARIATION_PCT, context="variation")
+    def reset(self, positions_m: Sequence[float] | None = None) -> None:
+        """At rest at ``positions_m`` (shape (n,), m; None: 0), keeping any drawn parameters."""
 
+    def step(self, commands: Sequence[float], dt_s: float) -> None:
+        """Hold ``commands`` (shape (n,)) for ``dt_s`` [s]; a FaultError leaves every axis where it was."""
 
-#: A plant model: config -> nominal axis configs, one per ``config.axes``.
-PlantModel = Callable[["PlantConfig"], tuple[AxisConfig, ...]]
+    def positions_m(self) -> npt.NDArray[np.float64]:
+        """Axis positions, shape (n,), m (a fresh array)."""
+
+    def velocities_m_s(self) -> npt.NDArray[np.float64]:
+        """Axis velocities, shape (n,), m/s (a fresh array)."""
+
+    def state(self) -> tuple[list[float], list[float]]:
+        """Positions [m] and velocities [m/s] as lists in axis order: what one tick reads (cheaper than arrays)."""
+
+    def forces_n(self) -> npt.NDArray[np.float64] | None:
+        """Process force per axis, shape (n,), N; None when the model knows no force."""
+
+    def describe(self) -> dict[str, Any]:
+        """The plant as built (plain types, for the run record)."""
 
 
 @dataclass(frozen=True)
@@ -86,12 +97,14 @@ class PlantConfig:
         Per axis name, :class:`AxisConfig` keys replacing the model's nominal values.
     """
 
-    model: str = "paper000"
-    axes: tuple[str, ...] = ("x", "y")
-    variation: VariationConfig = field(default_factory=VariationConfig)
-    seed: int = 0
-    substeps: int = 1
-    axis_overrides: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    model: str = param("paper000", description="plant model (registry name)", read_only=True)
+    axes: tuple[str, ...] = param(("x", "y"), description="axis names, in command order", read_only=True)
+    variation: VariationConfig = param(default_factory=VariationConfig, read_only=True,
+                                       description="random variation of the drawn parameters")
+    seed: int = param(0, low=0, description="seed of the parameter variation", read_only=True)
+    substeps: int = param(1, low=1, description="integration sub-steps per sample", read_only=True)
+    axis_overrides: Mapping[str, Mapping[str, Any]] = param(default_factory=dict, read_only=True,
+                                                            description="per-axis model keys replacing the nominal")
 
     def __post_init__(self) -> None:
         require_choice("model", self.model, PLANTS)
@@ -104,7 +117,7 @@ class PlantConfig:
         _require_int_at_least("seed", self.seed, 0)
         _require_int_at_least("substeps", self.substeps, 1)
         object.__setattr__(self, "axis_overrides", _checked_overrides(self.axis_overrides, self.axes))
-        self.nominal_axes()
+        PLANTS[self.model].check(self)
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any], context: str = "plant") -> PlantConfig:
@@ -112,8 +125,18 @@ class PlantConfig:
         return build_config(cls, mapping, context=context)
 
     def nominal_axes(self) -> tuple[AxisConfig, ...]:
-        """The model's axis configs before the random variation."""
-        return PLANTS[self.model](self)
+        """The model's feed-drive axis configs before the random variation.
+
+        Raises
+        ------
+        ConfigError
+            If the model is not made of feed-drive axes.
+        """
+        axes_of = FEED_DRIVE_MODELS.get(self.model)
+        if axes_of is None:
+            raise ConfigError(f"plant model {self.model!r} has no feed-drive axes; "
+                              f"feed-drive models are {sorted(FEED_DRIVE_MODELS)}")
+        return axes_of(self.axes, self.axis_overrides, self.substeps)
 
 
 def _checked_axes(axes: Any) -> tuple[str, ...]:
@@ -145,172 +168,37 @@ def _checked_overrides(overrides: Any, axes: tuple[str, ...]) -> dict[str, dict[
     return checked
 
 
-def _axis_config(config: PlantConfig, name: str, base: Mapping[str, Any]) -> AxisConfig:
-    values = {"substeps": config.substeps, **base, **config.axis_overrides.get(name, {}), "name": name}
-    return build_config(AxisConfig, values, context=f"axis_overrides.{name}")
+@dataclass(frozen=True)
+class PlantEntry:
+    """One plant model of the registry.
+
+    Attributes
+    ----------
+    build : Callable
+        Validated :class:`PlantConfig` -> a fresh plant (random draws made here).
+    check : Callable
+        Validates the model's own use of the config (known axes, complete
+        overrides), raising :class:`ConfigError`; called by ``PlantConfig``.
+    """
+
+    build: Callable[[PlantConfig], Plant]
+    check: Callable[[PlantConfig], object]
 
 
-#: Paper 000, Table 2 and Eq. (15); Z copies Y (the paper has no Z).
-PAPER000_AXES: dict[str, dict[str, Any]] = {
-    "x": {"gain_blu_s_per_dac": 28.35, "time_constant_s": 0.055, "friction": "paper000_x"},
-    "y": {"gain_blu_s_per_dac": 28.96, "time_constant_s": 0.056, "friction": "paper000_y"},
-    "z": {"gain_blu_s_per_dac": 28.96, "time_constant_s": 0.056, "friction": "paper000_y"},
-}
-
-
-def paper000(config: PlantConfig) -> tuple[AxisConfig, ...]:
-    """Nominal axes of paper 000 (X, Y; Z = Y)."""
-    axes = []
-    for name in config.axes:
-        base = PAPER000_AXES.get(name.lower())
-        if base is None:
-            raise ConfigError(f"axes: paper000 has axes {sorted(PAPER000_AXES)}, got {name!r}")
-        axes.append(_axis_config(config, name, base))
-    return tuple(axes)
-
-
-def custom(config: PlantConfig) -> tuple[AxisConfig, ...]:
-    """Axes given fully by ``axis_overrides``."""
-    for name in config.axes:
-        given = config.axis_overrides.get(name, {})
-        for key in ("gain_blu_s_per_dac", "time_constant_s"):
-            if key not in given:
-                raise ConfigError(f"axis_overrides.{name}.{key} is required for model 'custom'")
-    return tuple(_axis_config(config, name, {}) for name in config.axes)
+def _feed_drives(config: PlantConfig) -> FeedDrivePlant:
+    """Feed-drive axes of ``config.model``, varied by ``config.variation`` with ``config.seed``."""
+    return FeedDrivePlant(config.model, config.nominal_axes(), config.variation, config.seed)
 
 
 #: Plant models by name.
-PLANTS: dict[str, PlantModel] = {"paper000": paper000, "custom": custom}
-
-
-def _draw(rng: np.random.Generator, nominal: AxisConfig, variation: VariationConfig) -> AxisConfig:
-    """One axis with K, τ and the friction scale drawn uniformly within the variation."""
-    gain = 1.0 + rng.uniform(-variation.gain_pct, variation.gain_pct) / 100.0
-    tau = 1.0 + rng.uniform(-variation.time_constant_pct, variation.time_constant_pct) / 100.0
-    fric = 1.0 + rng.uniform(-variation.friction_pct, variation.friction_pct) / 100.0
-    return dataclasses.replace(
-        nominal,
-        gain_blu_s_per_dac=nominal.gain_blu_s_per_dac * float(gain),
-        time_constant_s=nominal.time_constant_s * float(tau),
-        friction_scale=nominal.friction_scale * float(fric),
-    )
-
-
-class Plant:
-    """Several independent feed-drive axes stepped together.
-
-    Parameters
-    ----------
-    config : PlantConfig
-        The plant; the random variation is drawn here, once.
-    """
-
-    command_unit = "dac"
-
-    def __init__(self, config: PlantConfig) -> None:
-        self.config = config
-        self.nominal_configs = config.nominal_axes()
-        rng = np.random.default_rng(config.seed)
-        self.axis_configs = tuple(_draw(rng, c, config.variation) for c in self.nominal_configs)
-        self.axes = tuple(FeedDriveAxis(c) for c in self.axis_configs)
-        self.axis_names = tuple(config.axes)
-
-    def reset(self, positions_m: Sequence[float] | None = None) -> None:
-        """Put every axis at rest, at ``positions_m`` (shape (n,), m) or at 0."""
-        if positions_m is None:
-            positions_m = [0.0] * len(self.axes)
-        self._check_length("positions_m", positions_m)
-        for axis, position in zip(self.axes, positions_m):
-            axis.reset(float(position), 0.0)
-
-    def step(self, commands: Sequence[float], dt_s: float) -> None:
-        """Hold ``commands`` (shape (n,), DAC units, axis order) for ``dt_s`` [s].
-
-        Raises
-        ------
-        FaultError
-            On a wrong count, a non-finite command or a bad ``dt_s``; no axis moves then.
-        """
-        self._check_length("commands", commands)
-        if not _all_finite(commands):
-            self._check_commands(commands)
-        if not (dt_s > 0.0 and dt_s < math.inf):  # also refuses NaN
-            raise FaultError(f"plant: dt_s must be finite and > 0, got {dt_s!r}")
-        for axis, command in zip(self.axes, commands):
-            axis.step(command, dt_s)
-
-    def _check_commands(self, commands: Sequence[float]) -> None:
-        """Raise :class:`FaultError` naming the first axis whose command is not a finite number."""
-        for axis, command in zip(self.axes, commands):
-            if not _is_finite_number(command):
-                raise FaultError(f"axis {axis.name}: command must be finite, got {command!r}")
-
-    def _check_length(self, name: str, values: Sequence[float]) -> None:
-        if len(values) != len(self.axes):
-            raise FaultError(
-                f"plant: {name} must have {len(self.axes)} entries {list(self.axis_names)}, "
-                f"got {len(values)}"
-            )
-
-    def positions_m(self) -> npt.NDArray[np.float64]:
-        """Axis positions, shape (n,), m."""
-        return np.array([axis.position_m for axis in self.axes])
-
-    def velocities_m_s(self) -> npt.NDArray[np.float64]:
-        """Axis velocities, shape (n,), m/s."""
-        return np.array([axis.velocity_m_s for axis in self.axes])
-
-    def friction_forces(self) -> npt.NDArray[np.float64]:
-        """Friction applied in the last sub-step, shape (n,), DAC units."""
-        return np.array([axis.friction_force for axis in self.axes])
-
-    def describe(self) -> dict[str, Any]:
-        """The plant as drawn (plain types, for the run record)."""
-        return {
-            "model": self.config.model,
-            "seed": self.config.seed,
-            "command_unit": self.command_unit,
-            "variation": dataclasses.asdict(self.config.variation),
-            "axes": {a.name: _describe_axis(a, n) for a, n in zip(self.axes, self.nominal_configs)},
-        }
-
-
-def _all_finite(values: Sequence[float]) -> bool:
-    """True if every value is a finite number (one C-level sum; an overflow gives False too)."""
-    try:
-        total = sum(values, 0.0)
-    except TypeError:
-        return False
-    return total - total == 0.0  # NaN for a NaN or an infinity
-
-
-def _is_finite_number(value: Any) -> bool:
-    try:
-        return math.isfinite(value)
-    except TypeError:
-        return False
-
-
-def _describe_axis(axis: FeedDriveAxis, nominal: AxisConfig) -> dict[str, Any]:
-    drawn = axis.config
-    return {
-        "gain_blu_s_per_dac": drawn.gain_blu_s_per_dac,
-        "nominal_gain_blu_s_per_dac": nominal.gain_blu_s_per_dac,
-        "time_constant_s": drawn.time_constant_s,
-        "nominal_time_constant_s": nominal.time_constant_s,
-        "friction": drawn.friction,
-        "friction_params": dict(drawn.friction_params),
-        "friction_scale": drawn.friction_scale,
-        "breakaway_positive_dac": axis.friction.breakaway_positive,
-        "breakaway_negative_dac": axis.friction.breakaway_negative,
-        "blu_m": drawn.blu_m,
-        "substeps": drawn.substeps,
-        "command_limit_dac": drawn.command_limit_dac,
-    }
+PLANTS: dict[str, PlantEntry] = {
+    "paper000": PlantEntry(_feed_drives, PlantConfig.nominal_axes),
+    "custom": PlantEntry(_feed_drives, PlantConfig.nominal_axes),
+}
 
 
 def make_plant(config: PlantConfig | Mapping[str, Any]) -> Plant:
-    """Build a :class:`Plant` from a config or a mapping (validated)."""
+    """Build the plant of ``config`` (a config or a mapping, validated) from :data:`PLANTS`."""
     if not isinstance(config, PlantConfig):
         config = PlantConfig.from_mapping(config)
-    return Plant(config)
+    return PLANTS[config.model].build(config)

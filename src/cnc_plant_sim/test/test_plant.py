@@ -1,4 +1,4 @@
-"""Multi-axis plant: Table 2 parameters, seeded variation, stepping, faults, validation."""
+"""Plants: the protocol and the registry of factories; the feed drives' Table 2, variation, stepping, faults."""
 from __future__ import annotations
 
 import math
@@ -13,7 +13,8 @@ from numpy.testing import assert_allclose
 
 from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_plant_sim.axis import AxisConfig, FeedDriveAxis
-from cnc_plant_sim.plant import PLANTS, Plant, PlantConfig, make_plant
+from cnc_plant_sim.feed_drives import FeedDrivePlant
+from cnc_plant_sim.plant import PLANTS, Plant, PlantConfig, PlantEntry, make_plant
 
 NO_VARIATION = {"gain_pct": 0, "time_constant_pct": 0, "friction_pct": 0}
 
@@ -134,6 +135,74 @@ def test_bad_plant_config(mapping: dict, message: str) -> None:
 def test_registry_names() -> None:
     assert set(PLANTS) == {"paper000", "custom"}
     assert isinstance(make_plant(PlantConfig()), Plant)
+
+
+@pytest.mark.parametrize("model", sorted(PLANTS))
+def test_every_entry_keeps_the_protocol(model: str) -> None:
+    overrides = {"x": {"gain_blu_s_per_dac": 20.0, "time_constant_s": 0.05}} if model == "custom" else {}
+    plant = make_plant({"model": model, "axes": ["x"], "axis_overrides": overrides})
+    assert isinstance(plant, Plant)
+    plant.reset([0.001])
+    plant.step([30.0], 0.01)
+    assert plant.positions_m().shape == plant.velocities_m_s().shape == (1,)
+    assert plant.velocities_m_s()[0] > 0.0
+    assert plant.forces_n() is None  # the feed drives' friction is in DAC units: no force in N
+    assert plant.describe()["model"] == model and plant.command_unit == "dac"
+
+
+class ConstantSpeedPlant:
+    """A plant of another kind: every axis moves at command·1 mm/s, and knows a force of 2·command N."""
+
+    command_unit = "mm_s"
+
+    def __init__(self, config: PlantConfig) -> None:
+        self.axis_names = config.axes
+        self.reset()
+
+    def reset(self, positions_m=None) -> None:  # noqa: ANN001
+        self._x = np.array(positions_m if positions_m is not None else [0.0] * len(self.axis_names), float)
+        self._u = np.zeros(len(self.axis_names))
+
+    def step(self, commands, dt_s: float) -> None:  # noqa: ANN001
+        self._u = np.asarray(commands, float)
+        self._x = self._x + self._u * 1e-3 * dt_s
+
+    def positions_m(self) -> np.ndarray:
+        return self._x.copy()
+
+    def velocities_m_s(self) -> np.ndarray:
+        return self._u * 1e-3
+
+    def state(self) -> tuple[list[float], list[float]]:
+        return self.positions_m().tolist(), self.velocities_m_s().tolist()
+
+    def forces_n(self) -> np.ndarray:
+        return 2.0 * self._u
+
+    def describe(self) -> dict:
+        return {"model": "constant_speed"}
+
+
+def check_no_z(config: PlantConfig) -> None:
+    if "z" in config.axes:
+        raise ConfigError("axes: constant_speed has no z")
+
+
+def test_a_plant_added_to_the_registry_is_built_by_make_plant() -> None:
+    PLANTS["constant_speed"] = PlantEntry(ConstantSpeedPlant, check_no_z)
+    try:
+        plant = make_plant({"model": "constant_speed", "axes": ["x", "y"]})
+        assert isinstance(plant, Plant) and not isinstance(plant, FeedDrivePlant)
+        plant.step([10.0, -5.0], 0.5)
+        assert_allclose(plant.positions_m(), [5e-3, -2.5e-3])
+        assert_allclose(plant.forces_n(), [20.0, -10.0])
+        assert plant.state() == ([5e-3, -2.5e-3], [0.01, -0.005])
+        with pytest.raises(ConfigError, match="constant_speed has no z"):
+            make_plant({"model": "constant_speed", "axes": ["x", "z"]})
+        with pytest.raises(ConfigError, match="plant model 'constant_speed' has no feed-drive axes"):
+            PlantConfig(model="constant_speed").nominal_axes()
+    finally:
+        del PLANTS["constant_speed"]
 
 
 

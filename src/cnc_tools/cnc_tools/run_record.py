@@ -1,9 +1,23 @@
-"""A recorded run as arrays: the series read from a bag and how intact the bag was (no rclpy)."""
+"""The run record: one ROS-free type for every run, whether it came from the node graph's bag or the engine.
+
+Every series a run records, as arrays sorted by stamp (integer nanoseconds,
+the header stamps of the graph's messages, ``k·T`` in the engine): the
+measured joint states, the interpolator's references, each servo's commands
+with their parts, and — when the run has those stages — the estimator's
+contour errors, the compensator's corrections and the feed override.
+``integrity`` says how completely the series were read (a bag read through its
+index or salvaged; an engine run is complete by construction) and ``summary``
+is the run's own account (ticks, status, faults, wall time). The scorer,
+reports, benches and tuning take a :class:`RunRecord` and never ask where it
+came from. No rclpy, no rosbags.
+"""
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -51,8 +65,10 @@ class BagIntegrity:
 
     def describe(self) -> str:
         """One line for people: complete, or what was lost."""
+        notes = "".join(f"; {p}" for p in self.problems)
+        if self.complete and self.method == "engine":
+            return f"complete (engine run, {sum(self.found.values())} samples on the per-tick topics, no bag{notes})"
         if self.complete:
-            notes = "".join(f"; {p}" for p in self.problems)
             return f"complete ({sum(self.found.values())} messages read through the index{notes})"
         lost = self.lost
         if lost is None:
@@ -105,8 +121,63 @@ class CommandSeries:
 
 
 @dataclass(frozen=True, eq=False)
-class RecordedRun:
-    """A run read from a bag: program geometry, measured and reference trajectories, commands."""
+class EstimateSeries:
+    """The estimator's contour errors (``contour_error`` topic): scalars (N,), tracking errors (N, n_axes)."""
+
+    stamp_ns: IntArray
+    contour_error_m: FloatArray
+    tracking_error_m: FloatArray
+    segment_index: IntArray
+    angle_rad: FloatArray
+
+
+@dataclass(frozen=True, eq=False)
+class CompensationSeries:
+    """The compensator's corrections (``compensation`` topic), (N, n_axes) in ``command_unit``."""
+
+    stamp_ns: IntArray
+    correction: FloatArray
+    command_unit: str
+
+
+@dataclass(frozen=True, eq=False)
+class FeedOverrideSeries:
+    """The feed override (``feed_override`` topic): requested and applied ratios (N,)."""
+
+    stamp_ns: IntArray
+    requested_ratio: FloatArray
+    applied_ratio: FloatArray
+
+
+#: Where a record came from.
+BACKENDS = ("graph", "engine", "bag")
+
+
+@dataclass(frozen=True, eq=False)
+class RunRecord:
+    """One run: program geometry, measured and reference trajectories, commands, optional stage series.
+
+    Attributes
+    ----------
+    name : str
+        The run's name (scenario name, or the bag folder's).
+    source : Path
+        The bag folder, or the run folder of an engine run (``Path("engine")`` when none).
+    program : Program
+        The programmed geometry the run followed.
+    joint_states, reference, commands
+        The per-tick series every run has (``reference`` None only in a bag without it).
+    integrity : BagIntegrity
+        How completely the series were read.
+    contour_error, compensation, feed_override
+        Series of the optional stages, None when the run had no such stage.
+    summary : Mapping
+        The run's own account: ``ticks``, ``status``, ``faults``, ``wall_time_s``,
+        ``real_time_factor``, the plant as drawn (what the plant node writes to
+        ``summary.json``; empty for a bag read alone).
+    backend : str
+        ``"graph"``, ``"engine"`` or ``"bag"`` (read from a bag without its run folder).
+    """
 
     name: str
     source: Path
@@ -115,8 +186,40 @@ class RecordedRun:
     reference: ReferenceSeries | None
     commands: Mapping[str, CommandSeries]
     integrity: BagIntegrity
+    contour_error: EstimateSeries | None = None
+    compensation: CompensationSeries | None = None
+    feed_override: FeedOverrideSeries | None = None
+    summary: Mapping[str, Any] = field(default_factory=dict)
+    backend: str = "bag"
 
     @property
     def axis_names(self) -> tuple[str, ...]:
         """Axis order of every per-axis array (the program's)."""
         return tuple(self.program.axis_names)
+
+    @property
+    def ticks(self) -> int:
+        """Number of joint-state samples (ticks) recorded."""
+        return int(self.joint_states.stamp_ns.size)
+
+    @property
+    def time_s(self) -> FloatArray:
+        """Joint-state stamps in seconds, (N,)."""
+        return self.joint_states.stamp_ns * 1e-9
+
+    def command_array(self) -> FloatArray:
+        """The commands of every axis as (N, n_axes) in axis order (NaN where an axis has none)."""
+        out = np.full((self.ticks, len(self.axis_names)), np.nan)
+        for k, axis in enumerate(self.axis_names):
+            series = self.commands.get(axis)
+            if series is not None and series.command.size == self.ticks:
+                out[:, k] = series.command
+        return out
+
+    def with_(self, **changes: Any) -> RunRecord:
+        """A copy with some fields replaced (a relabelled or windowed view)."""
+        return dataclasses.replace(self, **changes)
+
+
+#: The former name of :class:`RunRecord` (bags read before the reshape used it).
+RecordedRun = RunRecord

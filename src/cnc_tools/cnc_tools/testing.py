@@ -50,13 +50,15 @@ class _BackgroundNode:
 class TopicProbe(_BackgroundNode):
     """A node in its own context and thread that records messages and publishes on request.
 
-    ``subscriptions`` maps topic -> message type. Use as a context manager.
+    ``subscriptions`` maps topic -> message type; ``name`` and ``namespace`` are the node's
+    (a probe may stand in for a node of the run). Use as a context manager.
     """
 
-    def __init__(self, subscriptions: dict[str, type], name: str = "probe", qos: QoSProfile = LOCKSTEP_QOS) -> None:
+    def __init__(self, subscriptions: dict[str, type], name: str = "probe", qos: QoSProfile = LOCKSTEP_QOS,
+                 namespace: str = "") -> None:
         context = Context()
         rclpy.init(context=context)
-        self._attach(context, Node(name, context=context))
+        self._attach(context, Node(name, namespace=namespace, context=context))
         self.messages: dict[str, list[Any]] = defaultdict(list)
         self._lock = threading.Lock()
         for topic, msg_type in subscriptions.items():

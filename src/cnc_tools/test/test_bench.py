@@ -96,7 +96,8 @@ def per_tick_engine(run: Scenario) -> dict[str, np.ndarray]:
         positions, velocities = plant.positions_m(), plant.velocities_m_s()
         sample = interpolator.sample(ns_to_s(k * sample_ns))
         commands = [servo.step(sample_ns / NS_PER_S, float(sample.position_m[i]), float(sample.velocity_m_s[i]),
-                               float(sample.acceleration_m_s2[i]), float(positions[i])).command
+                               float(sample.acceleration_m_s2[i]), float(positions[i]), float(velocities[i]),
+                               0.0).command
                     for i, servo in enumerate(servos)]
         plant.step(commands, run.sample_time_s)
         for key, value in zip(rows, (positions, velocities, sample.position_m, commands)):
@@ -112,16 +113,17 @@ def test_engine_equals_the_per_tick_computation(name: str, sample_time_s: float)
     run = scenario(ROOT / "scenarios" / f"{name}.yaml", sample_time_s)
     fast, plain = run_engine(run), per_tick_engine(run)
     assert fast.ticks == plain["position"].shape[0]
-    for field, key in (("position_m", "position"), ("velocity_m_s", "velocity"),
-                       ("reference_m", "reference"), ("command", "command")):
-        assert_allclose(getattr(fast, field), plain[key], rtol=0, atol=1e-9, err_msg=field)
+    assert fast.reference is not None
+    for got, key in ((fast.joint_states.position_m, "position"), (fast.joint_states.velocity_m_s, "velocity"),
+                     (fast.reference.position_m, "reference"), (fast.command_array(), "command")):
+        assert_allclose(got, plain[key], rtol=0, atol=1e-9, err_msg=key)
 
 
 def test_servo_command_is_step_command() -> None:
     run = scenario(ROOT / "scenarios" / "paper000_circle_high.yaml", 0.01)
     fast, plain = ServoController(run.servos[0]), ServoController(run.servos[0])
     for k in range(300):
-        args = (0.01, 1e-4 * np.sin(0.05 * k), 1e-3, 0.0, 1e-4 * np.sin(0.05 * k - 0.3))
+        args = (0.01, 1e-4 * np.sin(0.05 * k), 1e-3, 0.0, 1e-4 * np.sin(0.05 * k - 0.3), 1e-3, 0.0)
         assert fast.command(*args) == plain.step(*args).command
 
 

@@ -117,8 +117,8 @@ def test_engine_run_is_scored_by_the_project_scorer_unchanged() -> None:
     scenario = scenario_for(LINE_LOW, get_controller("pid"), seed=1)
     result = run_engine(scenario)
     run = engine_recorded_run(scenario, result)
-    assert_allclose(run.joint_states.position_m, result.position_m)
-    assert_allclose(run.reference.position_m, result.reference_m, atol=1e-12)
+    assert run is result, "the engine gives the run record itself: no bridge between two shapes"
+    assert run.backend == "engine" and run.integrity.complete
     whole, _ = score_views(run)["whole_run"]
     assert score_run(whole).contour.values_si == score_run(run).contour.values_si
 

@@ -10,6 +10,7 @@ import pytest
 from cnc_contour_control.errors import ConfigError
 from cnc_plant_sim.friction import paper000_x, paper000_y
 from cnc_tools.identification import friction as fid
+from cnc_tools.identification import friction_curve as fcurve
 from cnc_tools.cli import identify_friction as fic
 from cnc_tools.cli.main import main
 
@@ -96,7 +97,7 @@ def test_nominal_plant_recovers_eq15_within_the_quantisation(x_points: list[fid.
 
 def test_identified_curve_matches_the_drawn_model_within_the_run_to_run_band(
         x_points: list[fid.FrictionPoint]) -> None:
-    summaries = fid.summarise(x_points)
+    summaries = fcurve.summarise(x_points)
     for s in summaries:
         assert abs(s.nominal.deviation_dac) <= s.half_range_dac, s
         for p in s.varied:
@@ -156,7 +157,7 @@ def _exact_points(speeds: tuple[float, ...]) -> list[fid.FrictionPoint]:
 
 
 def test_fit_recovers_the_eq15_coefficients() -> None:
-    positive, negative = fid.fit_curve(_exact_points(fid.DEFAULT_SPEEDS_MM_S))
+    positive, negative = fcurve.fit_curve(_exact_points(fid.DEFAULT_SPEEDS_MM_S))
     np.testing.assert_allclose(positive.coefficients_dac, (0.05, -1.16, 20.49), atol=1e-9)
     np.testing.assert_allclose(negative.coefficients_dac, (-0.04, -1.00, -18.27), atol=1e-9)
     assert (positive.high_dac, negative.high_dac) == (pytest.approx(13.95), pytest.approx(-11.84))
@@ -165,12 +166,12 @@ def test_fit_recovers_the_eq15_coefficients() -> None:
 
 def test_fit_needs_three_steady_speeds_per_branch() -> None:
     with pytest.raises(ConfigError, match="needs >= 3 steady speeds"):
-        fid.fit_curve(_exact_points((1.0, 2.0)))
+        fcurve.fit_curve(_exact_points((1.0, 2.0)))
 
 
 def test_table_round_trips_and_runs_as_a_plant_friction(tmp_path: Path) -> None:
-    fits = fid.fit_curve(_exact_points(fid.DEFAULT_SPEEDS_MM_S))
-    table = fid.load_table(fid.write_table(tmp_path / "t.yaml", fid.fitted_table(fits, 20.0), fits, {"axis": "x"}))
+    fits = fcurve.fit_curve(_exact_points(fid.DEFAULT_SPEEDS_MM_S))
+    table = fcurve.load_table(fcurve.write_table(tmp_path / "t.yaml", fcurve.fitted_table(fits, 20.0), fits, {"axis": "x"}))
     model = paper000_x()
     for v in (-20.0, -11.0, -3.3, -0.2, 0.2, 3.3, 11.0, 20.0):
         assert table.force(v) == pytest.approx(model.force(v), abs=0.02)
@@ -190,7 +191,7 @@ def test_cli_engine_writes_points_figure_and_table(tmp_path: Path, capsys: pytes
     for name in ("points.csv", "curve.csv", "friction_velocity.png", "friction_table.yaml"):
         assert (out / name).stat().st_size > 0 and f"wrote: {out / name}" in printed
     assert len((out / "points.csv").read_text().splitlines()) == 1 + 8 * 3
-    assert fid.load_table(table).breakaway_positive > 18.0
+    assert fcurve.load_table(table).breakaway_positive > 18.0
 
 
 def test_cli_refuses_a_non_positive_speed(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

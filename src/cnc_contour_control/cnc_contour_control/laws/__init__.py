@@ -1,16 +1,8 @@
-"""Feedback laws of the servo, chosen by name from :data:`LAWS`."""
+"""Feedback laws of the servo: the seam (:mod:`.base`) and the registry :data:`LAWS` (:mod:`.registry`)."""
 from __future__ import annotations
 
-from cnc_contour_control.laws.registry import (
-    LAWS,
-    FeedbackLaw,
-    LawFactory,
-    make_law,
-    register_law,
-)
+from cnc_contour_control.laws.base import FeedbackLaw, LawOutput, LawSample
+from cnc_contour_control.laws.registry import LAWS, LawEntry, law_config, law_config_class, make_law
 
-# Importing a law module registers its laws.
-from cnc_contour_control.laws import pid  # noqa: E402,F401
-from cnc_contour_control.laws import fuzzy  # noqa: E402,F401
-
-__all__ = ["LAWS", "FeedbackLaw", "LawFactory", "make_law", "register_law"]
+__all__ = ["LAWS", "FeedbackLaw", "LawEntry", "LawOutput", "LawSample", "law_config", "law_config_class",
+           "make_law"]

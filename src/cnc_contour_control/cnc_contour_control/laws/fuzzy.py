@@ -1,8 +1,9 @@
 """Fuzzy logic servo law of paper 000 (PD-type FLC plus an integral term).
 
 The law is ``u(k) = u_scale * F[e_scale * e(k), de_scale * de(k)] + u_I(k)``
-with ``de(k) = e(k) - e(k-1)`` and ``u_I(k) = u_I(k-1) + ki * e(k)`` clamped to
-``+-integral_limit`` (paper 000, Eqs. 3-8). ``F`` uses seven fuzzy sets per
+with the error rate ``de(k) = (e(k) - e(k-1)) / T_k`` and ``u_I(k) = u_I(k-1) +
+ki * T_k * e(k)`` clamped to ``+-integral_limit`` (paper 000, Eqs. 3-8, in time
+units; ``T_k`` is the sample's ``dt_s``). ``F`` uses seven fuzzy sets per
 variable (NL NM NS ZR PS PM PL): triangles whose feet sit at the neighbours'
 centres, shoulders beyond NL and PL, Mamdani min inference and the simplified
 centre-of-area defuzzification of Eq. 8. Because neighbouring triangles form a
@@ -10,10 +11,15 @@ partition of unity, each input lies in at most two sets and at most four rules
 fire; ``F`` locates the two active sets by bisection and never loops over the
 49 rules.
 
-Units: the error is in the law's length unit (BLU = 10 um for paper 000), the
-output in drive units (DAC). The law is defined per sample: ``de`` is the
-change over one sample and ``ki`` the gain per sample, so the paper's centres
-and gains assume its sample time T = 0.01 s.
+Units: the error is in the law's length unit (counts; BLU = 10 um for paper
+000), the error rate in counts/s, the output in drive units (DAC). ``ki`` is
+per second. The paper defines the law per sample (``de`` the change over one
+sample, ``ki`` per sample) at T = 0.01 s; its Table 3 change-of-error centres
+(+-1.5, 3, 4.5 BLU per sample) and Table 4's ``ki = 0.1`` per sample are the
+defaults here as rates: +-150, 300, 450 BLU/s and ``ki = 10 /s``
+(:func:`fuzzy_params_from_per_sample` converts), so at T = 10 ms the law is the
+paper's, to rounding, and at another T it keeps the same map of error and
+error rate.
 
 ``cnc-contour bench laws`` measures the cost per step beside the PID's and
 prints the equivalent gains of every rule base beside the paper's Table 4
@@ -26,14 +32,10 @@ from bisect import bisect_right
 from collections.abc import Mapping, Sequence
 from typing import Any, Union
 
-from cnc_contour_control.config import (
-    build_config,
-    require_finite,
-    require_non_negative,
-    require_positive,
-)
+from cnc_contour_control.config import require_finite, require_positive
 from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.laws.registry import register_law
+from cnc_contour_control.laws.base import LawOutput, LawSample, require_config
+from cnc_contour_control.params import check_ranges, param
 
 #: Names of the seven fuzzy sets, from most negative to most positive.
 SET_NAMES: tuple[str, ...] = ("NL", "NM", "NS", "ZR", "PS", "PM", "PL")
@@ -41,6 +43,30 @@ N_SETS = len(SET_NAMES)
 
 RuleBase = tuple[tuple[str, ...], ...]
 RuleBaseSpec = Union[str, Sequence[Sequence[str]]]
+
+#: Paper 000's sample time [s]: its Table 3 and 4 values are per sample at this T.
+PAPER000_SAMPLE_TIME_S = 0.01
+#: Paper 000, Table 3: centres of the change of error, BLU per sample (at T = 10 ms).
+PAPER000_DE_CENTRES_PER_SAMPLE: tuple[float, ...] = (-4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5)
+#: Range of the input and output scales (dimensionless).
+SCALE_RANGE = (1.0e-9, 1.0e9)
+
+
+def fuzzy_params_from_per_sample(params: Mapping[str, Any], sample_time_s: float) -> dict[str, Any]:
+    """FLC params given per sample at ``sample_time_s`` [s] (as paper 000's tables) in this law's units.
+
+    ``de_centres`` (change per sample) become rates (divided by T) and ``ki``
+    (per sample) becomes per second (divided by T); every other key is kept.
+    ``{"de_centres": PAPER000_DE_CENTRES_PER_SAMPLE, "ki": 0.1}`` at 0.01 s gives
+    the defaults of :class:`FuzzyConfig`.
+    """
+    period = require_positive("sample_time_s", sample_time_s)
+    out = dict(params)
+    if "de_centres" in out:
+        out["de_centres"] = tuple(float(c) / period for c in out["de_centres"])
+    if "ki" in out:
+        out["ki"] = float(out["ki"]) / period
+    return out
 
 
 def _rows(*rows: str) -> RuleBase:
@@ -139,46 +165,49 @@ def _check_centres(name: str, value: Sequence[float]) -> tuple[float, ...]:
 
 @dataclasses.dataclass(frozen=True)
 class FuzzyConfig:
-    """Configuration of the FLC of paper 000 (defaults: Tables 1, 3 and 4).
+    """Configuration of the FLC of paper 000 (defaults: Tables 1, 3 and 4, in time units at T = 10 ms).
 
     Attributes
     ----------
     e_centres : tuple of 7 float
-        Centres of NL..PL for the error, in law length units (BLU).
+        Centres of NL..PL for the error, in law length units (counts; BLU).
     de_centres : tuple of 7 float
-        Centres for the change of error per sample, in BLU.
+        Centres for the error rate, counts/s (Table 3's +-1.5, 3, 4.5 BLU per sample / 10 ms).
     u_centres : tuple of 7 float
         Centres of the output sets, in drive units (DAC).
     rule_base : 7x7 tuple of set names, or a key of ``RULE_BASES``
         Output set of each rule; rows e = NL..PL, columns de = NL..PL.
     e_scale, de_scale : float
-        Input scaling factors (> 0): ``F`` sees ``e_scale * e`` and ``de_scale * de``.
+        Input scaling factors in [1e-9, 1e9]: ``F`` sees ``e_scale * e`` and ``de_scale * de``.
     u_scale : float
-        Output scaling factor (> 0) applied to ``F``.
+        Output scaling factor in [1e-9, 1e9] applied to ``F``.
     ki : float
-        Integral gain per sample, DAC per BLU (Eq. 3; Table 4: 0.1).
+        Integral gain, drive units per count-second, in [0, 1e6] (Eq. 3; Table 4's 0.1 per sample is 10 /s).
     integral_limit : float
-        Anti-windup clamp of the integral term, DAC (>= 0).
+        Anti-windup clamp of the integral term, drive units, in [0, 1e12].
     """
 
-    e_centres: tuple[float, ...] = (-21.0, -14.0, -7.0, 0.0, 7.0, 14.0, 21.0)
-    de_centres: tuple[float, ...] = (-4.5, -3.0, -1.5, 0.0, 1.5, 3.0, 4.5)
-    u_centres: tuple[float, ...] = (-55.0, -35.0, -15.0, 0.0, 15.0, 35.0, 55.0)
-    rule_base: RuleBaseSpec = "paper000"
-    e_scale: float = 1.0
-    de_scale: float = 1.0
-    u_scale: float = 1.0
-    ki: float = 0.1
-    integral_limit: float = 127.0
+    e_centres: tuple[float, ...] = param((-21.0, -14.0, -7.0, 0.0, 7.0, 14.0, 21.0), unit="count",
+                                         description="centres of the error sets NL..PL, strictly increasing")
+    de_centres: tuple[float, ...] = param((-450.0, -300.0, -150.0, 0.0, 150.0, 300.0, 450.0), unit="count/s",
+                                          description="centres of the error-rate sets NL..PL, strictly increasing")
+    u_centres: tuple[float, ...] = param((-55.0, -35.0, -15.0, 0.0, 15.0, 35.0, 55.0), unit="drive",
+                                         description="centres of the output sets NL..PL, strictly increasing")
+    rule_base: RuleBaseSpec = param("paper000", description=f"rule base: one of {sorted(RULE_BASES)} "
+                                    "or a 7x7 table of set names (rows e, columns de)")
+    e_scale: float = param(1.0, low=SCALE_RANGE[0], high=SCALE_RANGE[1], description="error input scale")
+    de_scale: float = param(1.0, low=SCALE_RANGE[0], high=SCALE_RANGE[1], description="error-rate input scale")
+    u_scale: float = param(1.0, low=SCALE_RANGE[0], high=SCALE_RANGE[1], description="output scale")
+    ki: float = param(10.0, unit="drive/(count*s)", low=0.0, high=1.0e6,
+                      description="integral gain (per second; Table 4's 0.1 per sample at T = 10 ms is 10)")
+    integral_limit: float = param(127.0, unit="drive", low=0.0, high=1.0e12,
+                                  description="clamp of the integral term (anti-windup)")
 
     def __post_init__(self) -> None:
         for name in ("e_centres", "de_centres", "u_centres"):
             object.__setattr__(self, name, _check_centres(name, getattr(self, name)))
         object.__setattr__(self, "rule_base", _check_rule_base(self.rule_base))
-        for name in ("e_scale", "de_scale", "u_scale"):
-            object.__setattr__(self, name, require_positive(name, getattr(self, name)))
-        for name in ("ki", "integral_limit"):
-            object.__setattr__(self, name, require_non_negative(name, getattr(self, name)))
+        check_ranges(self, "fuzzy")
 
     def output_table(self) -> tuple[tuple[float, ...], ...]:
         """Return the 7x7 output centres C_ij (DAC, before ``u_scale``) of the rule base."""
@@ -253,9 +282,9 @@ class FuzzySurface:
     Attributes
     ----------
     e_points : tuple of 7 float
-        Error centres in BLU of unscaled error (``e_centres / e_scale``).
+        Error centres in counts of unscaled error (``e_centres / e_scale``).
     de_points : tuple of 7 float
-        Change-of-error centres in BLU (``de_centres / de_scale``).
+        Error-rate centres in counts/s (``de_centres / de_scale``).
     cells : 6x6 tuple of 4-tuples of float
         Output centres (DAC, times ``u_scale``) of the rules of each cell:
         ``cells[i][j] = (C[i][j], C[i][j+1], C[i+1][j], C[i+1][j+1])``.
@@ -273,7 +302,7 @@ class FuzzySurface:
         )
 
     def __call__(self, e: float, de: float) -> float:
-        """Return the PD part (DAC) for the error ``e`` and its change ``de`` (BLU per sample)."""
+        """Return the PD part (drive units) for the error ``e`` [counts] and its rate ``de`` [counts/s]."""
         i, a = _locate(e, self.e_points, self.e_inverse_widths)
         j, b = _locate(de, self.de_points, self.de_inverse_widths)
         return _infer(self.cells[i][j], a, b)
@@ -287,15 +316,21 @@ class FuzzyLaw:
     """
 
     def __init__(self, config: FuzzyConfig) -> None:
-        self.config = config
+        self.output = LawOutput()
+        self._prev_error = 0.0
+        self._integral = 0.0
+        self.retune(config)
+
+    def retune(self, config: FuzzyConfig) -> None:
+        """Swap the map, ``ki`` and the clamp, keeping e(k-1) and u_I (the integral is clamped anew)."""
+        self.config = require_config("fuzzy", config, FuzzyConfig)
         self.surface = FuzzySurface(config)
         s = self.surface
         self._e_c, self._de_c, self._cells = s.e_points, s.de_points, s.cells
         self._e_inv, self._de_inv = s.e_inverse_widths, s.de_inverse_widths
         self._ki = config.ki
-        self._limit = config.integral_limit
-        self._prev_error = 0.0
-        self._integral = 0.0
+        self._limit = limit = config.integral_limit
+        self._integral = max(-limit, min(limit, self._integral))
 
     @property
     def integral(self) -> float:
@@ -307,24 +342,23 @@ class FuzzyLaw:
         self._prev_error = 0.0
         self._integral = 0.0
 
-    def step(self, error: float, dt_s: float) -> float:
-        """Return the command (DAC) for the error ``error`` (BLU, a float) of this sample.
+    def step(self, sample: LawSample) -> LawOutput:
+        """The command (drive units) for ``sample.error_counts`` over ``sample.dt_s``.
 
-        ``dt_s`` is accepted for the law interface and not used: the FLC is
-        defined per sample (its centres and ``ki`` include the sample time).
         The body is :class:`FuzzySurface` inlined: this runs every sample of
         every axis, and a function call costs a fifth of the step.
 
         Raises
         ------
         FaultError
-            If ``error`` is NaN or infinite (the state is left unchanged).
+            If the error is NaN or infinite (the state is left unchanged).
         """
+        error, dt_s = sample.error_counts, sample.dt_s
         if error - error != 0.0:  # NaN or +-inf, cheaper than math.isfinite
             raise FaultError(f"fuzzy law: error must be finite, got {error!r}")
-        de = error - self._prev_error
+        de = (error - self._prev_error) / dt_s
         self._prev_error = error
-        integral = self._integral + self._ki * error
+        integral = self._integral + self._ki * dt_s * error
         limit = self._limit
         integral = limit if integral > limit else (-limit if integral < -limit else integral)
         self._integral = integral
@@ -351,11 +385,7 @@ class FuzzyLaw:
         w01 = a0 if a0 < b else b
         w10 = a if a < b0 else b0
         w11 = a if a < b else b
-        return (w00 * c00 + w01 * c01 + w10 * c10 + w11 * c11) / (w00 + w01 + w10 + w11) + integral
-
-
-@register_law("fuzzy")
-def make_fuzzy_law(params: Mapping[str, Any]) -> FuzzyLaw:
-    """Build a :class:`FuzzyLaw` from a mapping of :class:`FuzzyConfig` keys."""
-    return FuzzyLaw(build_config(FuzzyConfig, params, "fuzzy"))
+        out = self.output
+        out.feedback = (w00 * c00 + w01 * c01 + w10 * c10 + w11 * c11) / (w00 + w01 + w10 + w11) + integral
+        return out
 

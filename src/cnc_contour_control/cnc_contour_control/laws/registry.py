@@ -1,57 +1,63 @@
-"""The registry of feedback laws: a law is chosen by name and built from a params mapping.
+"""The registry of feedback laws: an explicit table of name -> (config class, builder).
 
-A feedback law turns the following error (in the law's length unit, BLU for
-paper 000) into a feedback command in drive units (DAC for paper 000),
-before the servo adds feedforward and compensation and saturates.
+A feedback law turns one :class:`~cnc_contour_control.laws.base.LawSample`
+(the following error in counts, BLU for paper 000, and the measured and
+reference motion) into a feedback command in drive units (DAC for paper 000),
+before the servo adds feedforward and compensation, saturates and quantises.
+A new law is a module with a config dataclass (fields declared with
+:func:`~cnc_contour_control.params.param`) and a class keeping
+:class:`~cnc_contour_control.laws.base.FeedbackLaw`, plus one line in
+:data:`LAWS`.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from typing import Any, Protocol, runtime_checkable
+from dataclasses import dataclass
+from typing import Any
 
-from cnc_contour_control.config import require_choice
-
-
-@runtime_checkable
-class FeedbackLaw(Protocol):
-    """A discrete feedback law with internal state."""
-
-    def reset(self) -> None:
-        """Clear the internal state (as at start-up)."""
-
-    def step(self, error: float, dt_s: float) -> float:
-        """One sample: ``error`` in law length units, ``dt_s`` the period [s].
-
-        Returns the feedback command in drive units, not yet saturated by the servo.
-        """
+from cnc_contour_control.config import build_config, require_choice
+from cnc_contour_control.laws.base import FeedbackLaw
+from cnc_contour_control.laws.fuzzy import FuzzyConfig, FuzzyLaw
+from cnc_contour_control.laws.pid import PConfig, PidConfig, PidLaw, PLaw
 
 
-#: A law factory: params mapping -> law (validates the params, unknown keys refused).
-LawFactory = Callable[[Mapping[str, Any]], FeedbackLaw]
+@dataclass(frozen=True)
+class LawEntry:
+    """One law of the registry.
 
-#: Feedback laws by name.
-LAWS: dict[str, LawFactory] = {}
-
-
-def register_law(name: str) -> Callable[[LawFactory], LawFactory]:
-    """Decorator registering ``factory`` under ``name`` in :data:`LAWS`.
-
-    Raises
-    ------
-    ValueError
-        If ``name`` is already taken.
+    Attributes
+    ----------
+    config_class : type
+        The law's frozen, validated config dataclass (its gains); every field
+        declares unit, range and description with ``param(...)``.
+    build : Callable
+        Validated config -> a fresh law.
     """
 
-    def decorate(factory: LawFactory) -> LawFactory:
-        if name in LAWS:
-            raise ValueError(f"feedback law {name!r} is already registered")
-        LAWS[name] = factory
-        return factory
+    config_class: type
+    build: Callable[[Any], FeedbackLaw]
 
-    return decorate
+
+#: Feedback laws by name.
+LAWS: dict[str, LawEntry] = {
+    "pid": LawEntry(PidConfig, PidLaw),
+    "p": LawEntry(PConfig, PLaw),
+    "fuzzy": LawEntry(FuzzyConfig, FuzzyLaw),
+}
+
+
+def law_config_class(name: str) -> type:
+    """The config class of the law ``name``; an unknown name lists the valid ones."""
+    require_choice("law", name, LAWS)
+    return LAWS[name].config_class
+
+
+def law_config(name: str, params: Mapping[str, Any] | None = None) -> Any:
+    """The validated config of the law ``name`` from ``params`` (unknown keys refused)."""
+    return build_config(law_config_class(name), params or {}, context=name)
 
 
 def make_law(name: str, params: Mapping[str, Any] | None = None) -> FeedbackLaw:
     """Build the law ``name`` from ``params``; an unknown name lists the valid ones."""
-    require_choice("law", name, LAWS)
-    return LAWS[name](params or {})
+    config = law_config(name, params)
+    return LAWS[name].build(config)

@@ -8,7 +8,8 @@ from __future__ import annotations
 import importlib
 import sys
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from typing import Any
 
 import rclpy
@@ -18,10 +19,12 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from cnc_contour_control.errors import CncError, FaultError
 from cnc_contour_control.lockstep import join_ns, split_ns
+from cnc_contour_control.topics import RUN_ID_KEY, qualify
 
 #: Lockstep data: reliable and deep, so nothing is dropped while a stage is busy.
 LOCKSTEP_QOS = QoSProfile(
@@ -71,18 +74,75 @@ def describe(
     return descriptor
 
 
+class ReaderGate:
+    """Opens once a writer has matched the readers a run needs, known by node name, not only by count.
+
+    Identities come from the ROS graph (node name and namespace of each
+    subscription on the topic), delivery from the writer (its matched-reader
+    count). The gate opens when every ``required`` reader is in the graph and
+    the writer has matched at least ``min_count`` readers and at least as many
+    as the graph shows with a compatible type and QoS, so a foreign listener
+    cannot stand in for a required reader. The remaining race is in
+    docs/design.md §3.
+    """
+
+    def __init__(self, node: Node, publisher: Any, type_name: str, required: Sequence[str], min_count: int) -> None:
+        self.node, self.publisher, self.type_name = node, publisher, type_name
+        self.required = tuple(sorted({qualify(node.get_namespace(), r) for r in required if r}))
+        self.min_count = int(min_count)
+        self.created_s = wall_time_s()
+
+    def _graph_readers(self) -> list[Any]:
+        infos = self.node.get_subscriptions_info_by_topic(self.publisher.topic_name)
+        return [i for i in infos if i.topic_type == self.type_name]
+
+    def missing(self) -> list[str]:
+        """Required readers the graph does not show yet, and unmatched ones as a count."""
+        readers = self._graph_readers()
+        present = {qualify(i.node_namespace, i.node_name) for i in readers}
+        missing = [name for name in self.required if name not in present]
+        compatible = sum(1 for i in readers if _delivers(self.publisher.qos_profile, i.qos_profile))
+        wanted = max(self.min_count, compatible if self.required else 0)
+        matched = self.publisher.get_subscription_count()
+        return missing + ([f"{wanted - matched} of {wanted} readers unmatched"] if matched < wanted else [])
+
+    def ready(self) -> bool:
+        """True when every required reader is there and matched."""
+        return not self.missing()
+
+    def overdue(self, timeout_s: float) -> str | None:
+        """What is missing, once the gate has waited longer than ``timeout_s`` since it was made."""
+        if wall_time_s() - self.created_s <= timeout_s:
+            return None
+        missing = self.missing()
+        return f"{self.publisher.topic_name} readers missing after {timeout_s} s: {missing}" if missing else None
+
+
+def _delivers(writer_qos: QoSProfile, reader_qos: QoSProfile) -> bool:
+    """True unless the reader asks more than the writer offers (reliability, durability: what our profiles set).
+
+    (rclpy's ``qos_check_compatible`` reads the graph's "infinite" deadline as
+    set and the writer's "system default" as unset, and refuses every pair.)
+    """
+    if reader_qos.reliability == ReliabilityPolicy.RELIABLE and writer_qos.reliability == ReliabilityPolicy.BEST_EFFORT:
+        return False
+    return not (reader_qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                and writer_qos.durability == DurabilityPolicy.VOLATILE)
+
+
 class GatedPublisher:
-    """Holds messages until the writer has matched ``min_subscribers`` readers, then publishes in order.
+    """Holds messages until its gate (a :class:`ReaderGate` or a reader count) opens, then publishes in order.
 
     With volatile durability a reader matched late never sees earlier samples,
     so a lockstep stage publishes nothing before all its readers are there.
     """
 
-    def __init__(self, publisher: Any, min_subscribers: int) -> None:
+    def __init__(self, publisher: Any, min_subscribers: int = 0, gate: ReaderGate | None = None) -> None:
         self.publisher = publisher
         self.min_subscribers = int(min_subscribers)
+        self.gate = gate
         self._held: list[Any] = []
-        self._open = self.min_subscribers <= 0
+        self._open = gate is None and self.min_subscribers <= 0
 
     def publish(self, msg: Any) -> None:
         """Publish now if the readers are there, else hold."""
@@ -95,9 +155,10 @@ class GatedPublisher:
         return self._open
 
     def flush(self) -> None:
-        """Publish what is held once enough readers are matched (checked until they are)."""
-        if not self._open and self.publisher.get_subscription_count() >= self.min_subscribers:
-            self._open = True
+        """Publish what is held once the readers are matched (checked until they are)."""
+        if not self._open:
+            self._open = (self.gate.ready() if self.gate is not None
+                          else self.publisher.get_subscription_count() >= self.min_subscribers)
         if self._open:
             for msg in self._held:
                 self.publisher.publish(msg)
@@ -114,12 +175,39 @@ class SuiteNode(Node):
         self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 100)
 
     def gated_publisher(self, msg_type: type, topic: str, default_min: int) -> GatedPublisher:
-        """A lockstep publisher that waits for ``min_subscribers`` matched readers (a parameter)."""
-        minimum = self.declare("min_subscribers", default_min, describe(
-            f"readers of {topic} to wait for before publishing", 0, 1000, True, True))
-        gated = GatedPublisher(self.create_publisher(msg_type, topic, LOCKSTEP_QOS), minimum)
+        """A lockstep publisher that waits for its readers (parameters ``required_readers``, ``min_subscribers``)."""
+        publisher = self.create_publisher(msg_type, topic, LOCKSTEP_QOS)
+        gated = GatedPublisher(publisher, gate=self.reader_gate(publisher, msg_type, "min_subscribers", default_min))
         timer = self.create_timer(0.01, lambda: gated.flush() or (gated.is_open and timer.cancel()))
         return gated
+
+    def reader_gate(self, publisher: Any, msg_type: type, count_parameter: str, default_min: int) -> ReaderGate:
+        """The gate of ``publisher``: the readers named by ``required_readers``, at least ``count_parameter`` of them."""
+        topic = publisher.topic_name
+        minimum = self.declare(count_parameter, default_min, describe(
+            f"readers of {topic} to wait for before publishing", 0, 1000, True, True))
+        required = self.declare("required_readers", Parameter.Type.STRING_ARRAY, describe(
+            f"node names (relative to the namespace, or absolute) that must read {topic} before it publishes",
+            read_only=True))
+        return ReaderGate(self, publisher, type_name_of(msg_type), list(required or ()), minimum)
+
+    def subscribe_checked(self, msg_type: type, topic: str, accept: Callable[[Any], Any],
+                          then: Callable[[Any], None] | None = None, qos: QoSProfile = LOCKSTEP_QOS) -> Any:
+        """Subscribe; a fault while ``accept`` checks a message names the topic; ``then`` gets a non-None result."""
+        resolved = self.resolve_topic_name(topic)
+
+        def receive(msg: Any) -> None:
+            with naming_topic(resolved):
+                result = accept(msg)
+            if then is not None and result is not None:
+                then(result)
+
+        return self.create_subscription(msg_type, topic, self.guarded(receive), qos)
+
+    @property
+    def status_publisher(self) -> Any:
+        """The publisher of this node's statuses (``/diagnostics``, remapped into the run's namespace by the runner)."""
+        return self._diagnostics
 
     def declare(self, name: str, default: Any, descriptor: ParameterDescriptor) -> Any:
         """Declare a parameter and return its value."""
@@ -132,7 +220,7 @@ class SuiteNode(Node):
             name=self.get_fully_qualified_name(),
             message=message,
             hardware_id="cnc_contour",
-            values=[KeyValue(key=k, value=v) for k, v in (values or {}).items()],
+            values=[KeyValue(key=k, value=v) for k, v in {RUN_ID_KEY: self.get_namespace(), **(values or {})}.items()],
         )
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()
@@ -159,6 +247,20 @@ class SuiteNode(Node):
                 self.fault(str(err))
 
         return run
+
+
+@contextmanager
+def naming_topic(topic: str) -> Iterator[None]:
+    """Re-raise a :class:`FaultError` with ``topic`` in front (a fault says where the bad message came from)."""
+    try:
+        yield
+    except FaultError as err:
+        raise FaultError(f"{topic}: {err}") from err
+
+
+def type_name_of(msg_type: type) -> str:
+    """``pkg/msg/Name`` of an rclpy message class."""
+    return f"{msg_type.__module__.split('.')[0]}/msg/{msg_type.__name__}"
 
 
 def message_class(type_name: str, topic: str = "") -> type:
@@ -221,10 +323,14 @@ def _flush_and_destroy(node: SuiteNode) -> None:
         print(f"FAULT: {node.fault_message}", file=sys.stderr, flush=True)
     # After a fault, readers may be gone: wait briefly so the diagnostic still leaves.
     timeout = Duration(seconds=0.3 if node.fault_message else 2.0)
-    if node.context.ok():  # after SIGINT/SIGTERM the context is gone and nothing can be flushed
-        for publisher in list(node.publishers):
-            publisher.wait_for_all_acked(timeout)
-    node.destroy_node()
+    try:
+        if node.context.ok():  # after SIGINT/SIGTERM the context is gone and nothing can be flushed
+            for publisher in list(node.publishers):
+                publisher.wait_for_all_acked(timeout)
+    except RuntimeError:  # rclpy's RCLError: a signal shut the context down meanwhile
+        pass
+    finally:
+        node.destroy_node()  # always: the recorder closes its bag here
 
 
 def require(condition: bool, message: str) -> None:

@@ -38,6 +38,8 @@ def reference_axis(msg: Reference, axis: str) -> tuple[float, float, float]:
     if axis not in msg.axis_names:
         raise_missing_axis("reference", axis, msg.axis_names)
     index = list(msg.axis_names).index(axis)
+    for name in ("position_m", "velocity_m_s", "acceleration_m_s2"):
+        require_length(getattr(msg, name), len(msg.axis_names), f"reference.{name}", "axis_names")
     values = (msg.position_m[index], msg.velocity_m_s[index], msg.acceleration_m_s2[index])
     require_finite_values(values, f"reference[{axis}] (position_m, velocity_m_s, acceleration_m_s2)")
     return values
@@ -59,9 +61,28 @@ def joint_position(msg: JointState, axis: str) -> float:
     """Position [m] of one axis from a JointState; faults on bad data."""
     if axis not in msg.name:
         raise_missing_axis("joint_states", axis, msg.name)
+    require_length(msg.position, len(msg.name), "joint_states.position", "name")
     value = msg.position[list(msg.name).index(axis)]
     require_finite_values((value,), f"joint_states.position[{axis}]")
     return float(value)
+
+
+def joint_velocity(msg: JointState, axis: str) -> float:
+    """Velocity [m/s] of one axis from a JointState (0 when the message carries no velocities); faults on bad data."""
+    if axis not in msg.name:
+        raise_missing_axis("joint_states", axis, msg.name)
+    if not len(msg.velocity):
+        return 0.0
+    require_length(msg.velocity, len(msg.name), "joint_states.velocity", "name")
+    value = msg.velocity[list(msg.name).index(axis)]
+    require_finite_values((value,), f"joint_states.velocity[{axis}]")
+    return float(value)
+
+
+def require_length(values: Sequence[float], count: int, field: str, names_field: str) -> None:
+    """Fault: a per-axis array field does not hold one value per axis name."""
+    if len(values) != count:
+        raise FaultError(f"{field} has {len(values)} values for {count} {names_field}")
 
 
 def raise_missing_axis(what: str, axis: str, present: Sequence[str]) -> NoReturn:
@@ -121,6 +142,7 @@ def compensation_for(msg: object, axis: str) -> float:
     names = list(msg.axis_names)  # type: ignore[attr-defined]
     if axis not in names:
         raise_missing_axis("compensation", axis, names)
+    require_length(msg.correction, len(names), "compensation.correction", "axis_names")  # type: ignore[attr-defined]
     value = float(msg.correction[names.index(axis)])  # type: ignore[attr-defined]
     require_finite_values((value,), f"compensation.correction[{axis}]")
     return value

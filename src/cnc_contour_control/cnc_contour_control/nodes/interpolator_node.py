@@ -1,6 +1,7 @@
 """Interpolator node: part program -> per-axis reference every tick, and the latched path."""
 from __future__ import annotations
 
+import math
 from typing import Any
 
 from cnc_contour_interfaces.msg import Path, Reference
@@ -8,18 +9,22 @@ from sensor_msgs.msg import JointState
 
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_contour_control.lockstep import ns_to_s
+from cnc_contour_control.lockstep import StampMatcher, ns_to_s, stamp_horizon_ns
 from cnc_contour_control.nodes.common import (
     LATCHED_QOS,
-    LOCKSTEP_QOS,
     SuiteNode,
-    describe,
     spin_node,
     stamp_to_ns,
+    wall_time_s,
 )
 from cnc_contour_control.nodes.conversions import joint_positions, program_to_path, reference_to_msg
+from cnc_contour_control.nodes.parameters import declare_config
 from cnc_contour_control.program_file import read_program_file
-from cnc_contour_control.units import mm_s2_to_m_s2, mm_min_to_m_s
+from cnc_contour_control.stage_params import InterpolatorRunParams
+
+#: Axis limits of a node started without them: 6000 mm/min and 1000 mm/s^2 on every axis.
+DEFAULT_MAX_VELOCITY_M_S = 0.1
+DEFAULT_MAX_ACCELERATION_M_S2 = 1.0
 
 
 class InterpolatorNode(SuiteNode):
@@ -27,45 +32,41 @@ class InterpolatorNode(SuiteNode):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("interpolator", **kwargs)
-        self.axes = tuple(self.declare("axes", ["x", "y"], describe("axis names, in order", read_only=True)))
-        self.frame_id = self.declare("frame_id", "machine", describe("frame of the references", read_only=True))
-        self.interpolator = self._make_interpolator()
+        run = declare_config(self, InterpolatorRunParams)
+        self.axes, self.frame_id = run.axes, run.frame_id
+        self.interpolator = self._make_interpolator(run.program_file)
         self.reference_pub = self.gated_publisher(Reference, "reference", 1)
         path_pub = self.create_publisher(Path, "path", LATCHED_QOS)
         path_pub.publish(
             program_to_path(self.interpolator.program, 0, self.frame_id, self.interpolator.duration_s)
         )
-        self.create_subscription(JointState, "joint_states", self.guarded(self.on_tick), LOCKSTEP_QOS)
+        # No watchdog: every joint state is answered at once; the matcher checks stamps (from t = 0).
+        self.matcher = StampMatcher(("joint_states",), math.inf, max_ahead_ns=stamp_horizon_ns())
+        self.matcher.expect(0, wall_time_s())
+        self.subscribe_checked(JointState, "joint_states", self._accept, then=self.on_tick)
 
-    def _make_interpolator(self) -> Interpolator:
-        program_file = self.declare("program_file", "", describe("YAML program/scenario or G-code file", read_only=True))
-        velocity = self.declare("max_velocity_mm_min", [6000.0], describe("per-axis velocity limit, mm/min", read_only=True))
-        accel = self.declare("max_acceleration_mm_s2", [1000.0], describe("per-axis acceleration limit, mm/s^2", read_only=True))
-        config = InterpolatorConfig(
-            corner_angle_tolerance_deg=self.declare("corner_angle_tolerance_deg", 1e-4, describe("junction angle treated as tangent, deg", 0.0, 10.0, True)),
-            arc_centripetal_fraction=self.declare("arc_centripetal_fraction", 0.5, describe("share of acceleration for centripetal use on arcs", 0.01, 0.99, True)),
-            clamp_feed=self.declare("clamp_feed", False, describe("slow down instead of refusing a feed above the axis limits", read_only=True)),
-        )
+    def _make_interpolator(self, program_file: str) -> Interpolator:
+        """The program's interpolator with the declared limits (config units: m/s, m/s^2) and options."""
+        config = declare_config(self, InterpolatorConfig)
+        n_axes = len(self.axes)
+        limits = declare_config(self, AxisLimits, defaults={
+            "max_velocity_m_s": [DEFAULT_MAX_VELOCITY_M_S] * n_axes,
+            "max_acceleration_m_s2": [DEFAULT_MAX_ACCELERATION_M_S2] * n_axes})
         program = read_program_file(program_file, self.axes)
         if tuple(program.axis_names) != self.axes:
             raise ConfigError(f"program axes {list(program.axis_names)} differ from parameter axes {list(self.axes)}")
-        limits = AxisLimits(
-            max_velocity_m_s=tuple(mm_min_to_m_s(v) for v in _per_axis(velocity, len(self.axes))),
-            max_acceleration_m_s2=tuple(mm_s2_to_m_s2(a) for a in _per_axis(accel, len(self.axes))),
-        )
         return Interpolator(program, limits, config)
+
+    def _accept(self, msg: JointState) -> JointState | None:
+        """A joint state's values, then its stamp, checked; None for a stale one."""
+        joint_positions(msg, self.axes)
+        return None if self.matcher.add("joint_states", stamp_to_ns(msg.header.stamp), msg, wall_time_s()) is None else msg
 
     def on_tick(self, msg: JointState) -> None:
         """One tick: the reference at the joint state's stamp."""
-        joint_positions(msg, self.axes)
         stamp_ns = stamp_to_ns(msg.header.stamp)
         sample = self.interpolator.sample(ns_to_s(stamp_ns))
         self.reference_pub.publish(reference_to_msg(sample, self.axes, stamp_ns, self.frame_id))
-
-
-def _per_axis(values: list[float], n_axes: int) -> list[float]:
-    """One value for all axes, or one per axis."""
-    return list(values) * n_axes if len(values) == 1 else list(values)
 
 
 def main(args: list[str] | None = None) -> None:

@@ -1,20 +1,16 @@
 """Servo node: one axis's position loop. Joint state + reference (+ compensation) -> command."""
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
-import yaml
 from cnc_contour_interfaces.msg import AxisCommand, Compensation, Reference
-from rcl_interfaces.msg import SetParametersResult
-from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.errors import CncError, ConfigError
-from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns
+from cnc_contour_control.laws import law_config_class
+from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
 from cnc_contour_control.nodes.common import (
-    LOCKSTEP_QOS,
     SuiteNode,
-    describe,
     spin_node,
     stamp_to_ns,
     wall_time_s,
@@ -23,12 +19,26 @@ from cnc_contour_control.nodes.conversions import (
     command_to_msg,
     compensation_for,
     joint_position,
+    joint_velocity,
     reference_axis,
 )
+from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config
 from cnc_contour_control.servo import ServoConfig, ServoController
+from cnc_contour_control.stage_params import SERVO_GAINS, SERVO_NODE_SKIPS, ServoRunParams
 
-#: Parameters that build the ServoConfig (all but ``law_params`` are plain values).
-_CONFIG_PARAMETERS = ("law", "law_params", "counts_per_m", "ff1", "ff2", "output_limit", "quantum", "command_unit")
+
+def servo_parameters(node: SuiteNode, axis: str) -> ConfigParameters[ServoConfig]:
+    """ServoConfig's fields as parameters (the axis is the run's) and the chosen law's gains as ``gains.*``."""
+
+    def build(mapping: dict[str, Any]) -> ServoConfig:
+        values = {key: value for key, value in mapping.items() if key != SERVO_GAINS}
+        return ServoConfig.from_mapping({**values, "axis_name": axis, "law_params": mapping.get(SERVO_GAINS, {})},
+                                        context=f"servo[{axis}]")
+
+    parameters = ConfigParameters(node, build)
+    law = parameters.add(Section(ServoConfig, skip=SERVO_NODE_SKIPS))["law"]
+    parameters.add(Section(law_config_class(law), SERVO_GAINS))
+    return parameters
 
 
 class ServoNode(SuiteNode):
@@ -36,67 +46,29 @@ class ServoNode(SuiteNode):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("servo", **kwargs)
-        self.axis = self.declare("axis", "x", describe("axis this servo drives", read_only=True))
-        self.sample_time_ns = seconds_to_ns(
-            self.declare("sample_time_s", 0.01, describe("nominal sample time (first tick), s", 1e-5, 1.0, True))
-        )
-        use_compensation = self.declare("use_compensation", False, describe("wait for and add /compensation", read_only=True))
-        timeout_s = self.declare("input_timeout_s", 5.0, describe("wall time a tick may wait for its inputs, s", 0.01, 600.0, True))
-        self._declare_config()
-        self.controller = ServoController(self._config_from({}))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        inputs = ["joint_states", "reference"] + (["compensation"] if use_compensation else [])
-        startup_s = self.declare("startup_timeout_s", 30.0, describe(
-            "wall time the first tick may wait (graph discovery), s", 0.01, 3600.0, True))
-        self.matcher = StampMatcher(inputs, timeout_s, startup_s)
+        run = declare_config(self, ServoRunParams)
+        self.axis = run.axis
+        self.sample_time_ns = seconds_to_ns(run.sample_time_s)
+        self.parameters = servo_parameters(self, self.axis)
+        self.controller = ServoController(self.parameters.declare())
+        self.parameters.watch(lambda config: self.controller.retune(config))  # gains change, the law's state stays
+        inputs = ["joint_states", "reference"] + (["compensation"] if run.use_compensation else [])
+        self.matcher = StampMatcher(inputs, run.input_timeout_s, run.startup_timeout_s,
+                                    stamp_horizon_ns(self.sample_time_ns))
         self.last_stamp_ns: int | None = None
         self.command_pub = self.gated_publisher(AxisCommand, f"servo/{self.axis}/command", 1)
         self._subscribe(JointState, "joint_states")
         self._subscribe(Reference, "reference")
-        if use_compensation:
+        if run.use_compensation:
             self._subscribe(Compensation, "compensation")
         self.create_timer(0.1, self.guarded(self._watchdog))
 
-    def _declare_config(self) -> None:
-        self.declare("law", "pid", describe("feedback law (registry name: pid, p, fuzzy, ...)"))
-        self.declare("law_params", "{}", describe("law parameters as a YAML mapping, e.g. '{kp: 2.4, ki: 0.1, kd: 6.7}'"))
-        self.declare("counts_per_m", 1.0e5, describe("law length units per metre (1e5 = BLU of 10 um)", 1e-3, 1e12, True))
-        self.declare("ff1", 0.0, describe("velocity feedforward, command per law unit/s", -1e6, 1e6))
-        self.declare("ff2", 0.0, describe("acceleration feedforward, command per law unit/s^2", -1e6, 1e6))
-        self.declare("output_limit", 127.0, describe("symmetric command saturation, drive units", 1e-9, 1e12, True))
-        self.declare("quantum", 1.0, describe("command quantisation step, drive units (0 = none)", 0.0, 1e6, True))
-        self.declare("command_unit", "dac", describe("unit of the command (dac, V, N)", read_only=True))
-
-    def _config_from(self, changes: dict[str, Any]) -> ServoConfig:
-        values = {name: self.get_parameter(name).value for name in _CONFIG_PARAMETERS}
-        values.update(changes)
-        try:
-            law_params = yaml.safe_load(values["law_params"]) or {}
-        except yaml.YAMLError as err:
-            raise ConfigError(f"law_params is not a YAML mapping: {err}") from err
-        if not isinstance(law_params, dict):
-            raise ConfigError(f"law_params must be a YAML mapping, got {values['law_params']!r}")
-        values["law_params"] = law_params
-        return ServoConfig.from_mapping({"axis_name": self.axis, **values}, context=f"servo[{self.axis}]")
-
-    def _on_set_parameters(self, parameters: list[Parameter]) -> SetParametersResult:
-        changes = {p.name: p.value for p in parameters if p.name in _CONFIG_PARAMETERS}
-        if not changes:
-            return SetParametersResult(successful=True)
-        try:
-            config = self._config_from(changes)
-        except CncError as err:
-            return SetParametersResult(successful=False, reason=str(err))
-        self.controller = ServoController(config)
-        return SetParametersResult(successful=True)
-
     def _subscribe(self, msg_type: type, topic: str) -> None:
-        def on_message(msg: Any) -> None:
-            items = self.matcher.add(topic, stamp_to_ns(msg.header.stamp), msg, wall_time_s())
-            if items is not None:
-                self._step(items)
+        def accept(msg: Any) -> dict[str, Any] | None:
+            _CHECKS[topic](msg, self.axis)  # values first: a bad message is a fault even when stale
+            return self.matcher.add(topic, stamp_to_ns(msg.header.stamp), msg, wall_time_s())
 
-        self.create_subscription(msg_type, topic, self.guarded(on_message), LOCKSTEP_QOS)
+        self.subscribe_checked(msg_type, topic, accept, then=self._step)
 
     def _step(self, items: dict[str, Any]) -> None:
         stamp_ns = stamp_to_ns(items["reference"].header.stamp)
@@ -104,7 +76,8 @@ class ServoNode(SuiteNode):
         position_m = joint_position(items["joint_states"], self.axis)
         ref = reference_axis(items["reference"], self.axis)
         correction = compensation_for(items["compensation"], self.axis) if "compensation" in items else 0.0
-        output = self.controller.step(dt_ns / NS_PER_S, ref[0], ref[1], ref[2], position_m, correction)
+        velocity_m_s = joint_velocity(items["joint_states"], self.axis)
+        output = self.controller.step(dt_ns / NS_PER_S, ref[0], ref[1], ref[2], position_m, velocity_m_s, correction)
         self.last_stamp_ns = stamp_ns
         config = self.controller.config
         self.command_pub.publish(command_to_msg(output, self.axis, config.law, config.command_unit, stamp_ns))
@@ -118,6 +91,14 @@ class ServoNode(SuiteNode):
                 f"servo {self.axis}: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s "
                 f"within {self.matcher.current_timeout_s} s"
             )
+
+
+#: What the servo checks of each input on arrival (one axis's values, with the field named).
+_CHECKS: dict[str, Callable[[Any, str], object]] = {
+    "joint_states": lambda msg, axis: (joint_position(msg, axis), joint_velocity(msg, axis)),
+    "reference": reference_axis,
+    "compensation": compensation_for,
+}
 
 
 def main(args: list[str] | None = None) -> None:

@@ -2,32 +2,62 @@
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import Any
 
-import yaml
 from cnc_contour_interfaces.msg import AxisCommand
 from diagnostic_msgs.msg import DiagnosticStatus
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.errors import CncError
 from cnc_contour_control.lockstep import NS_PER_S, StampMatcher
+from cnc_contour_control.topics import RUN_FINISHED, TICKS_KEY
 from cnc_contour_control.nodes.common import (
     LOCKSTEP_QOS,
     SuiteNode,
-    describe,
     spin_node,
     stamp_to_ns,
     wall_time_s,
 )
+from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config, nested
+from cnc_plant_sim.axis import AxisConfig
+from cnc_plant_sim.friction import friction_config_class
 from cnc_plant_sim.nodes.conversions import clock_msg, command_value, joint_state_msg
 from cnc_plant_sim.plant import PlantConfig, make_plant
 from cnc_plant_sim.run_clock import RunClock
+from cnc_plant_sim.run_params import PlantRunParams
 
-MODES = ("lockstep", "realtime")
-#: Status message announcing the end of a run (its value "ticks" counts the ticks published).
-RUN_FINISHED = "run finished"
+#: Per-axis overrides of the model are the parameters ``axis_overrides.<axis>.<AxisConfig key>`` and
+#: ``axis_overrides.<axis>.friction_params.<key>`` (the keys of the axis's friction model).
+OVERRIDES = "axis_overrides"
+
+
+def plant_parameters(node: SuiteNode) -> ConfigParameters[PlantConfig]:
+    """PlantConfig's fields as parameters (``variation.*`` nested) and each axis's overrides, unset unless given."""
+    parameters = ConfigParameters(node, lambda mapping: PlantConfig.from_mapping(mapping))
+    axes = parameters.add(Section(PlantConfig, skip=(OVERRIDES,)))["axes"]
+    axes = [a for a in axes if isinstance(a, str)] if isinstance(axes, list) else []
+    for axis in axes:
+        parameters.add(Section(AxisConfig, f"{OVERRIDES}.{axis}", skip=("name", "friction_params"), unset=True))
+    for axis, friction in _frictions(parameters, axes).items():
+        parameters.add(Section(friction_config_class(friction), f"{OVERRIDES}.{axis}.friction_params", unset=True,
+                               read_only=True))
+    return parameters
+
+
+def _frictions(parameters: ConfigParameters[PlantConfig], axes: list[str]) -> dict[str, str]:
+    """Each axis's friction model, the overridden one or the model's: its params are the axis's friction_params."""
+    given = {axis: parameters.values.get(f"{OVERRIDES}.{axis}.friction") for axis in axes}
+    model_values = {k: v for k, v in parameters.values.items() if not k.endswith(".friction")}
+    try:
+        nominal = [a.friction for a in parameters.build(nested(model_values)).nominal_axes()]
+    except CncError:
+        nominal = []  # no feed drives, or a bad value that declare() reports with the config's error
+    frictions = dict(zip(axes, nominal))
+    frictions.update({axis: name for axis, name in given.items() if isinstance(name, str)})
+    return {axis: name for axis, name in frictions.items() if isinstance(name, str)}
 
 
 class PlantNode(SuiteNode):
@@ -35,54 +65,35 @@ class PlantNode(SuiteNode):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("plant", **kwargs)
-        self.plant = make_plant(self._plant_config())
+        run = declare_config(self, PlantRunParams)
+        self.plant = make_plant(plant_parameters(self).declare())
         self.axes = self.plant.axis_names
-        initial = self.declare("initial_position_m", [0.0], describe("initial axis positions, m", read_only=True))
-        self.plant.reset(list(initial) * len(self.axes) if len(initial) == 1 else list(initial))
-        self.clock = RunClock(
-            self.declare("sample_time_s", 0.01, describe("sample time T, s", 1e-5, 1.0, True)),
-            self.declare("duration_s", 10.0, describe("simulated duration of the run, s", 1e-3, 1e6, True)),
-        )
-        self.mode = self.declare("mode", "lockstep", describe(f"time mode: {list(MODES)}", read_only=True))
-        if self.mode not in MODES:
-            raise ConfigError(f"mode must be one of {list(MODES)}, got {self.mode!r}")
-        self.expected_subscribers = self.declare("expected_subscribers", 1, describe("joint_states subscribers to wait for before tick 0", 0, 1000, True, True))
-        self.summary_file = self.declare("summary_file", "", describe("write the run summary here as JSON", read_only=True))
-        timeout_s = self.declare("command_timeout_s", 5.0, describe("wall time to wait for a tick's commands, s", 0.01, 600.0, True))
-        startup_s = self.declare("startup_timeout_s", 90.0, describe(
-            "wall time the first tick may wait (graph discovery), s", 0.01, 3600.0, True))
-        self.matcher = StampMatcher(self.axes, timeout_s, startup_s)
+        self.plant.reset(run.positions_m(len(self.axes)))
+        self.clock = RunClock(run.sample_time_s, run.duration_s)
+        self.mode = run.mode
+        self.summary_file = run.summary_file
+        self.matcher = StampMatcher(self.axes, run.command_timeout_s, run.startup_timeout_s,
+                                    max_ahead_ns=0)  # only the tick it published
         self.commands = [0.0] * len(self.axes)
         self.received = [False] * len(self.axes)
         self.started = False
         self.joint_pub = self.create_publisher(JointState, "joint_states", LOCKSTEP_QOS)
+        self.joint_gate = self.reader_gate(self.joint_pub, JointState, "expected_subscribers", 1)
         self.clock_pub = self.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
         for axis in self.axes:
-            self.create_subscription(AxisCommand, f"servo/{axis}/command", self.guarded(self._command_callback(axis)), LOCKSTEP_QOS)
+            self.subscribe_checked(AxisCommand, f"servo/{axis}/command", self._command_callback(axis))
         self.create_timer(0.02, self.guarded(self._wait_for_graph))
         self.create_timer(0.1, self.guarded(self._watchdog))
         self.create_timer(1.0, self._write_progress)
-
-    def _plant_config(self) -> PlantConfig:
-        overrides = yaml.safe_load(self.declare("axis_overrides", "{}", describe("per-axis model overrides as a YAML mapping", read_only=True))) or {}
-        return PlantConfig.from_mapping({
-            "model": self.declare("model", "paper000", describe("plant model (registry name)", read_only=True)),
-            "axes": tuple(self.declare("axes", ["x", "y"], describe("axis names, in order", read_only=True))),
-            "seed": self.declare("seed", 0, describe("seed of the parameter variations", 0, 2**31 - 1, True, True)),
-            "substeps": self.declare("substeps", 1, describe("integration sub-steps per sample", 1, 1000, True, True)),
-            "variation": {
-                "gain_pct": self.declare("gain_variation_pct", 5.0, describe("K variation, +-%", 0.0, 50.0, True)),
-                "time_constant_pct": self.declare("time_constant_variation_pct", 5.0, describe("tau variation, +-%", 0.0, 50.0, True)),
-                "friction_pct": self.declare("friction_variation_pct", 8.0, describe("friction variation, +-%", 0.0, 50.0, True)),
-            },
-            "axis_overrides": overrides,
-        })
 
     def _wait_for_graph(self) -> None:
         if self.started:
             return
         ready = all(self.count_publishers(self.resolve_topic_name(f"servo/{a}/command")) >= 1 for a in self.axes)
-        if ready and self.joint_pub.get_subscription_count() >= self.expected_subscribers:
+        stalled = self.joint_gate.overdue(self.matcher.startup_timeout_s)
+        if stalled:
+            self.fault(f"plant: {stalled}")
+        elif ready and self.joint_gate.ready():
             self.started = True
             self.clock.started_wall_s = wall_time_s()
             self.get_logger().info(f"graph ready, running {self.mode} for {self.clock.duration_s} s")
@@ -154,21 +165,39 @@ class PlantNode(SuiteNode):
         self._write_summary()
         self.get_logger().info(f"run finished: {self.clock.tick} ticks")
         self.finished = True
-        self.report(DiagnosticStatus.OK, RUN_FINISHED, {"ticks": str(self.clock.tick)})
+        self.report(DiagnosticStatus.OK, RUN_FINISHED, {TICKS_KEY: str(self.clock.tick)})
 
     def _write_progress(self) -> None:
         if self.started and not self.finished:
             self._write_summary("running")
 
-    def _write_summary(self, status: str | None = None) -> None:
+    def _write_summary(self, status: str | None = None, reason: str = "") -> None:
+        """Write the run's summary: ``running`` while it runs, then how it ended (finished, faulted, interrupted)."""
         if status is None:
             status = "faulted" if self.fault_message else "finished"
+        if status != "running":
             self.clock.finished_wall_s = self.clock.finished_wall_s or wall_time_s()
         summary = self.clock.summary([self.fault_message] if self.fault_message else [], wall_time_s())
-        summary["status"] = status
+        summary.update(status=status, mode=self.mode, sample_time_s=self.clock.sample_time_s,
+                       duration_s=self.clock.duration_s)
+        if reason:
+            summary["reason"] = reason
         summary["plant"] = self.plant.describe()
         if self.summary_file:
-            Path(self.summary_file).write_text(json.dumps(summary, indent=2))
+            _replace_file(Path(self.summary_file), json.dumps(summary, indent=2))
+
+    def destroy_node(self) -> None:
+        """Leave a summary that says how the run ended, also when stopped from outside (SIGINT, SIGTERM)."""
+        if not self.finished:
+            self._write_summary("interrupted", "the plant was stopped before the run ended (signal or shutdown)")
+        super().destroy_node()
+
+
+def _replace_file(path: Path, text: str) -> None:
+    """Write ``text`` to ``path`` atomically: a reader sees the old or the new file, never half of one."""
+    partial = path.with_name(f".{path.name}.partial")
+    partial.write_text(text)
+    os.replace(partial, path)
 
 
 def main(args: list[str] | None = None) -> None:

@@ -27,7 +27,7 @@ from matplotlib.ticker import MaxNLocator
 from cnc_contour_control.config import require_choice, require_positive
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.units import M_PER_MM, M_PER_UM
-from cnc_tools.bagio.bag import RecordedRun
+from cnc_tools.run_record import RecordedRun
 from cnc_tools.analysis.scoring import Score, score_run, tracking_errors
 
 #: Share of the contour's size the largest magnified error should span when M is chosen automatically.

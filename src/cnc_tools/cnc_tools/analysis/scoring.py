@@ -6,7 +6,9 @@ estimator's value. Scored samples: every ``joint_states`` sample from the first
 ``reference`` stamp to the end of the run (all samples when the bag holds no
 reference); the count of samples left out before the first reference is part
 of every output. Tracking error per axis is reference - position at the stamps
-both topics share.
+both topics share. Samples with a non-finite position (or reference) are left
+out and counted; the run's verdict (:mod:`cnc_tools.analysis.verdict`), when
+given, names them and is part of every output.
 """
 from __future__ import annotations
 
@@ -22,9 +24,10 @@ from numpy.typing import NDArray
 
 from cnc_contour_control.geometry import ArcSegment, Program
 from cnc_contour_control.units import M_PER_BLU_PAPER000, M_PER_MM, M_PER_UM
-from cnc_tools.bagio.bag import BagIntegrity, RecordedRun
+from cnc_tools.run_record import BagIntegrity, RecordedRun
 from cnc_tools.analysis.circular import CircularTest, analyse_circle, circle_of
 from cnc_tools.analysis.metrics import Metric, evaluate, get_metrics, length_units, trapezoid_weights_s
+from cnc_tools.analysis.verdict import Verdict
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -67,11 +70,13 @@ class ScoredWindow:
     n_before_start: int
     start_s: float
     end_s: float
+    n_non_finite: int = 0
 
     def describe(self) -> str:
         """One sentence for people."""
+        left_out = f"; {self.n_non_finite} samples with a non-finite position not scored" if self.n_non_finite else ""
         return (f"scored {self.n_scored} of {self.n_recorded} joint_states samples, t = {self.start_s:.6g} .. "
-                f"{self.end_s:.6g} s ({self.rule}; {self.n_before_start} samples before it not scored)")
+                f"{self.end_s:.6g} s ({self.rule}; {self.n_before_start} samples before it not scored{left_out})")
 
 
 @dataclass(frozen=True)
@@ -95,11 +100,13 @@ def _scored_window(run: RecordedRun) -> tuple[NDArray[np.bool_], ScoredWindow]:
         start_ns, rule = int(run.reference.stamp_ns[0]), "from the first reference to the end of the run"
     else:
         start_ns, rule = int(stamps[0]), "all samples: the bag holds no reference"
-    mask = stamps >= start_ns
+    after_start = stamps >= start_ns
+    finite = np.isfinite(run.joint_states.position_m).all(axis=1)
+    mask = after_start & finite
     kept = stamps[mask]
-    window = ScoredWindow(rule, int(stamps.size), int(mask.sum()), int((~mask).sum()),
+    window = ScoredWindow(rule, int(stamps.size), int(mask.sum()), int((~after_start).sum()),
                           float(kept[0] * 1e-9) if kept.size else math.nan,
-                          float(kept[-1] * 1e-9) if kept.size else math.nan)
+                          float(kept[-1] * 1e-9) if kept.size else math.nan, int((after_start & ~finite).sum()))
     return mask, window
 
 
@@ -131,7 +138,8 @@ def tracking_errors(run: RecordedRun) -> tuple[IntArray, FloatArray]:
     stamps, js_rows, ref_rows = np.intersect1d(run.joint_states.stamp_ns, run.reference.stamp_ns,
                                                assume_unique=False, return_indices=True)
     error = run.reference.position_m[ref_rows] - run.joint_states.position_m[js_rows]
-    return stamps.astype(np.int64), error
+    finite = np.isfinite(error).all(axis=1)
+    return stamps[finite].astype(np.int64), error[finite]
 
 
 def _tracking_stats(run: RecordedRun) -> tuple[tuple[ErrorStats, ...], str]:
@@ -177,6 +185,7 @@ class Score:
     circular: CircularTest | None
     integrity: BagIntegrity
     series: ContourErrorSeries = field(repr=False)
+    verdict: Verdict | None = None
 
     def to_dict(self) -> dict[str, object]:
         """Plain data: every length in µm and BLU, keys carry their unit."""
@@ -184,6 +193,7 @@ class Score:
         tracking_metrics = get_metrics(TRACKING_METRICS)
         return {
             "run": self.run_name, "program": self.program_name, "blu_um": self.blu_m / M_PER_UM,
+            "verdict": None if self.verdict is None else self.verdict.to_dict(),
             "scored_samples": {**asdict(self.window), "description": self.window.describe()},
             "integrity": _integrity_dict(self.integrity),
             "contour_error": _stats_dict(self.contour, self.metrics, units),
@@ -211,7 +221,7 @@ class Score:
 
 
 def score_run(run: RecordedRun, metrics: Sequence[str] | None = None, *, blu_m: float = M_PER_BLU_PAPER000,
-              window_deg: float = 10.0) -> Score:
+              window_deg: float = 10.0, verdict: Verdict | None = None) -> Score:
     """Score one recorded run.
 
     Parameters
@@ -224,6 +234,8 @@ def score_run(run: RecordedRun, metrics: Sequence[str] | None = None, *, blu_m: 
         The basic length unit for BLU columns, m (paper 000: 10 µm).
     window_deg
         Half-width of the arc searched around each velocity reversal (circle programs), degrees.
+    verdict
+        The run's verdict (:func:`cnc_tools.analysis.verdict.judge`), shown in every output.
     """
     chosen = get_metrics(metrics)
     length_units(blu_m)
@@ -236,7 +248,8 @@ def score_run(run: RecordedRun, metrics: Sequence[str] | None = None, *, blu_m: 
     tracking, tracking_note = _tracking_stats(run)
     return Score(run.name, run.program.name, chosen, blu_m, window,
                  ErrorStats("run", int(series.error_m.size), evaluate(chosen, series.error_m, series.weight_s)),
-                 segments, tracking, tracking_note, _circular(run, series, window_deg), run.integrity, series)
+                 segments, tracking, tracking_note, _circular(run, series, window_deg), run.integrity, series,
+                 verdict)
 
 
 # =========================================================================== rendering
@@ -365,7 +378,9 @@ def _circular_lines(test: CircularTest, units: Mapping[str, float]) -> list[str]
 def _table_lines(score: Score) -> Iterator[str]:
     units = length_units(score.blu_m)
     yield f"run {score.run_name}: program {score.program_name!r}, BLU = {score.blu_m / M_PER_UM:g} µm"
-    yield f"bag: {score.integrity.describe()}"
+    yield f"{'record' if score.integrity.method == 'engine' else 'bag'}: {score.integrity.describe()}"
+    if score.verdict is not None:
+        yield f"verdict: {score.verdict.describe()}"
     yield f"samples: {score.window.describe()}"
     yield "contour error = distance from the recorded position to the recorded program (exact, not the estimator)"
     yield from _error_table("contour error", [score.contour], score.segments, score.metrics, units)

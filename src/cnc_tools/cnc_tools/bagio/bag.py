@@ -25,12 +25,18 @@ from rosbags.interfaces import Connection, Qos, QosDurability, QosHistory, QosLi
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys.store import Typestore
 
+from cnc_contour_control import topics
 from cnc_contour_control.errors import BagError, CncError
 from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
 from cnc_tools.bagio.raw_bag import RawBag, locate, read_raw
+from cnc_tools.bagio.recording import in_some_namespace, run_namespace
 from cnc_tools.run_record import (
     BagIntegrity,
     CommandSeries,
+    CompensationSeries,
+    EstimateSeries,
+    FeedOverrideSeries,
+    RunRecord,
     FloatArray,
     IntArray,
     JointStateSeries,
@@ -45,7 +51,7 @@ __all__ = [
     "JointStateSeries", "RecordedRun", "ReferenceSeries", "TopicNames", "program_from_path", "read_bag",
 ]
 
-PATH_TYPE = "cnc_contour_interfaces/msg/Path"
+PATH_TYPE = topics.PATH.type_name
 _NO_TIME = QosTime(sec=0, nsec=0)
 #: QoS offered for latched topics (``/cnc/path``): ``ros2 bag play`` republishes them transient-local.
 TRANSIENT_LOCAL_QOS = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL,
@@ -148,37 +154,40 @@ class BagWriter:
 
 
 # =========================================================================== topics read
+#: Topics a run record is decoded from (relative names; ``servo/<axis>/command`` besides).
+_DECODED = (topics.JOINT_STATES.name, topics.REFERENCE.name, topics.PATH.name, topics.CONTOUR_ERROR.name,
+            topics.COMPENSATION.name, topics.FEED_OVERRIDE.name)
+
+
 @dataclass(frozen=True)
 class TopicNames:
-    """Topic names under a namespace (default ``/cnc``)."""
+    """The suite's topics (:mod:`cnc_contour_control.topics`) under a namespace (default ``/cnc``)."""
 
-    namespace: str = "/cnc"
+    namespace: str = topics.DEFAULT_NAMESPACE
 
     def topic(self, name: str) -> str:
-        return f"{self.namespace.rstrip('/')}/{name}"
+        """The fully qualified name of the relative topic ``name``."""
+        return topics.qualify(self.namespace, name)
 
     def command_axis(self, topic: str) -> str | None:
         """Axis name of a ``servo/<axis>/command`` topic, else ``None``."""
-        head, tail = self.topic("servo/"), "/command"
+        head, _, tail = self.topic(topics.COMMAND.name).partition("{axis}")
         inner = topic[len(head):-len(tail)] if topic.startswith(head) and topic.endswith(tail) else ""
         return inner if inner and "/" not in inner else None
 
     def wanted(self, topic: str, commands: bool) -> bool:
-        core = {self.topic("joint_states"), self.topic("reference"), self.topic("path")}
+        """True for a topic the run record is decoded from."""
+        core = {self.topic(name) for name in _DECODED}
         return topic in core or (commands and self.command_axis(topic) is not None)
 
+    def expected_type(self, topic: str) -> str:
+        """The message type the suite publishes on ``topic``."""
+        if self.command_axis(topic) is not None:
+            return topics.COMMAND.type_name
+        return topics.type_of(topics.relative(self.namespace, topic))
 
 
 # =========================================================================== decoding
-#: Type each topic of the suite must have (by the last part of its name).
-_TOPIC_TYPES = {
-    "joint_states": "sensor_msgs/msg/JointState",
-    "reference": "cnc_contour_interfaces/msg/Reference",
-    "path": PATH_TYPE,
-    "command": "cnc_contour_interfaces/msg/AxisCommand",
-}
-
-
 @dataclass(frozen=True)
 class _Fields:
     """What to decode from one topic: per-axis fields (name -> required), scalars, strings."""
@@ -189,10 +198,10 @@ class _Fields:
     strings: tuple[str, ...] = ()
 
 
-def _blocks(raw: RawBag, topic: str) -> list[ColumnBlock]:
-    msgtype = raw.msgtypes[topic]
-    if msgtype != _TOPIC_TYPES[topic.rsplit("/", 1)[-1]]:
-        raise BagError(f"{topic} has type {msgtype!r}, expected {_TOPIC_TYPES[topic.rsplit('/', 1)[-1]]!r}")
+def _blocks(raw: RawBag, topic: str, names: TopicNames) -> list[ColumnBlock]:
+    msgtype, expected = raw.msgtypes[topic], names.expected_type(topic)
+    if msgtype != expected:
+        raise BagError(f"{topic} has type {msgtype!r}, expected {expected!r}")
     try:
         return decode_columns(raw.data[topic], msgtype, raw.typestore or project_typestore())
     except CncError as err:
@@ -221,14 +230,15 @@ def _fill_axes(out: dict[str, np.ndarray], block: ColumnBlock, spec: _Fields, ax
             raise BagError(f"{topic}: {name} has {values.shape[1]} values for {n_names} axis names")
 
 
-def _columns(raw: RawBag, topic: str, spec: _Fields, axes: tuple[str, ...]) -> dict[str, np.ndarray | str]:
+def _columns(raw: RawBag, topic: str, spec: _Fields, axes: tuple[str, ...],
+             names: TopicNames) -> dict[str, np.ndarray | str]:
     """Decode a topic sorted by header stamp: per-axis fields (N, n_axes), scalars (N,), strings joined by '|'."""
     count = len(raw.data[topic])
     out: dict[str, np.ndarray] = {"stamp_ns": np.zeros(count, np.int64)}
     out.update({name: np.full((count, len(axes)), np.nan) for name in spec.axis_fields})
     strings: dict[str, set[str]] = {name: set() for name in spec.strings}
     needed = {"header.stamp.sec", "header.stamp.nanosec", *spec.axis_fields, *spec.scalars}
-    for block in _blocks(raw, topic):
+    for block in _blocks(raw, topic, names):
         missing = sorted(needed - set(block.numbers) | set(spec.strings) - set(block.strings))
         if missing:
             raise BagError(f"{topic}: the recorded {raw.msgtypes[topic]} has no fields {missing}")
@@ -243,10 +253,11 @@ def _columns(raw: RawBag, topic: str, spec: _Fields, axes: tuple[str, ...]) -> d
     return {**{k: v[order] for k, v in out.items()}, **{k: "|".join(sorted(v)) for k, v in strings.items()}}
 
 
-def _joint_states(raw: RawBag, topic: str, axes: tuple[str, ...]) -> JointStateSeries:
+def _joint_states(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> JointStateSeries:
+    topic = names.topic(topics.JOINT_STATES.name)
     if not raw.data.get(topic):
         raise BagError(f"bag has no {topic} messages; found {sorted(t for t in raw.data if raw.data[t])}")
-    cols = _columns(raw, topic, _Fields("name", {"position": True, "velocity": False}), axes)
+    cols = _columns(raw, topic, _Fields("name", {"position": True, "velocity": False}), axes, names)
     return JointStateSeries(cols["stamp_ns"], cols["position"], cols["velocity"])  # type: ignore[arg-type]
 
 
@@ -254,10 +265,11 @@ _REFERENCE = _Fields("axis_names", {"position_m": True, "velocity_m_s": False, "
                      ("path_length_m", "segment_index", "feed_m_s", "done"))
 
 
-def _reference(raw: RawBag, topic: str, axes: tuple[str, ...]) -> ReferenceSeries | None:
+def _reference(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> ReferenceSeries | None:
+    topic = names.topic(topics.REFERENCE.name)
     if not raw.data.get(topic):
         return None
-    c = _columns(raw, topic, _REFERENCE, axes)
+    c = _columns(raw, topic, _REFERENCE, axes, names)
     return ReferenceSeries(c["stamp_ns"], c["position_m"], c["velocity_m_s"], c["acceleration_m_s2"],  # type: ignore[arg-type]
                            c["path_length_m"], c["segment_index"].astype(np.int64), c["feed_m_s"],  # type: ignore[union-attr]
                            c["done"].astype(bool))  # type: ignore[union-attr]
@@ -272,10 +284,34 @@ def _commands(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict[str
     for topic in sorted(raw.data):
         axis = names.command_axis(topic)
         if axis is not None and raw.data[topic]:
-            cols = _columns(raw, topic, _COMMAND, axes)
+            cols = _columns(raw, topic, _COMMAND, axes, names)
             cols["saturated"] = cols["saturated"].astype(bool)  # type: ignore[union-attr]
             series[axis] = CommandSeries(axis_name=axis, **cols)  # type: ignore[arg-type]
     return series
+
+
+_ESTIMATE = _Fields("axis_names", {"tracking_error_m": False}, ("contour_error_m", "segment_index", "angle_rad"))
+_COMPENSATION = _Fields("axis_names", {"correction": True}, strings=("command_unit",))
+_FEED_OVERRIDE = _Fields(scalars=("requested_ratio", "applied_ratio"))
+
+
+def _stage_series(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict[str, object]:
+    """The optional stages' series (estimator, compensator, feed override) where the bag has them."""
+    out: dict[str, object] = {}
+    topic = names.topic(topics.CONTOUR_ERROR.name)
+    if raw.data.get(topic):
+        c = _columns(raw, topic, _ESTIMATE, axes, names)
+        out["contour_error"] = EstimateSeries(c["stamp_ns"], c["contour_error_m"], c["tracking_error_m"],  # type: ignore[arg-type]
+                                              c["segment_index"].astype(np.int64), c["angle_rad"])  # type: ignore[union-attr]
+    topic = names.topic(topics.COMPENSATION.name)
+    if raw.data.get(topic):
+        c = _columns(raw, topic, _COMPENSATION, axes, names)
+        out["compensation"] = CompensationSeries(c["stamp_ns"], c["correction"], str(c["command_unit"]))  # type: ignore[arg-type]
+    topic = names.topic(topics.FEED_OVERRIDE.name)
+    if raw.data.get(topic):
+        c = _columns(raw, topic, _FEED_OVERRIDE, axes, names)
+        out["feed_override"] = FeedOverrideSeries(c["stamp_ns"], c["requested_ratio"], c["applied_ratio"])  # type: ignore[arg-type]
+    return out
 
 
 # --------------------------------------------------------------------------- path -> program
@@ -324,7 +360,7 @@ def _program(raw: RawBag, topic: str) -> Program:
 
 
 # =========================================================================== reading
-def read_bag(path: str | Path, *, namespace: str = "/cnc", commands: bool = True) -> RecordedRun:
+def read_bag(path: str | Path, *, namespace: str | None = None, commands: bool = True) -> RunRecord:
     """Read a recorded run.
 
     Parameters
@@ -332,7 +368,8 @@ def read_bag(path: str | Path, *, namespace: str = "/cnc", commands: bool = True
     path
         Bag folder (or its ``.mcap`` file).
     namespace
-        Namespace of the suite's topics.
+        Namespace of the suite's topics; default: the run's, where the bag's ``joint_states`` lives
+        (``/cnc`` in older bags, ``/cnc/<run id>`` since runs are isolated).
     commands
         Also decode ``servo/<axis>/command``; scoring does not need them.
 
@@ -346,17 +383,23 @@ def read_bag(path: str | Path, *, namespace: str = "/cnc", commands: bool = True
     BagError
         The bag is missing or unreadable, or lacks the path, joint states, or an axis of the path.
     """
-    names = TopicNames(namespace)
     source = locate(Path(path))
-    raw, integrity = read_raw(source, lambda topic: names.wanted(topic, commands))
+    if namespace is None:
+        patterns = (*_DECODED, *((topics.COMMAND.name,) if commands else ()))
+        raw, integrity = read_raw(source, lambda topic: in_some_namespace(topic, patterns))
+        names = TopicNames(run_namespace(raw.msgtypes))
+    else:
+        names = TopicNames(namespace)
+        raw, integrity = read_raw(source, lambda topic: names.wanted(topic, commands))
     try:
-        program = _program(raw, names.topic("path"))
+        program = _program(raw, names.topic(topics.PATH.name))
         axes = tuple(program.axis_names)
-        return RecordedRun(
+        return RunRecord(
             name=source.mcap_path.parent.name if Path(path).is_dir() else source.mcap_path.stem,
             source=Path(path), program=program,
-            joint_states=_joint_states(raw, names.topic("joint_states"), axes),
-            reference=_reference(raw, names.topic("reference"), axes),
-            commands=_commands(raw, names, axes) if commands else {}, integrity=integrity)
+            joint_states=_joint_states(raw, names, axes),
+            reference=_reference(raw, names, axes),
+            commands=_commands(raw, names, axes) if commands else {}, integrity=integrity,
+            **_stage_series(raw, names, axes))  # type: ignore[arg-type]
     except BagError as err:
         raise BagError(f"{path}: {err}" + ("" if integrity.complete else f" [{integrity.describe()}]")) from err

@@ -1,39 +1,71 @@
-"""What a run records: topics and their types, log times, and when a recording is complete (ROS-free)."""
+"""What a run records: topics and their types, log times, and when a recording is complete (ROS-free).
+
+The topic sets come from the stage pipeline (:mod:`cnc_contour_control.stages`)
+and the one home of topic names (:mod:`cnc_contour_control.topics`); nothing
+here spells a topic. A run's topics live under its namespace; ``/clock`` and
+``/diagnostics`` are absolute in the nodes and the runner remaps them into the
+run's namespace, so a bag holds either ``<ns>/clock`` (runs since isolation)
+or ``/clock`` (older bags, launch-file runs): :func:`run_namespace` and
+:func:`bag_topic` find either.
+"""
 from __future__ import annotations
 
+import re
 import struct
-from collections.abc import Iterable, Mapping
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
+
+from cnc_contour_control import topics as t
+from cnc_contour_control.errors import BagError
 from cnc_contour_control.lockstep import join_ns
-
-#: Topics of a run (relative to the namespace) and their types; command topics are per axis.
-RUN_TOPICS: dict[str, str] = {
-    "joint_states": "sensor_msgs/msg/JointState",
-    "reference": "cnc_contour_interfaces/msg/Reference",
-    "path": "cnc_contour_interfaces/msg/Path",
-    "contour_error": "cnc_contour_interfaces/msg/ContourError",
-    "compensation": "cnc_contour_interfaces/msg/Compensation",
-    "feed_override": "cnc_contour_interfaces/msg/FeedOverride",
-    "cutting_force": "geometry_msgs/msg/WrenchStamped",
-    "/clock": "rosgraph_msgs/msg/Clock",
-    "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",
-}
-COMMAND_TYPE = "cnc_contour_interfaces/msg/AxisCommand"
-#: Topics that carry one message per tick in lockstep.
-LOCKSTEP_TOPICS = ("joint_states", "reference", "contour_error", "compensation")
+from cnc_contour_control.stages import pipeline
 
 
-def run_topics(namespace: str, axes: Iterable[str], optional: Iterable[str] = ()) -> dict[str, str]:
-    """Fully qualified topics of a run with their types: the core graph plus ``optional`` ones."""
-    wanted = ["joint_states", "reference", "path", "/clock", "/diagnostics", *optional]
-    topics = {qualify(namespace, name): RUN_TOPICS[name] for name in wanted}
-    topics.update({qualify(namespace, f"servo/{axis}/command"): COMMAND_TYPE for axis in axes})
-    return topics
+def run_topics(namespace: str, axes: Sequence[str], optional_stages: Collection[str] = ()) -> dict[str, str]:
+    """Fully qualified topics a recorder of the run records, with their types (absolute ones stay absolute)."""
+    recorded = pipeline(axes, optional_stages).recorded_topics()
+    return {t.qualify(namespace, name): type_name for name, type_name in recorded.items()}
 
 
-def qualify(namespace: str, name: str) -> str:
-    """``name`` under ``namespace`` unless it is absolute."""
-    return name if name.startswith("/") else f"{namespace.rstrip('/')}/{name}"
+def per_tick_topics(namespace: str, axes: Sequence[str], optional_stages: Collection[str] = ()) -> tuple[str, ...]:
+    """Fully qualified topics that carry one message per tick in the run."""
+    return tuple(t.qualify(namespace, name) for name in pipeline(axes, optional_stages).per_tick_topics())
+
+
+def is_latched(type_name: str) -> bool:
+    """True for the types published transient-local (the program's path)."""
+    return any(topic.qos == "latched" and topic.type_name == type_name for topic in t.TOPICS.values())
+
+
+def is_wall_stamped(type_name: str) -> bool:
+    """True for the types stamped in wall time (``/diagnostics``), not in simulation time."""
+    return type_name == t.DIAGNOSTICS.type_name
+
+
+def run_namespace(topic_names: Iterable[str]) -> str:
+    """The namespace of the run recorded in a bag: where its ``joint_states`` topic lives.
+
+    Raises
+    ------
+    BagError
+        The bag holds ``joint_states`` of several namespaces (several runs).
+    """
+    suffix = "/" + t.JOINT_STATES.name
+    found = sorted({name[: -len(suffix)] or "/" for name in topic_names if name.endswith(suffix)})
+    if len(found) > 1:
+        raise BagError(f"bag holds {t.JOINT_STATES.name} of several runs {found}; choose one with namespace=")
+    return found[0] if found else t.DEFAULT_NAMESPACE
+
+
+def in_some_namespace(topic_name: str, patterns: Iterable[str]) -> bool:
+    """True if ``topic_name`` is one of the relative topic ``patterns`` (``{axis}`` for any axis) under any namespace."""
+    return any(re.fullmatch(r"(/[^/]+)*/" + re.escape(p).replace(r"\{axis\}", "[^/]+"), topic_name) for p in patterns)
+
+
+def bag_topic(namespace: str, name: str, topic_names: Collection[str]) -> str:
+    """The bag's name of topic ``name``: under the run's namespace, else as the nodes spell it (older bags)."""
+    inside = t.qualify(namespace, name.lstrip("/"))
+    return inside if inside in topic_names or not name.startswith("/") else name
 
 
 def header_stamp_ns(cdr: bytes | memoryview) -> int:
@@ -62,10 +94,4 @@ class Completion:
     def missing(self, counts: Mapping[str, int]) -> dict[str, int]:
         """Messages still missing per per-tick topic."""
         target = self.ticks or 0
-        return {t: target - counts.get(t, 0) for t in self.per_tick_topics if counts.get(t, 0) < target}
-
-
-def per_tick_topics(topics: Mapping[str, str], namespace: str) -> tuple[str, ...]:
-    """The recorded topics that carry one message per lockstep tick."""
-    lockstep = {qualify(namespace, name) for name in LOCKSTEP_TOPICS}
-    return tuple(t for t, ty in topics.items() if t in lockstep or ty == COMMAND_TYPE)
+        return {topic: target - counts.get(topic, 0) for topic in self.per_tick_topics if counts.get(topic, 0) < target}

@@ -142,9 +142,9 @@ def measure_hop(run_dir: Path, message: str, plan: Plan) -> HopFigures:
 def measure_engine(scenario: Scenario, repeats: int) -> EngineFigures:
     """Real-time factor of ``repeats`` engine runs (median and best)."""
     results = [run_engine(scenario) for _ in range(repeats)]
-    factors = [r.real_time_factor for r in results]
+    factors = [r.summary["real_time_factor"] for r in results]
     return EngineFigures(scenario.sample_time_s, results[0].ticks, repeats, statistics.median(factors),
-                         max(factors), statistics.median(r.wall_time_s / r.ticks for r in results))
+                         max(factors), statistics.median(r.summary["wall_time_s"] / r.ticks for r in results))
 
 
 def lockstep_bench(options: argparse.Namespace) -> int:

@@ -5,6 +5,7 @@ import argparse
 from collections.abc import Callable
 
 from cnc_contour_control.config import require_choice
+from cnc_tools.bench.engine import engine_bench
 from cnc_tools.bench.laws import laws
 from cnc_tools.bench.lockstep import lockstep_bench
 from cnc_tools.bench.scoring import scoring
@@ -17,6 +18,7 @@ Bench = Callable[[argparse.Namespace], int]
 #: Benches by name.
 BENCHES: dict[str, Bench] = {
     "lockstep": lockstep_bench,
+    "engine": engine_bench,
     "scoring": scoring,
     "laws": laws,
     "paper000-pid": paper000_pid_bench,

@@ -28,6 +28,7 @@ from cnc_contour_control.errors import CncError, ConfigError, FaultError
 from cnc_plant_sim.friction import PiecewiseQuadraticFriction
 from cnc_plant_sim.plant import make_plant
 from cnc_tools.identification import friction as fid
+from cnc_tools.identification import friction_curve as fcurve
 from cnc_tools.bagio.bag import RecordedRun, read_bag
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID, loopback_env
@@ -42,9 +43,10 @@ Report = Callable[[int, fid.FrictionPoint], None]
 def trace_from_engine(run: fid.SpeedRun, index: int) -> tuple[fid.AxisTrace, Mapping[str, Any]]:
     """Run the scenario in-process; the axis trace and the plant as drawn."""
     result = run_engine(run.scenario)
-    reference = run.scenario.make_interpolator().sample_array(result.time_s)
-    trace = fid.AxisTrace(result.time_s, result.position_m[:, index], result.reference_m[:, index],
-                          reference.velocity_m_s[:, index], result.command[:, index])
+    reference = result.reference
+    assert reference is not None  # an engine run always has its references
+    trace = fid.AxisTrace(result.time_s, result.joint_states.position_m[:, index], reference.position_m[:, index],
+                          reference.velocity_m_s[:, index], result.command_array()[:, index])
     return trace, make_plant(run.scenario.plant).describe()
 
 
@@ -124,7 +126,7 @@ def write_points_csv(path: Path, points: Sequence[fid.FrictionPoint]) -> Path:
     return path
 
 
-def write_curve_csv(path: Path, summaries: Sequence[fid.SpeedSummary]) -> Path:
+def write_curve_csv(path: Path, summaries: Sequence[fcurve.SpeedSummary]) -> Path:
     """One row per signed speed: nominal point, model, and the varied plants' band."""
     with path.open("w", newline="") as handle:
         writer = csv.writer(handle)
@@ -155,7 +157,7 @@ def _model_curves(ax: Axes, constants: fid.AxisConstants, top_mm_s: float, frict
                             label=f"Eq. 15 ±{friction_pct:g} % (drawn scale range)" if sign > 0 else None)
 
 
-def _points_panel(ax: Axes, summaries: Sequence[fid.SpeedSummary], fits: tuple[fid.BranchFit, fid.BranchFit] | None,
+def _points_panel(ax: Axes, summaries: Sequence[fcurve.SpeedSummary], fits: tuple[fcurve.BranchFit, fcurve.BranchFit] | None,
                   top_mm_s: float) -> None:
     v = np.array([s.velocity_mm_s for s in summaries])
     band = np.array([s.band_dac for s in summaries])
@@ -189,8 +191,8 @@ def _residual_panel(ax: Axes, points: Sequence[fid.FrictionPoint]) -> None:
     ax.legend(fontsize=7)
 
 
-def write_figure(path: Path, points: Sequence[fid.FrictionPoint], summaries: Sequence[fid.SpeedSummary],
-                 constants: fid.AxisConstants, fits: tuple[fid.BranchFit, fid.BranchFit] | None,
+def write_figure(path: Path, points: Sequence[fid.FrictionPoint], summaries: Sequence[fcurve.SpeedSummary],
+                 constants: fid.AxisConstants, fits: tuple[fcurve.BranchFit, fcurve.BranchFit] | None,
                  friction_pct: float) -> Path:
     """Friction force against velocity (both branches) with the model overlaid, and the residuals."""
     fig = Figure(figsize=(8.0, 7.0), layout="constrained")
@@ -211,7 +213,7 @@ def write_figure(path: Path, points: Sequence[fid.FrictionPoint], summaries: Seq
 
 
 # =========================================================================== printing
-def print_points(summaries: Sequence[fid.SpeedSummary]) -> None:
+def print_points(summaries: Sequence[fcurve.SpeedSummary]) -> None:
     """The identified points beside the model, one row per signed speed."""
     print(f"  {'V_r':>7} {'F_d nom':>8} {'Eq.15':>7} {'diff':>6} {'quant':>6} | {'varied':>6} {'min':>6} "
           f"{'max':>6} {'±half':>5} | status")
@@ -222,7 +224,7 @@ def print_points(summaries: Sequence[fid.SpeedSummary]) -> None:
               + (f" (stopped {100 * n.stopped_fraction:.0f} % of the window)" if n.status != "steady" else ""))
 
 
-def agreement(points: Sequence[fid.FrictionPoint], summaries: Sequence[fid.SpeedSummary]) -> dict[str, float]:
+def agreement(points: Sequence[fid.FrictionPoint], summaries: Sequence[fcurve.SpeedSummary]) -> dict[str, float]:
     """The agreement figures: identified against the model the plant ran, and the run-to-run band."""
     steady = [p for p in points if p.status == "steady"]
     nominal = [p for p in steady if p.seed is None]
@@ -264,7 +266,7 @@ def print_agreement(figures: Mapping[str, float]) -> None:
               f"{figures['nominal_inside_band']:.0f} of {figures['speeds_with_band']:.0f} steady speeds")
 
 
-def print_fits(fits: tuple[fid.BranchFit, fid.BranchFit], constants: fid.AxisConstants) -> None:
+def print_fits(fits: tuple[fcurve.BranchFit, fcurve.BranchFit], constants: fid.AxisConstants) -> None:
     """The fitted coefficients beside Eq. 15's (when the plant runs a paper-000 model)."""
     paper = constants.friction if isinstance(constants.friction, PiecewiseQuadraticFriction) else None
     for fit in fits:
@@ -335,18 +337,18 @@ def identify_friction(args: argparse.Namespace) -> int:
           f"plants = {len(runs)} runs ({how}), K_p = {config.kp_dac_per_count:g}, K = "
           f"{constants.gain_blu_s_per_dac:g} BLU/s per DAC, K_e = {constants.encoder_counts_per_blu:g}", flush=True)
     points = run_all(runs, constants, config, out_dir, args.engine, args.jobs, _progress(len(runs)))
-    summaries = fid.summarise(points)
+    summaries = fcurve.summarise(points)
     return _outputs(args, config, constants, points, summaries, out_dir, runs[-1])
 
 
 def _outputs(args: argparse.Namespace, config: fid.IdentificationConfig, constants: fid.AxisConstants,
-             points: list[fid.FrictionPoint], summaries: list[fid.SpeedSummary], out_dir: Path,
+             points: list[fid.FrictionPoint], summaries: list[fcurve.SpeedSummary], out_dir: Path,
              last: fid.SpeedRun) -> int:
     print_points(summaries)
     figures = agreement(points, summaries)
     print_agreement(figures)
     try:
-        fits: tuple[fid.BranchFit, fid.BranchFit] | None = fid.fit_curve([s.nominal for s in summaries])
+        fits: tuple[fcurve.BranchFit, fcurve.BranchFit] | None = fcurve.fit_curve([s.nominal for s in summaries])
     except ConfigError as err:
         print(f"  no fitted curve: {err}")
         fits = None
@@ -355,9 +357,9 @@ def _outputs(args: argparse.Namespace, config: fid.IdentificationConfig, constan
                           last.scenario.plant.variation.friction_pct if config.seeds else 0.0)]
     if fits is not None:
         print_fits(fits, constants)
-        table = fid.fitted_table(fits, max(config.speeds_mm_s))
+        table = fcurve.fitted_table(fits, max(config.speeds_mm_s))
         meta = _meta(config, constants, figures, args.engine)
-        files += [fid.write_table(path, table, fits, meta) for path in (out_dir / "friction_table.yaml",
+        files += [fcurve.write_table(path, table, fits, meta) for path in (out_dir / "friction_table.yaml",
                                                                          *([args.write_table] if args.write_table else []))]
     if not args.engine:
         print(f"bags:  {out_dir}/<plant>/<speed>/bag ({len(points)} runs)")

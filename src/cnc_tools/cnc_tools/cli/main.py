@@ -28,9 +28,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except CncError as err:
         print(f"cnc-contour {args.command}: error: {err}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print(f"cnc-contour {args.command}: interrupted", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as err:  # Ctrl-C, or SIGTERM/SIGHUP during a run (RunInterrupted: 128 + signal)
+        print(f"cnc-contour {args.command}: {err or 'interrupted'}", file=sys.stderr)
+        return int(getattr(err, "exit_code", 130))
 
 
 if __name__ == "__main__":

@@ -1,13 +1,14 @@
 """The subcommands of ``cnc-contour``, listed explicitly (one module per subcommand)."""
 from __future__ import annotations
 
-from cnc_tools.cli import bench, check, identify_friction, replay, run, score
+from cnc_tools.cli import bench, check, identify_friction, params, replay, run, score
 from cnc_tools.cli.common import Subcommand
 
 #: Subcommands by name, in the order ``--help`` lists them.
 COMMANDS: dict[str, Subcommand] = {
     "run": Subcommand(run.configure, run.run, "run a scenario through the node graph (or the engine), record, score, plot"),
     "check": Subcommand(check.configure, check.check, "validate a scenario and print what it resolves to"),
+    "params": Subcommand(params.configure, params.params, "write a scenario's node parameter files (for ros2 launch)"),
     "score": Subcommand(score.configure_score, score.score, "score recorded runs (exact contour error)"),
     "report": Subcommand(score.configure_report, score.report, "PNG plots of recorded runs, side by side"),
     "replay": Subcommand(replay.configure, replay.replay, "republish a bag with its recorded timing"),

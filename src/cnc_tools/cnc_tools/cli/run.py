@@ -7,45 +7,57 @@ from pathlib import Path
 
 from cnc_contour_control.errors import CncError
 from cnc_tools.cli.common import parse_overrides
-from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.backends import run_on_engine
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph
-from cnc_tools.runs.outputs import report_runs, score_bag
+from cnc_tools.runs.namespaces import run_namespace
+from cnc_tools.runs.outputs import ScoredRun, report_runs, score_bag, score_record
 from cnc_tools.runs.scenario import load_scenario
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
+    """Options of ``cnc-contour run``."""
     parser.add_argument("scenario", type=Path, help="scenario YAML file")
     parser.add_argument("--engine", action="store_true", help="run in-process (no DDS) instead of the node graph")
     parser.add_argument("--out", type=Path, help="run folder (default bags/<scenario>/<timestamp>)")
+    parser.add_argument("--namespace", help="ROS namespace of the run's topics, /clock and /diagnostics included "
+                        "(default /cnc/run_<random id>: runs in one ROS domain never meet)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario key, e.g. --set servo.law_params.kp=3 --set mode=realtime")
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run a scenario through the node graph (or the engine) and print its summary."""
+    """Run a scenario through the node graph (or the engine), record it, score it, plot it."""
     scenario = load_scenario(args.scenario, parse_overrides(args.overrides))
-    if args.engine:
-        result = run_engine(scenario)
-        summary = {"ticks": result.ticks, "simulated_time_s": float(result.time_s[-1]),
-                   "wall_time_s": result.wall_time_s, "real_time_factor": result.real_time_factor, "faults": []}
-        print_summary(scenario.name, "engine", summary)
-        return 0
     run_dir = args.out or project_root() / "bags" / scenario.name / timestamp()
     if run_dir.exists():
         raise CncError(f"run folder {run_dir} exists already; runs are never overwritten")
+    if args.engine:
+        print(f"running {scenario.name} in-process (engine, T = {scenario.sample_time_s} s, "
+              f"{scenario.duration_s:.2f} s simulated) into {run_dir}", flush=True)
+        record = run_on_engine(scenario, run_dir)
+        print_summary(scenario.name, "engine", record.summary)
+        return _outputs(score_record(record, run_dir), run_dir, run_dir / "bag")
+    namespace = run_namespace(namespace=args.namespace)
     print(f"running {scenario.name} through the node graph ({scenario.mode}, T = {scenario.sample_time_s} s, "
-          f"{scenario.duration_s:.2f} s simulated), recording to {run_dir / 'bag'}", flush=True)
-    result = run_graph(scenario, run_dir, record=True, on_poll=Progress(run_dir / "summary.json", scenario.duration_s))
+          f"{scenario.duration_s:.2f} s simulated) in namespace {namespace}, recording to {run_dir / 'bag'}", flush=True)
+    result = run_graph(scenario, run_dir, record=True, on_poll=Progress(run_dir / "summary.json", scenario.duration_s),
+                       namespace=namespace)
     print_summary(scenario.name, "node graph", result.summary)
     if result.faults or result.bag_path is None:
         return 1
-    scored = score_bag(result.bag_path, run_dir)
+    return _outputs(score_bag(result.bag_path, run_dir), run_dir, result.bag_path)
+
+
+def _outputs(scored: ScoredRun, run_dir: Path, bag: Path | None) -> int:
+    """Print the score, draw the plots, list the files of the run folder."""
     print(scored.score.to_table())
     plots = report_runs([scored], run_dir / "report")
-    print(f"bag:   {result.bag_path}\njson:  {scored.json_path}\ncsv:   {scored.csv_path}")
+    if bag is not None:
+        print(f"bag:   {bag}")
+    print(f"json:  {scored.json_path}\ncsv:   {scored.csv_path}")
     print("plots: " + "\n       ".join(str(p) for p in plots))
-    return 0
+    return 0 if scored.verdict.complete else 1  # the table's verdict line says why
 
 
 class Progress:

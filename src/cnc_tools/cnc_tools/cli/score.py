@@ -1,28 +1,41 @@
-"""``cnc-contour score BAG...`` and ``cnc-contour report BAG...``: score recorded runs, plot them."""
+"""``cnc-contour score BAG...`` and ``cnc-contour report BAG...``: score recorded runs, plot them.
+
+``score`` judges each run first (:func:`cnc_tools.runs.outputs.judge_bag`): a
+partial or faulted run is reported in one line and scored only with
+``--allow-partial``; the exit code is 1 when a run was refused.
+"""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 from cnc_tools.runs.folders import timestamp
-from cnc_tools.runs.outputs import report_runs, score_bag
+from cnc_tools.runs.outputs import judge_bag, report_runs, score_bag, score_record
 
 
 def configure_score(parser: argparse.ArgumentParser) -> None:
+    """Options of ``cnc-contour score``."""
     parser.add_argument("bags", nargs="+", type=Path, help="bag folders (or .mcap files)")
     parser.add_argument("--metrics", nargs="*", help="metric names (default: all registered)")
     parser.add_argument("--out", type=Path, help="write score.json and score.csv per bag under this folder")
+    parser.add_argument("--allow-partial", action="store_true",
+                        help="also score runs that did not finish, faulted, or whose bag is damaged (reported as such)")
 
 
 def score(args: argparse.Namespace) -> int:
     """Score recorded runs: exact contour error from the recorded path and positions."""
     status = 0
     for bag in args.bags:
-        out = args.out / bag.resolve().parent.name if args.out else None
-        scored = score_bag(bag, out, args.metrics)
-        print(scored.score.to_table())
-        if not scored.run.integrity.complete:
+        record, verdict = judge_bag(bag)
+        if not verdict.complete and not args.allow_partial:
+            print(f"cnc-contour score: error: {bag}: run {verdict.describe()} "
+                  "(not scored; --allow-partial scores it anyway)", file=sys.stderr)
             status = 1
+            continue
+        out = args.out / bag.resolve().parent.name if args.out else None
+        scored = score_record(record, out, args.metrics, verdict)
+        print(scored.score.to_table())
         if scored.json_path:
             print(f"json: {scored.json_path}\ncsv:  {scored.csv_path}")
     return status

@@ -3,44 +3,53 @@ from __future__ import annotations
 
 from typing import Any
 
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rclpy.parameter import Parameter
 
 from cnc_contour_control.errors import BagError
 from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, message_class, spin_node, wall_time_s
-from cnc_plant_sim.nodes.plant_node import RUN_FINISHED
+from cnc_contour_control.stages import STAGES
+from cnc_contour_control.topics import RUN_FINISHED, RUN_ID_KEY, TICKS_KEY
 from cnc_tools.bagio.bag import BagWriter
-from cnc_tools.bagio.recording import Completion, header_stamp_ns, per_tick_topics, run_topics
-
-
-
-#: Topics stamped in wall time: logged at the simulation time of the latest message recorded before them.
-WALL_STAMPED = ("/diagnostics",)
+from cnc_tools.bagio.recording import Completion, header_stamp_ns, is_latched, is_wall_stamped, per_tick_topics, run_topics
 
 
 class RecorderNode(SuiteNode):
-    """Subscribes raw to every topic of the run and appends each message to the bag."""
+    """Subscribes raw to every topic of the run (its namespace, remaps applied) and appends each message to the bag.
+
+    Wall-stamped messages (``/diagnostics``) are logged at the simulation time
+    of the latest message recorded before them. The run's end is the plant's
+    "run finished" status from this run (its run id, or its node's namespace).
+    """
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("recorder", **kwargs)
         output = self.declare("output", "", describe("bag folder to create (must not exist)", read_only=True))
         axes = self.declare("axes", ["x", "y"], describe("axis names (one command topic each)", read_only=True))
-        optional = self.declare("optional_topics", [""], describe("further run topics to record", read_only=True))
+        optional = self.declare("optional_stages", Parameter.Type.STRING_ARRAY, describe(
+            f"optional stages of the run whose topics are recorded too: {sorted(s for s in STAGES if STAGES[s].optional)}",
+            read_only=True)) or []
         self.drain_timeout_s = self.declare("drain_timeout_s", 10.0, describe("wait for late messages after the run ends, s", 0.1, 600.0, True))
         if not output:
             raise BagError("recorder: parameter output (the bag folder) is required")
-        topics = run_topics(self.get_namespace(), axes, [t for t in optional if t])
+        namespace = self.get_namespace()
+        # Resolved names: the runner's remaps (/clock, /diagnostics into the run's namespace) apply.
+        topics = {self.resolve_topic_name(name): ty for name, ty in run_topics(namespace, axes, optional).items()}
         self.writer = BagWriter(output, topics)
-        self.completion = Completion(per_tick_topics(topics, self.get_namespace()))
+        self.completion = Completion(tuple(self.resolve_topic_name(n) for n in per_tick_topics(namespace, axes, optional)))
         self.ended_at_s: float | None = None
         self.latest_sim_ns = 0
         for topic, type_name in topics.items():
-            qos = LATCHED_QOS if type_name.endswith("/Path") else LOCKSTEP_QOS
-            self.create_subscription(message_class(type_name, topic), topic, self._writer_for(topic), qos, raw=True)
+            qos = LATCHED_QOS if is_latched(type_name) else LOCKSTEP_QOS
+            self.create_subscription(message_class(type_name, topic), topic, self._writer_for(topic, type_name), qos,
+                                     raw=True)
         self.create_timer(0.05, self.guarded(self._check_done))
 
-    def _writer_for(self, topic: str) -> Any:
+    def _writer_for(self, topic: str, type_name: str) -> Any:
+        wall_stamped = is_wall_stamped(type_name)
+
         def write(cdr: bytes) -> None:
-            if topic in WALL_STAMPED:
+            if wall_stamped:
                 self.writer.write(topic, self.latest_sim_ns, cdr)
                 self._watch_run_end(cdr)
                 return
@@ -55,9 +64,13 @@ class RecorderNode(SuiteNode):
 
         for status in deserialize_message(cdr, DiagnosticArray).status:
             values = {kv.key: kv.value for kv in status.values}
-            if status.message == RUN_FINISHED and "ticks" in values:
-                self.completion.ticks = int(values["ticks"])
+            if status.message == RUN_FINISHED and TICKS_KEY in values and self._of_this_run(status, values):
+                self.completion.ticks = int(values[TICKS_KEY])
                 self.ended_at_s = wall_time_s()
+
+    def _of_this_run(self, status: DiagnosticStatus, values: dict[str, str]) -> bool:
+        """True for a status of a node of this run: its run id, else its node's namespace, is ours."""
+        return values.get(RUN_ID_KEY, status.name.rpartition("/")[0] or "/") == self.get_namespace()
 
     def _check_done(self) -> None:
         counts = self.writer.message_counts

@@ -1,64 +1,51 @@
-"""The in-process engine: the node graph's core objects in the same tick order, without DDS.
+"""The in-process engine: the run's stage pipeline stepped sample by sample, without DDS.
 
-Tick k (stamp t_k = k·T, integer nanoseconds as on the wire):
+Tick k (stamp t_k = k·T, integer nanoseconds as on the wire), in the order of
+:data:`cnc_contour_control.stages.PIPELINE`:
+
 1. the plant's state at t_k (what ``joint_states(k)`` carries);
 2. the interpolator's reference at t_k;
-3. (estimator, compensator: later stages);
-4. each servo's command from the reference and the measured position, with
-   dt from the stamps (as the servo node computes it);
+3. (estimator, compensator: when the run has them);
+4. each servo's command from the reference and the measured state, with dt
+   from the stamps (as the servo node computes it);
 5. the plant integrates over T with every axis's command.
-A lockstep node-graph run of the same scenario gives the same trajectories.
 
-Speed: the reference is open-loop (it depends on the stamp only), so it is
-computed for all ticks at once with :meth:`Interpolator.sample_array`, which
-agrees with the node's per-tick :meth:`Interpolator.sample` to 1e-12 m (a few
-ulp on arcs; ``test_bench`` checks it). The commands are quantised, so the
-positions and commands are the node graph's exactly unless a command lands
-within ~1e-10 drive units of a rounding boundary. The tick loop reads the axes'
-state as floats and collects rows in Python lists, converted to arrays once.
+Each stage is an :class:`EngineStage` built from :data:`ENGINE_STAGES` by the
+stage's name; a stage of the pipeline without an engine implementation is an
+error naming it. Stages exchange one :class:`Board` per tick (the in-process
+stand-in for the tick's topics) and keep their own series, which become the
+:class:`~cnc_tools.run_record.RunRecord` a bag of the same run gives.
+
+Speed: while no stage upstream of the interpolator exists (no feed override),
+the reference depends on the stamp only and is computed for all ticks at once
+with :meth:`Interpolator.sample_array`, which agrees with the node's per-tick
+:meth:`Interpolator.sample` to 1e-12 m (``test_engine`` checks it); with a feed
+override it is stepped per tick. The node graph gives the same trajectories
+(``test_lockstep_graph_matches_engine_to_1e9``).
 """
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Protocol
 
 import numpy as np
-import numpy.typing as npt
 
-from cnc_contour_control.interpolation import ReferenceTrajectory
+from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.lockstep import NS_PER_S, duration_to_ns, seconds_to_ns
-from cnc_contour_control.servo import ServoController
-from cnc_plant_sim.plant import Plant, make_plant
+from cnc_contour_control.stages import Pipeline
+from cnc_tools.run_record import BagIntegrity, FloatArray, IntArray, JointStateSeries, RunRecord
+from cnc_tools.runs.engine_stages import ENGINE_STAGES, Board, EngineStage, PlantStage
 from cnc_tools.runs.scenario import Scenario
 
-FloatArray = npt.NDArray[np.float64]
+__all__ = ["Board", "EngineStage", "ENGINE_STAGES", "run_engine", "tick_count", "tick_stamps_s"]
 
 
-@dataclass(frozen=True)
-class EngineResult:
-    """Trajectories of one run; arrays are (n_ticks,) or (n_ticks, n_axes), SI units.
+class Clock(Protocol):
+    """Wall seconds, only to time the run."""
 
-    Row k holds tick k: the joint state published at t_k, the reference at
-    t_k, and the command answering it.
-    """
-
-    axes: tuple[str, ...]
-    time_s: FloatArray
-    position_m: FloatArray
-    velocity_m_s: FloatArray
-    reference_m: FloatArray
-    command: FloatArray
-    wall_time_s: float
-
-    @property
-    def ticks(self) -> int:
-        """Number of ticks simulated."""
-        return int(self.time_s.size)
-
-    @property
-    def real_time_factor(self) -> float:
-        """Simulated time per wall time."""
-        return float(self.time_s[-1] + (self.time_s[1] - self.time_s[0])) / self.wall_time_s if self.ticks > 1 else float("nan")
+    def __call__(self) -> float: ...
 
 
 def tick_count(scenario: Scenario) -> int:
@@ -75,49 +62,65 @@ def tick_stamps_s(n_ticks: int, sample_ns: int) -> FloatArray:
     return (np.arange(n_ticks, dtype=np.int64) * sample_ns) * 1e-9
 
 
-def run_engine(scenario: Scenario, clock: Callable[[], float] | None = None) -> EngineResult:
-    """Simulate ``scenario`` in-process; ``clock`` (wall seconds) only times the run."""
-    import time
-
-    wall = clock or time.perf_counter
-    plant = make_plant(scenario.plant)
-    interpolator = scenario.make_interpolator()
-    servos = [ServoController(config) for config in scenario.servos]
-    plant.reset(list(scenario.program.start_m))
-    n_ticks = tick_count(scenario)
-    sample_ns = seconds_to_ns(scenario.sample_time_s)
-    started = wall()
-    reference = interpolator.sample_array(tick_stamps_s(n_ticks, sample_ns))
-    rows = _tick_loop(plant, servos, reference, sample_ns / NS_PER_S, scenario.sample_time_s)
-    position, velocity, command = (np.array(r, dtype=float).reshape(n_ticks, len(scenario.axes)) for r in rows)
-    return EngineResult(
-        axes=scenario.axes,
-        time_s=np.arange(n_ticks) * (sample_ns / NS_PER_S),
-        position_m=position, velocity_m_s=velocity,
-        reference_m=reference.position_m, command=command,
-        wall_time_s=wall() - started,
-    )
+def build_stages(scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> list[EngineStage]:
+    """One engine stage per pipeline stage, in tick order; an error names a stage the engine lacks."""
+    stages = []
+    for stage in pipeline.stages:
+        factory = ENGINE_STAGES.get(stage.name)
+        if factory is None:
+            raise ConfigError(f"stage {stage.name!r} has no engine implementation; "
+                              f"the engine runs {sorted(ENGINE_STAGES)}")
+        stages.append(factory(scenario, pipeline, stamps_ns))
+    return stages
 
 
-def _tick_loop(plant: Plant, servos: list[ServoController], reference: ReferenceTrajectory,
-               servo_dt_s: float, plant_dt_s: float) -> tuple[list[list[float]], ...]:
-    """Ticks 0..M-1 in the node graph's order; rows (M,) of (n_axes,) positions, velocities, commands.
+def run_engine(scenario: Scenario, clock: Callable[[], float] | None = None,
+               run_dir: Path | None = None) -> RunRecord:
+    """Simulate ``scenario`` in-process and return its run record.
 
-    ``servo_dt_s`` is the period the servo node computes from the stamps,
-    ``plant_dt_s`` the sample time the plant node integrates over.
+    ``clock`` (wall seconds) only times the run; ``run_dir`` becomes the
+    record's ``source`` (where a run folder is written).
     """
-    axes, commands_of = plant.axes, [servo.command for servo in servos]
-    ref_rows = zip(reference.position_m.tolist(), reference.velocity_m_s.tolist(),
-                   reference.acceleration_m_s2.tolist())
-    positions: list[list[float]] = []
-    velocities: list[list[float]] = []
-    commands: list[list[float]] = []
-    step = plant.step
-    for ref_p, ref_v, ref_a in ref_rows:
-        pos = [axis.position_m for axis in axes]
-        velocities.append([axis.velocity_m_s for axis in axes])
-        cmd = [command(servo_dt_s, r, v, a, x) for command, r, v, a, x in zip(commands_of, ref_p, ref_v, ref_a, pos)]
-        step(cmd, plant_dt_s)
-        positions.append(pos)
-        commands.append(cmd)
-    return positions, velocities, commands
+    wall = clock or time.perf_counter
+    pipeline = scenario.pipeline()
+    sample_ns = seconds_to_ns(scenario.sample_time_s)
+    stamps_ns = np.arange(tick_count(scenario), dtype=np.int64) * sample_ns
+    stages = build_stages(scenario, pipeline, stamps_ns)
+    started = wall()
+    _tick_loop(stages, stamps_ns, sample_ns)
+    wall_time_s = wall() - started
+    return _record(scenario, stages, stamps_ns, wall_time_s, run_dir)
+
+
+def _tick_loop(stages: list[EngineStage], stamps_ns: IntArray, sample_ns: int) -> None:
+    """Every tick: the plant opens it, the other stages answer in order, the plant closes it."""
+    plant = stages[0]
+    if not isinstance(plant, PlantStage):
+        raise ConfigError(f"the pipeline must start with the plant, got {type(plant).__name__}")
+    answers = [stage.step for stage in stages[1:]]
+    board = Board(dt_s=sample_ns / NS_PER_S)
+    observe, integrate = plant.observe, plant.integrate
+    for k, stamp_ns in enumerate(stamps_ns.tolist()):
+        board.tick, board.stamp_ns = k, stamp_ns
+        observe(board)
+        for answer in answers:
+            answer(board)
+        integrate(board)
+
+
+def _record(scenario: Scenario, stages: list[EngineStage], stamps_ns: IntArray, wall_time_s: float,
+            run_dir: Path | None) -> RunRecord:
+    """The run record of a finished engine run (every stage contributes its series)."""
+    parts: dict[str, Any] = {}
+    for stage in stages:
+        parts.update(stage.series())
+    ticks = int(stamps_ns.size)
+    simulated_s = (ticks * (stamps_ns[1] - stamps_ns[0]) if ticks > 1 else 0) / NS_PER_S
+    summary = {"status": "finished", "ticks": ticks, "simulated_time_s": float(stamps_ns[-1]) / NS_PER_S,
+               "wall_time_s": wall_time_s, "real_time_factor": simulated_s / wall_time_s if wall_time_s > 0 else
+               float("nan"), "late_commands": 0, "faults": [], "ran_on": "engine", **parts.pop("summary", {})}
+    found = {name: ticks for name in scenario.pipeline().per_tick_topics()}
+    integrity = BagIntegrity(True, "engine", found, dict(found), "engine (in-process, no bag)")
+    joint_states: JointStateSeries = parts.pop("joint_states")
+    return RunRecord(name=scenario.name, source=run_dir or Path("engine"), program=scenario.program,
+                     joint_states=joint_states, integrity=integrity, summary=summary, backend="engine", **parts)

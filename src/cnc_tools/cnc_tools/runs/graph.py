@@ -3,8 +3,11 @@
 Every node is a separate process started from its installed executable (what
 ``ros2 run`` starts), with a parameters file written for the run. The plant
 owns time; the run ends when the plant exits. A node that dies first ends the
-run with an error naming it. All processes are stopped and reaped, also on
-errors and interrupts.
+run with a :class:`NodeDied` naming it. All processes are stopped and reaped on
+every way out: errors, SIGINT/SIGTERM/SIGHUP to the runner, and the runner's own
+death (:mod:`cnc_tools.runs.lifetime`). The run folder holds ``pids.json`` (the
+runner's and every node's pid) and ``summary.json``, which always ends with how
+the run ended.
 """
 from __future__ import annotations
 
@@ -19,9 +22,23 @@ from pathlib import Path
 from typing import Any
 
 from cnc_contour_control.errors import CncError, FaultError
+from cnc_contour_control.graph_files import write_params_file
 from cnc_tools.runs.dds import loopback_env
-from cnc_tools.runs.graph_nodes import NAMESPACE, NodeSpec, graph_nodes, recorder_spec, ros_params_yaml
+from cnc_tools.runs.graph_nodes import NAMESPACE, NodeSpec, graph_nodes, recorder_spec, write_params_dir
+from cnc_tools.runs.lifetime import RunInterrupted, StopSignals, die_with_parent, read_summary, settle_summary
+from cnc_tools.runs.namespaces import remap_arguments, run_namespace
 from cnc_tools.runs.scenario import Scenario
+
+#: Seconds between two looks at the processes (and at stop signals) while a run waits.
+POLL_S = 0.05
+
+
+class NodeDied(FaultError):
+    """A node of the run exited before its time; ``node`` names it."""
+
+    def __init__(self, node: str, message: str) -> None:
+        self.node = node
+        super().__init__(message)
 
 
 @dataclass
@@ -32,6 +49,7 @@ class RunResult:
     summary: dict[str, Any]
     exit_codes: dict[str, int | None] = field(default_factory=dict)
     bag_path: Path | None = None
+    namespace: str = NAMESPACE
 
     @property
     def faults(self) -> list[str]:
@@ -49,36 +67,57 @@ def find_executable(package: str, executable: str) -> Path:
 
 
 class GraphRun:
-    """The processes of one run; use as a context manager so they are always reaped."""
+    """The processes of one run, all in ``namespace``; use as a context manager so they are always reaped.
 
-    def __init__(self, nodes: Sequence[NodeSpec], run_dir: Path, env: Mapping[str, str] | None = None) -> None:
+    Every node runs in its own session (a terminal's Ctrl-C reaches the runner
+    only, which stops the nodes in order) and dies with the runner
+    (:func:`~cnc_tools.runs.lifetime.die_with_parent`).
+    """
+
+    def __init__(self, nodes: Sequence[NodeSpec], run_dir: Path, env: Mapping[str, str] | None = None,
+                 namespace: str = NAMESPACE) -> None:
         self.nodes = list(nodes)
         self.run_dir = run_dir
+        self.namespace = namespace
         self.env = dict(env) if env is not None else loopback_env()
         self.processes: dict[str, subprocess.Popen[bytes]] = {}
+        self._preexec = die_with_parent()
 
     def __enter__(self) -> GraphRun:
         self.run_dir.mkdir(parents=True, exist_ok=True)
-        for spec in self.nodes:
-            self.processes[spec.name] = self._start(spec)
+        try:
+            for spec in self.nodes:
+                self.processes[spec.name] = self._start(spec)
+            self._write_pids()
+            write_params_dir(self.nodes, self.run_dir, self.namespace, files=False)  # graph.yaml: launchable
+        except BaseException:
+            self.stop()
+            raise
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
 
     def _start(self, spec: NodeSpec) -> subprocess.Popen[bytes]:
-        params = self.run_dir / f"{spec.name}.params.yaml"
-        params.write_text(ros_params_yaml(f"{NAMESPACE}/{spec.name}", spec.parameters))
+        params = write_params_file(self.run_dir, self.namespace, spec.name, spec.parameters)
         command = [str(find_executable(spec.package, spec.executable)), "--ros-args",
-                   "-r", f"__ns:={NAMESPACE}", "-r", f"__node:={spec.name}", "--params-file", str(params)]
-        log = open(self.run_dir / f"{spec.name}.log", "wb")  # noqa: SIM115 (closed with the process)
-        return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=self.env, start_new_session=True)
+                   "-r", f"__ns:={self.namespace}", "-r", f"__node:={spec.name}", *remap_arguments(self.namespace),
+                   "--params-file", str(params)]
+        with open(self.run_dir / f"{spec.name}.log", "wb") as log:  # the child keeps its own descriptor
+            return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=self.env,
+                                    start_new_session=True, preexec_fn=self._preexec)  # noqa: PLW1509
+
+    def _write_pids(self) -> None:
+        """``pids.json``: the runner's pid and every node's, for people and tests watching a run."""
+        pids = {"runner": os.getpid(), "nodes": {name: p.pid for name, p in self.processes.items()}}
+        (self.run_dir / "pids.json").write_text(json.dumps(pids, indent=2))
 
     def wait(self, main: str = "plant", timeout_s: float = 3600.0, poll: Callable[[], None] | None = None,
              may_finish: Sequence[str] = ()) -> dict[str, int | None]:
-        """Wait until ``main`` exits; a node that exits first ends the run with a FaultError naming it.
+        """Wait until ``main`` exits; a node that exits first ends the run with :class:`NodeDied` naming it.
 
         Nodes in ``may_finish`` (a recorder that is done) may exit first with code 0.
+        ``poll`` is called every :data:`POLL_S` (progress, stop signals).
         """
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
@@ -88,20 +127,24 @@ class GraphRun:
                 return self.exit_codes()
             for name, process in self.processes.items():
                 if name != main and process.poll() is not None and not (name in may_finish and process.returncode == 0):
-                    raise FaultError(f"node {name} (pid {process.pid}) exited with code {process.returncode} "
-                                     f"during the run; last output: {self.last_output(name)!r}")
-            time.sleep(0.05)
+                    raise NodeDied(name, f"node {name} (pid {process.pid}) exited with code {process.returncode} "
+                                         f"during the run; last output: {self.last_output(name)!r}")
+            time.sleep(POLL_S)
         raise FaultError(f"run did not finish within {timeout_s} s")
 
-    def wait_exit(self, name: str, timeout_s: float) -> int:
-        """Wait for ``name`` to exit by itself; FaultError naming it if it fails or hangs."""
-        try:
-            code = self.processes[name].wait(timeout=timeout_s)
-        except subprocess.TimeoutExpired as err:
-            raise FaultError(f"node {name} did not finish within {timeout_s} s") from err
-        if code != 0:
-            raise FaultError(f"node {name} exited with code {code}: {self.last_output(name)!r}")
-        return code
+    def wait_exit(self, name: str, timeout_s: float, poll: Callable[[], None] | None = None) -> int:
+        """Wait for ``name`` to exit by itself; :class:`NodeDied` if it fails, FaultError if it hangs."""
+        process = self.processes[name]
+        deadline = time.monotonic() + timeout_s
+        while process.poll() is None:
+            if time.monotonic() > deadline:
+                raise FaultError(f"node {name} did not finish within {timeout_s} s")
+            if poll is not None:
+                poll()
+            time.sleep(POLL_S)
+        if process.returncode != 0:
+            raise NodeDied(name, f"node {name} exited with code {process.returncode}: {self.last_output(name)!r}")
+        return process.returncode
 
     def exit_codes(self) -> dict[str, int | None]:
         """Exit code of every process (None while running)."""
@@ -131,30 +174,66 @@ class GraphRun:
 
 def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_subscribers: int = 0,
               env: Mapping[str, str] | None = None, on_poll: Callable[[], None] | None = None,
-              timeout_s: float = 3600.0) -> RunResult:
-    """Run ``scenario`` through the node graph in ``run_dir`` (recorded to ``run_dir/bag`` if asked)."""
+              timeout_s: float = 3600.0, namespace: str | None = None) -> RunResult:
+    """Run ``scenario`` through the node graph in ``run_dir`` (recorded to ``run_dir/bag`` if asked).
+
+    The run's topics live under ``namespace``, by default a fresh ``/cnc/<run id>``
+    (:mod:`cnc_tools.runs.namespaces`), so runs in one ROS domain never meet.
+
+    Raises
+    ------
+    NodeDied
+        A node exited during the run (``summary.json`` says ``node died``, naming it).
+    RunInterrupted
+        SIGINT, SIGTERM or SIGHUP reached the runner (``summary.json``: ``interrupted``).
+    FaultError
+        The run or the recorder did not finish in time.
+    """
     run_dir.mkdir(parents=True, exist_ok=True)
+    namespace = run_namespace(namespace=namespace)
     extra = [recorder_spec(scenario, run_dir / "bag")] if record else []
-    nodes = [*extra, *graph_nodes(scenario, run_dir, extra_subscribers + len(extra))]
-    with GraphRun(nodes, run_dir, env) as run:
-        codes = run.wait("plant", timeout_s, on_poll, may_finish=["recorder"])
-        summary = _read_summary(run_dir)
-        if summary is None:
-            raise FaultError(f"node plant exited with code {codes['plant']} before the run ended: "
-                             f"{run.last_output('plant')!r}")
-        if record and not summary.get("faults"):
-            run.wait_exit("recorder", 60.0)
-        codes = run.exit_codes()
-    result = RunResult(run_dir, summary, codes)
+    nodes = [*extra, *graph_nodes(scenario, run_dir, extra_subscribers + len(extra),
+                                  extra_readers=[spec.name for spec in extra])]
+    run = GraphRun(nodes, run_dir, env, namespace)
+    with StopSignals(run_dir) as signals:
+        try:
+            with run:
+                summary = _supervise(run, record, timeout_s, _chain(signals.check, on_poll))
+        except BaseException as err:
+            settle_summary(run_dir / "summary.json", _ended_as(err), str(err), run.exit_codes())
+            raise
+    result = RunResult(run_dir, summary, run.exit_codes(), namespace=namespace)
     if record:
         result.bag_path = run_dir / "bag"
     return result
 
 
-def _read_summary(run_dir: Path) -> dict[str, Any] | None:
-    """The plant's final summary; None if it never wrote one or stopped while running."""
-    path = run_dir / "summary.json"
-    summary = json.loads(path.read_text()) if path.exists() else None
-    return summary if summary and summary.get("status") in ("finished", "faulted") else None
+def _supervise(run: GraphRun, record: bool, timeout_s: float, poll: Callable[[], None]) -> dict[str, Any]:
+    """Wait for the plant's end (and the recorder's); the plant's summary of a finished or faulted run."""
+    codes = run.wait("plant", timeout_s, poll, may_finish=["recorder"])
+    summary = read_summary(run.run_dir / "summary.json")
+    if summary is None or summary.get("status") not in ("finished", "faulted"):
+        raise NodeDied("plant", f"node plant exited with code {codes['plant']} before the run ended: "
+                                f"{run.last_output('plant')!r}")
+    if record and not summary.get("faults"):
+        run.wait_exit("recorder", 60.0, poll)
+    return summary
 
 
+def _chain(*callbacks: Callable[[], None] | None) -> Callable[[], None]:
+    """One callback calling each given one in order."""
+    def call() -> None:
+        for callback in callbacks:
+            if callback is not None:
+                callback()
+
+    return call
+
+
+def _ended_as(err: BaseException) -> str:
+    """The summary status of a run that ended with ``err``."""
+    if isinstance(err, NodeDied):
+        return "node died"
+    if isinstance(err, (RunInterrupted, KeyboardInterrupt)):
+        return "interrupted"
+    return "timed out" if isinstance(err, FaultError) else "interrupted"

@@ -1,21 +1,45 @@
-"""The node processes of a scenario's graph and their parameter files (what the runner starts).
+"""The node processes of a scenario's graph and their parameters (what the runner starts).
 
-One :class:`NodeSpec` per node: package, executable, node name and parameters
-in the config's own units. :func:`ros_params_yaml` writes them as a ROS 2
-parameters file (strings quoted, so rcl's YAML 1.1 parser keeps ``y`` a string).
+Which nodes: one per stage of the scenario's pipeline
+(:func:`cnc_contour_control.stages.pipeline`), one per axis for a per-axis
+stage (the servo). Their parameters: the node's configs as plain values in the
+configs' own units (:func:`cnc_contour_control.params.config_values`), under
+the names the node declares them by, from the same config classes
+(:mod:`cnc_contour_control.nodes.parameters`): the algorithm's config and the
+stage's run parameters (:mod:`cnc_contour_control.stage_params`), built and so
+validated here before any process starts. Nothing is renamed or converted on
+the way but what the servo node declares differently
+(:func:`~cnc_contour_control.stage_params.servo_config_values`: ``axis`` and
+``gains.*``). Each stage also gets the readers it waits for before it
+publishes: the pipeline's readers of its per-tick outputs, plus the run's
+extra readers (a recorder, a test probe).
+
+:func:`write_params_dir` writes the parameter files and the node list that
+``contour_graph.launch.py`` starts (:mod:`cnc_contour_control.graph_files`).
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from cnc_contour_control import topics
+from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.graph_files import params_yaml, write_manifest, write_params_file
+from cnc_contour_control.params import config_values
+from cnc_contour_control.stage_params import InterpolatorRunParams, ServoRunParams, servo_config_values
+from cnc_contour_control.stages import Pipeline, Stage, pipeline
+from cnc_plant_sim.run_params import PlantRunParams
 from cnc_tools.runs.scenario import Scenario
 
-NAMESPACE = "/cnc"
+NAMESPACE = topics.DEFAULT_NAMESPACE
+#: The plant waits for the readers of ``joint_states`` under this parameter name; other stages: ``min_subscribers``.
+_READER_COUNT = {"plant": "expected_subscribers"}
+#: The plant waits this many stage timeouts for commands: the stage nearest a missing input reports it first.
+PLANT_TIMEOUT_FACTOR = 3.0
 
 
 @dataclass(frozen=True)
@@ -28,62 +52,133 @@ class NodeSpec:
     parameters: Mapping[str, Any]
 
 
+@dataclass(frozen=True)
+class _Run:
+    """What the stages' parameters are made from."""
+
+    scenario: Scenario
+    stages: Pipeline
+    run_dir: Path
+    input_timeout_s: float
+
+    @property
+    def program_file(self) -> Path:
+        """The program the interpolator reads (written by :func:`write_program`)."""
+        return self.run_dir / "program.yaml"
+
+
 def graph_nodes(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0,
-                input_timeout_s: float = 5.0) -> list[NodeSpec]:
-    """The node processes of a scenario (plant, interpolator, one servo per axis).
+                input_timeout_s: float = 5.0, extra_readers: Sequence[str] = ()) -> list[NodeSpec]:
+    """The node processes of a scenario, its program written into ``run_dir``.
 
     ``extra_subscribers`` readers (a recorder, a test probe) subscribe to every
-    lockstep topic besides the graph's own; each stage waits for all its readers
-    before it publishes its first message, so nothing is lost at start-up.
+    per-tick topic besides the graph's own; each stage waits for all its
+    readers before it publishes its first message, so nothing is lost at
+    start-up. ``extra_readers`` names those that are nodes of the run (the
+    recorder): a stage waits for them by name (``required_readers``).
     """
-    axes = list(scenario.axes)
-    program_file = run_dir / "program.yaml"
-    program_file.write_text(yaml.safe_dump({"program": _with_axes(scenario)}))
-    servos = [_servo_spec(scenario, config, input_timeout_s, 1 + extra_subscribers) for config in scenario.servos]
-    limits = scenario.limits
-    interpolator = NodeSpec("cnc_contour_control", "interpolator", "interpolator", {
-        "axes": axes, "program_file": str(program_file),
-        "max_velocity_mm_min": [v * 60e3 for v in limits.max_velocity_m_s],
-        "max_acceleration_mm_s2": [a * 1e3 for a in limits.max_acceleration_m_s2],
-        "corner_angle_tolerance_deg": float(scenario.interpolator.corner_angle_tolerance_deg),
-        "arc_centripetal_fraction": float(scenario.interpolator.arc_centripetal_fraction),
-        "clamp_feed": scenario.interpolator.clamp_feed, "min_subscribers": len(servos) + extra_subscribers,
-    })
-    plant = _plant_spec(scenario, run_dir, 1 + len(servos) + extra_subscribers, input_timeout_s)
-    return [plant, interpolator, *servos]
+    write_program(scenario, run_dir)
+    return graph_specs(scenario, run_dir, extra_subscribers, input_timeout_s, extra_readers)
 
 
-def _with_axes(scenario: Scenario) -> dict[str, Any]:
+def graph_specs(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0, input_timeout_s: float = 5.0,
+                extra_readers: Sequence[str] = ()) -> list[NodeSpec]:
+    """:func:`graph_nodes` without writing anything: a ConfigError for a value a node would refuse."""
+    run = _Run(scenario, pipeline(scenario.axes), run_dir, input_timeout_s)
+    readers = stage_readers(run.stages)
+    specs = []
+    for stage in run.stages.stages:
+        make = STAGE_PARAMETERS.get(stage.name)
+        if make is None:
+            raise ConfigError(f"stage {stage.name!r} has no node yet; stages with nodes: {sorted(STAGE_PARAMETERS)}")
+        for axis, node in _nodes(stage, run.stages.axes):
+            gate = {_READER_COUNT.get(stage.name, "min_subscribers"): len(readers[node]) + extra_subscribers}
+            required = sorted({*readers[node], *extra_readers})
+            if required:
+                gate["required_readers"] = required
+            specs.append(NodeSpec(stage.package, stage.executable, node, _merge(make(run, stage, node, axis), gate)))
+    return specs
+
+
+def _nodes(stage: Stage, axes: Sequence[str]) -> list[tuple[str | None, str]]:
+    """(axis or None, node name) of each node of ``stage``."""
+    if stage.per_axis:
+        return list(zip(axes, stage.node_names(axes)))
+    return [(None, stage.name)]
+
+
+def stage_readers(stages: Pipeline) -> dict[str, list[str]]:
+    """Node name -> the nodes of the pipeline that read its per-tick outputs every tick."""
+    readers: dict[str, list[str]] = {}
+    for stage in stages.stages:
+        for axis, node in _nodes(stage, stages.axes):
+            axes = stages.axes if axis is None else (axis,)
+            outputs = [name for pattern in stage.outputs if topics.topic(pattern).per_tick
+                       for name in topics.topic(pattern).names(axes)]
+            readers[node] = sorted({reader for name in outputs for reader in stages.readers(name)})
+    return readers
+
+
+def _merge(*parts: Mapping[str, Any]) -> dict[str, Any]:
+    """One node's parameters from several configs; a name given twice is a bug, not an override."""
+    merged: dict[str, Any] = {}
+    for part in parts:
+        twice = sorted(set(merged) & set(part))
+        if twice:
+            raise ValueError(f"parameters {twice} come from two configs")
+        merged.update(part)
+    return merged
+
+
+def _plant_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
+    """PlantConfig and the plant's run parameters."""
+    scenario = run.scenario
+    plant_run = PlantRunParams(
+        initial_position_m=tuple(float(v) for v in scenario.program.start_m),
+        sample_time_s=scenario.sample_time_s, duration_s=scenario.duration_s, mode=scenario.mode,
+        summary_file=str(run.run_dir / "summary.json"),
+        command_timeout_s=PLANT_TIMEOUT_FACTOR * run.input_timeout_s,
+        startup_timeout_s=max(PlantRunParams.startup_timeout_s, PLANT_TIMEOUT_FACTOR * run.input_timeout_s))
+    return _merge(config_values(scenario.plant), config_values(plant_run))
+
+
+def _interpolator_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
+    """InterpolatorConfig, AxisLimits (m/s, m/s^2) and the interpolator's run parameters."""
+    scenario = run.scenario
+    interpolator_run = InterpolatorRunParams(axes=scenario.axes, program_file=str(run.program_file))
+    return _merge(config_values(interpolator_run), config_values(scenario.interpolator),
+                  config_values(scenario.limits))
+
+
+def _servo_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
+    """One axis's ServoConfig (law params as ``gains``) and the servo's run parameters."""
+    scenario = run.scenario
+    config = scenario.servos[scenario.axes.index(str(axis))]
+    inputs = run.stages.node_inputs(stage)[node]
+    servo_run = ServoRunParams(axis=config.axis_name, sample_time_s=scenario.sample_time_s,
+                               use_compensation=topics.COMPENSATION.name in inputs,
+                               input_timeout_s=run.input_timeout_s,
+                               startup_timeout_s=max(ServoRunParams.startup_timeout_s, run.input_timeout_s))
+    return _merge(config_values(servo_run), servo_config_values(config))
+
+
+#: Stage name -> (run, stage, node name, axis or None) -> the node's parameters.
+STAGE_PARAMETERS: dict[str, Callable[[_Run, Stage, str, str | None], dict[str, Any]]] = {
+    "plant": _plant_parameters,
+    "interpolator": _interpolator_parameters,
+    "servo": _servo_parameters,
+}
+
+
+def write_program(scenario: Scenario, run_dir: Path) -> Path:
+    """The scenario's program section as ``run_dir/program.yaml`` (a G-code file's path made absolute)."""
     program = {"name": scenario.name, **dict(scenario.raw["program"])}
     if "gcode_file" in program and scenario.source is not None:
         program["gcode_file"] = str((scenario.source.parent / program["gcode_file"]).resolve())
-    return program
-
-
-def _plant_spec(scenario: Scenario, run_dir: Path, subscribers: int, timeout_s: float) -> NodeSpec:
-    plant = scenario.plant
-    return NodeSpec("cnc_plant_sim", "plant", "plant", {
-        "model": plant.model, "axes": list(plant.axes), "seed": int(plant.seed), "substeps": int(plant.substeps),
-        "gain_variation_pct": float(plant.variation.gain_pct),
-        "time_constant_variation_pct": float(plant.variation.time_constant_pct),
-        "friction_variation_pct": float(plant.variation.friction_pct),
-        "axis_overrides": yaml.safe_dump(dict(plant.axis_overrides)),
-        "initial_position_m": [float(v) for v in scenario.program.start_m],
-        "sample_time_s": float(scenario.sample_time_s), "duration_s": float(scenario.duration_s),
-        "mode": scenario.mode, "expected_subscribers": subscribers,
-        # Thrice the stages' timeout: the stage nearest the missing input reports it first.
-        "summary_file": str(run_dir / "summary.json"), "command_timeout_s": 3.0 * float(timeout_s),
-    })
-
-
-def _servo_spec(scenario: Scenario, config: Any, timeout_s: float, readers: int) -> NodeSpec:
-    return NodeSpec("cnc_contour_control", "servo", f"servo_{config.axis_name}", {
-        "axis": config.axis_name, "sample_time_s": float(scenario.sample_time_s),
-        "law": config.law, "law_params": yaml.safe_dump(dict(config.law_params), default_flow_style=True).strip(),
-        "counts_per_m": float(config.counts_per_m), "ff1": float(config.ff1), "ff2": float(config.ff2),
-        "output_limit": float(config.output_limit), "quantum": float(config.quantum), "command_unit": config.command_unit,
-        "input_timeout_s": float(timeout_s), "min_subscribers": readers,
-    })
+    path = run_dir / "program.yaml"
+    run_dir.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump({"program": program}))
+    return path
 
 
 def recorder_spec(scenario: Scenario, bag_path: Path) -> NodeSpec:
@@ -91,13 +186,18 @@ def recorder_spec(scenario: Scenario, bag_path: Path) -> NodeSpec:
     return NodeSpec("cnc_tools", "recorder", "recorder", {"output": str(bag_path), "axes": list(scenario.axes)})
 
 
-class _QuotedDumper(yaml.SafeDumper):
-    """Quotes every string, so rcl's YAML 1.1 parser never reads 'y' or 'no' as a bool."""
-
-
-_QuotedDumper.add_representer(str, lambda dumper, value: dumper.represent_scalar("tag:yaml.org,2002:str", value, style='"'))
-
-
 def ros_params_yaml(node: str, parameters: Mapping[str, Any]) -> str:
-    """A ROS 2 parameters file for one node."""
-    return yaml.dump({node: {"ros__parameters": dict(parameters)}}, Dumper=_QuotedDumper)
+    """A ROS 2 parameters file for the node ``node`` (fully qualified); strings quoted."""
+    return params_yaml(node, parameters)
+
+
+def write_params_dir(nodes: Sequence[NodeSpec], folder: Path, namespace: str = NAMESPACE, files: bool = True) -> Path:
+    """Write ``graph.yaml`` into ``folder`` (the node list the launch file starts); return its path.
+
+    Each node's parameters file is written too, unless ``files`` is False
+    (the runner writes them as it starts each node, with the same function).
+    """
+    folder.mkdir(parents=True, exist_ok=True)
+    for spec in nodes if files else ():
+        write_params_file(folder, namespace, spec.name, spec.parameters)
+    return write_manifest(folder, namespace, [(spec.package, spec.executable, spec.name) for spec in nodes])

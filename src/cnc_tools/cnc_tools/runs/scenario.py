@@ -17,11 +17,15 @@ from cnc_contour_control.geometry import Program
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_contour_control.lockstep import seconds_to_ns
 from cnc_contour_control.program import load_program
+from cnc_contour_control.stages import Pipeline, pipeline
 from cnc_contour_control.servo import ServoConfig
 from cnc_contour_control.units import mm_min_to_m_s, mm_s2_to_m_s2
 from cnc_plant_sim.plant import PlantConfig
+from cnc_plant_sim.run_params import PlantRunParams
 
 MODES = ("lockstep", "realtime")
+#: Scenario sections that switch on an optional stage of the pipeline (none has an implementation yet).
+OPTIONAL_STAGE_KEYS: tuple[str, ...] = ()
 _TOP_KEYS = ("name", "description", "sample_time_s", "duration_s", "settle_s", "seed", "mode",
              "plant", "limits", "program", "servo", "interpolator", "paper")
 _LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2")
@@ -54,6 +58,25 @@ class Scenario:
         """A fresh interpolator of this scenario's program."""
         return Interpolator(self.program, self.limits, self.interpolator)
 
+    @property
+    def optional_stages(self) -> tuple[str, ...]:
+        """The optional pipeline stages this scenario asks for (a section of the stage's name)."""
+        return tuple(name for name in OPTIONAL_STAGE_KEYS if self.raw.get(name) is not None)
+
+    def pipeline(self) -> Pipeline:
+        """The run's stage pipeline: the core stages plus the optional ones the scenario asks for."""
+        return pipeline(self.axes, self.optional_stages)
+
+    def variant(self, overrides: Mapping[str, Any] | None = None, **changes: Any) -> Scenario:
+        """A validated copy with ``overrides`` (nested, merged as ``--set`` merges) and top-level ``changes``.
+
+        The one way to make scenario variants (sweeps, benches, tuning): the
+        copy goes through the same validation as a file, relative program
+        files still resolve against the original scenario's folder.
+        """
+        raw = merge(merge(self.raw, overrides or {}), changes)
+        return build_scenario(raw, base_dir=self.source.parent if self.source else None, source=self.source)
+
 
 def load_scenario(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Read and validate the scenario in ``path`` (with optional top-level overrides)."""
@@ -79,21 +102,25 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
     _refuse_unknown(raw, _TOP_KEYS, "scenario")
     name = str(raw.get("name", "scenario"))
     sample_time_s = require_positive("sample_time_s", raw.get("sample_time_s", 0.01), "scenario")
+    mode = require_choice("mode", str(raw.get("mode", "lockstep")), MODES, "scenario")
+    _as_the_nodes_take(sample_time_s=sample_time_s, mode=mode)
     seconds_to_ns(sample_time_s)
-    plant = PlantConfig.from_mapping({"seed": int(raw.get("seed", 0)), **dict(raw.get("plant", {}))}, "scenario.plant")
+    seed = _seed(raw)
+    plant = PlantConfig.from_mapping({"seed": seed, **_section(raw, "plant", {})}, "scenario.plant")
     program = load_program(_section(raw, "program"), name=name, base_dir=base_dir)
     if tuple(program.axis_names) != plant.axes:
         raise ConfigError(f"scenario.program.axes {list(program.axis_names)} differ from scenario.plant.axes {list(plant.axes)}")
     limits = _limits(raw.get("limits", {}), len(plant.axes))
-    interpolator = _interpolator_config(raw.get("interpolator", {}))
-    planned_s = Interpolator(program, limits, interpolator).duration_s
+    interpolator = _interpolator_config(_section(raw, "interpolator", {}))
+    duration_s = _duration(raw, Interpolator(program, limits, interpolator).duration_s)
+    _as_the_nodes_take(sample_time_s=sample_time_s, duration_s=duration_s, mode=mode)
     return Scenario(
         name=name,
         description=str(raw.get("description", "")),
         sample_time_s=sample_time_s,
-        duration_s=_duration(raw, planned_s),
-        seed=int(raw.get("seed", 0)),
-        mode=require_choice("mode", str(raw.get("mode", "lockstep")), MODES, "scenario"),
+        duration_s=duration_s,
+        seed=seed,
+        mode=mode,
         plant=plant,
         program=program,
         limits=limits,
@@ -104,11 +131,30 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
     )
 
 
-def _section(raw: Mapping[str, Any], key: str) -> dict[str, Any]:
+def _section(raw: Mapping[str, Any], key: str, default: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The mapping under ``key``; ``default`` when absent (or null) if given, else it is required."""
     value = raw.get(key)
+    if value is None and default is not None:
+        return dict(default)
     if not isinstance(value, Mapping):
         raise ConfigError(f"scenario.{key} must be a mapping, got {value!r}")
     return dict(value)
+
+
+def _as_the_nodes_take(**values: Any) -> None:
+    """Refuse run values the plant node would refuse: its declared parameter ranges are the one bound."""
+    try:
+        PlantRunParams(**values)
+    except ConfigError as err:
+        raise ConfigError(f"scenario.{err}") from err
+
+
+def _seed(raw: Mapping[str, Any]) -> int:
+    """The scenario's seed: an integer (the plant checks its range)."""
+    value = raw.get("seed", 0)
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise ConfigError(f"scenario.seed must be an integer >= 0, got {value!r}")
+    return value
 
 
 def _refuse_unknown(mapping: Mapping[str, Any], valid: tuple[str, ...], context: str) -> None:
@@ -152,6 +198,9 @@ def _servos(section: Any, axes: tuple[str, ...]) -> tuple[ServoConfig, ...]:
         raise ConfigError(f"scenario.servo must be a mapping, got {section!r}")
     defaults = {k: v for k, v in section.items() if k != "axes"}
     per_axis = section.get("axes", {}) or {}
+    if not isinstance(per_axis, Mapping) or not all(isinstance(v, Mapping) for v in per_axis.values()):
+        raise ConfigError(f"scenario.servo.axes must map axis names to mappings (e.g. {{x: {{law: pid}}}}), "
+                          f"got {per_axis!r}")
     unknown = sorted(set(per_axis) - set(axes))
     if unknown:
         raise ConfigError(f"scenario.servo.axes.{unknown[0]}: unknown axis; axes are {list(axes)}")

@@ -91,14 +91,14 @@ VARIANTS: tuple[Variant, ...] = (
     Variant("flc_u_scale_1.5", "FLC scaling", "FLC u_scale 1.5 (PID unchanged: not equivalent gains)",
             law_params={"flc": {"u_scale": 1.5}}),
     Variant("both_gains_1.5", "FLC scaling", "FLC u_scale 1.5 and PID kp, kd × 1.5 (equivalent gains again)",
-            law_params={"flc": {"u_scale": 1.5}, "pid": {"kp": 3.6, "kd": 10.05}}),
+            law_params={"flc": {"u_scale": 1.5}, "pid": {"kp": 3.6, "kd": 0.1005}}),  # kd 10.05 per sample
     Variant("flc_range_x2", "FLC scaling", "FLC e_scale, de_scale 0.5 and u_scale 2: same equivalent gains, "
             "twice the range (±110 DAC)", law_params={"flc": {"e_scale": 0.5, "de_scale": 0.5, "u_scale": 2.0}}),
     Variant("flc_e_scale_2", "FLC scaling", "FLC e_scale 2 (sets reached at half the error)",
             law_params={"flc": {"e_scale": 2.0}}),
     Variant("flc_de_scale_2", "FLC scaling", "FLC de_scale 2", law_params={"flc": {"de_scale": 2.0}}),
-    Variant("ki_0.2", "integral gain", "ki 0.2 for both (Table 4: 0.1)",
-            law_params={"flc": {"ki": 0.2}, "pid": {"ki": 0.2}}),
+    Variant("ki_0.2", "integral gain", "ki 0.2 per sample for both (Table 4: 0.1), 20 /s",
+            law_params={"flc": {"ki": 20.0}, "pid": {"ki": 20.0}}),
 )
 
 

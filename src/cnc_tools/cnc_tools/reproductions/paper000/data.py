@@ -9,9 +9,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.laws.pid import pid_gains_from_per_sample
 
-#: Table 4: the PID gains and the FLC's equivalent gains (per sample, T = 0.01 s).
+#: Table 4: the PID gains and the FLC's equivalent gains (per sample, at the paper's T).
 TABLE4_GAINS: dict[str, float] = {"kp": 2.4, "ki": 0.1, "kd": 6.7}
+#: The paper's sample time T [s], which Table 4's per-sample gains include.
+TABLE4_SAMPLE_TIME_S = 0.01
+#: Table 4 as the PID's time-unit gains (``kp`` 2.4, ``ki`` 10 /s, ``kd`` 0.067 s): what scenarios hold.
+TABLE4_PID_PARAMS: dict[str, float] = pid_gains_from_per_sample(**TABLE4_GAINS, sample_time_s=TABLE4_SAMPLE_TIME_S)
 #: Table 2: nominal open-loop gain K [BLU/s per DAC unit] and time constant τ [s] per axis.
 TABLE2_AXES: dict[str, tuple[float, float]] = {"x": (28.35, 0.055), "y": (28.96, 0.056)}
 

@@ -33,8 +33,8 @@ from cnc_contour_control.servo import ServoConfig
 from cnc_contour_control.units import M_PER_BLU_PAPER000
 from cnc_plant_sim.plant import PlantConfig
 from cnc_tools.bagio.bag import read_bag
-from cnc_tools.reproductions.paper000.data import TABLE4_GAINS
-from cnc_tools.runs.engine import EngineResult, run_engine
+from cnc_tools.reproductions.paper000.data import TABLE4_PID_PARAMS
+from cnc_tools.runs.engine import run_engine
 from cnc_tools.run_record import BagIntegrity, CommandSeries, JointStateSeries, RecordedRun, ReferenceSeries
 from cnc_tools.runs.graph import run_graph
 from cnc_tools.runs.scenario import Scenario, build_scenario, load_scenario
@@ -54,9 +54,9 @@ class Controller:
 
 
 def _controllers() -> dict[str, Controller]:
-    found = [Controller("pid", "PID", "pid", dict(TABLE4_GAINS)),
+    found = [Controller("pid", "PID", "pid", dict(TABLE4_PID_PARAMS)),
              Controller("flc", "FLC", "fuzzy", {}),
-             Controller("pid+ff", "PID+ff", "pid", dict(TABLE4_GAINS), True),
+             Controller("pid+ff", "PID+ff", "pid", dict(TABLE4_PID_PARAMS), True),
              Controller("flc+ff", "FLC+ff", "fuzzy", {}, True)]
     found += [Controller(f"flc:{name}", f"FLC {name}", "fuzzy", {"rule_base": name})
               for name in RULE_BASES if name != "paper000"]
@@ -107,33 +107,9 @@ def scenario_for(path: Path, controller: Controller, seed: int,
 
 
 # =========================================================================== running
-def engine_recorded_run(scenario: Scenario, result: EngineResult | None = None) -> RecordedRun:
-    """Run ``scenario`` in-process (or take ``result``) and put it in the form :func:`read_bag` returns.
-
-    Stamps are ``k·T`` in integer ns, as on the wire; the reference is the
-    interpolator's at those stamps (what the engine used); commands carry the
-    command only (its parts are not kept by the engine: NaN).
-    """
-    result = result if result is not None else run_engine(scenario)
-    stamps = np.arange(result.ticks, dtype=np.int64) * seconds_to_ns(scenario.sample_time_s)
-    ref = scenario.make_interpolator().sample_array(stamps * 1e-9)
-    reference = ReferenceSeries(stamps, ref.position_m, ref.velocity_m_s, ref.acceleration_m_s2, ref.path_length_m,
-                                ref.segment_index.astype(np.int64), ref.feed_m_s, ref.done)
-    following_m = ref.position_m - result.position_m
-    commands = {config.axis_name: _engine_commands(config, stamps, result.command[:, k], following_m[:, k])
-                for k, config in enumerate(scenario.servos)}
-    integrity = BagIntegrity(True, "engine", {"joint_states": result.ticks, "reference": result.ticks}, None,
-                             "engine (in-process, no bag)")
-    return RecordedRun(scenario.name, Path("engine"), scenario.program,
-                       JointStateSeries(stamps, result.position_m, result.velocity_m_s), reference, commands, integrity)
-
-
-def _engine_commands(config: ServoConfig, stamps: np.ndarray, command: np.ndarray,
-                     error_m: np.ndarray) -> CommandSeries:
-    """One axis's commands (N,) as a bag holds them; the parts of the command are unknown (NaN)."""
-    unknown = np.full(stamps.size, np.nan)
-    return CommandSeries(config.axis_name, config.law, config.command_unit, stamps, command, unknown, unknown,
-                         unknown, unknown, np.abs(command) >= config.output_limit, error_m)
+def engine_recorded_run(scenario: Scenario, result: RunRecord | None = None) -> RunRecord:
+    """Run ``scenario`` in-process (or take its ``result``): the run record a bag of the same run gives."""
+    return result if result is not None else run_engine(scenario)
 
 
 def graph_recorded_run(scenario: Scenario, run_dir: Path) -> RecordedRun:

@@ -1,0 +1,86 @@
+"""A run record written as the bag the node graph would have recorded (engine runs get a bag too).
+
+Every series of the record goes to its topic (names and types from
+:mod:`cnc_contour_control.topics`) with log time = the header stamp, as the
+recorder writes them, so :func:`cnc_tools.bagio.bag.read_bag` gives the record
+back and ``cnc-contour replay`` republishes an engine run like a graph run.
+"""
+from __future__ import annotations
+
+import heapq
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cnc_contour_control import topics
+from cnc_contour_control.lockstep import split_ns
+from cnc_tools.bagio.bag import BagWriter
+from cnc_tools.bagio.synthetic import path_message
+from cnc_tools.bagio.typestore import project_typestore
+from cnc_tools.run_record import CommandSeries, RunRecord
+
+FRAME_ID = "machine"
+
+
+def _header(stamp_ns: int, frame_id: str = FRAME_ID) -> Any:
+    types = project_typestore().types
+    sec, nanosec = split_ns(stamp_ns)
+    return types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec),
+                                        frame_id=frame_id)
+
+
+def _joint_states(record: RunRecord) -> Iterator[tuple[int, Any]]:
+    make = project_typestore().types[topics.JOINT_STATES.type_name]
+    js, names = record.joint_states, list(record.axis_names)
+    for k, stamp in enumerate(js.stamp_ns.tolist()):
+        yield stamp, make(header=_header(stamp), name=names, position=js.position_m[k].copy(),
+                          velocity=js.velocity_m_s[k].copy(), effort=np.zeros(0))
+
+
+def _references(record: RunRecord) -> Iterator[tuple[int, Any]]:
+    make = project_typestore().types[topics.REFERENCE.type_name]
+    ref, names = record.reference, list(record.axis_names)
+    if ref is None:
+        return
+    for k, stamp in enumerate(ref.stamp_ns.tolist()):
+        yield stamp, make(header=_header(stamp), axis_names=names, position_m=ref.position_m[k].copy(),
+                          velocity_m_s=ref.velocity_m_s[k].copy(), acceleration_m_s2=ref.acceleration_m_s2[k].copy(),
+                          path_length_m=float(ref.path_length_m[k]), segment_index=int(ref.segment_index[k]),
+                          feed_m_s=float(ref.feed_m_s[k]), programmed_feed_m_s=float(ref.feed_m_s[k]),
+                          feed_override_ratio=1.0, done=bool(ref.done[k]))
+
+
+def _commands(series: CommandSeries) -> Iterator[tuple[int, Any]]:
+    make = project_typestore().types[topics.COMMAND.type_name]
+    s = series
+    for k, stamp in enumerate(s.stamp_ns.tolist()):
+        yield stamp, make(header=_header(stamp, s.axis_name), axis_name=s.axis_name, law=s.law,
+                          command_unit=s.command_unit, command=float(s.command[k]), feedback=float(s.feedback[k]),
+                          feedforward=float(s.feedforward[k]), compensation=float(s.compensation[k]),
+                          disturbance_estimate=float(s.disturbance_estimate[k]), saturated=bool(s.saturated[k]),
+                          error_m=float(s.error_m[k]))
+
+
+def _tagged(order: int, topic: str, stream: Iterator[tuple[int, Any]]) -> Iterator[tuple[int, int, str, Any]]:
+    """(stamp, order, topic, message): merged by (stamp, order), the order a tick's topics are published in."""
+    for stamp, message in stream:
+        yield stamp, order, topic, message
+
+
+def write_record_bag(record: RunRecord, path: Path, namespace: str = topics.DEFAULT_NAMESPACE) -> Path:
+    """Write ``record`` to a new bag folder ``path`` (refused if it exists) and return it."""
+    q = lambda name: topics.qualify(namespace, name)  # noqa: E731
+    streams: dict[str, Iterator[tuple[int, Any]]] = {
+        q(topics.JOINT_STATES.name): _joint_states(record), q(topics.REFERENCE.name): _references(record)}
+    streams.update({q(topics.command_topic(axis)): _commands(s) for axis, s in record.commands.items()})
+    types = {q(topics.PATH.name): topics.PATH.type_name, q(topics.JOINT_STATES.name): topics.JOINT_STATES.type_name,
+             q(topics.REFERENCE.name): topics.REFERENCE.type_name}
+    types.update({q(topics.command_topic(axis)): topics.COMMAND.type_name for axis in record.commands})
+    with BagWriter(path, types) as writer:
+        writer.write_message(q(topics.PATH.name), 0, path_message(record.program))
+        tagged = [_tagged(order, topic, stream) for order, (topic, stream) in enumerate(streams.items())]
+        for stamp, _, topic, message in heapq.merge(*tagged, key=lambda item: item[:2]):  # tick order, as recorded
+            writer.write_message(topic, stamp, message)
+    return path

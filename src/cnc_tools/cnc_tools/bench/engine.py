@@ -1,0 +1,121 @@
+"""``cnc-contour bench engine``: this tree's engine against another commit's, side by side in one run.
+
+The other commit's ``src/`` is extracted with ``git archive`` into a temporary
+folder and its engine runs in a child process (its own imports, this
+environment's packages); this tree's engine runs in another child. The two
+alternate, run after run, on the same scenario, so both see the same machine
+load; the figure that counts is the ratio of their medians (µs per tick).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+from io import BytesIO
+from pathlib import Path
+from typing import Any
+
+from cnc_contour_control.errors import CncError
+from cnc_tools.bench.report import format_table, machine, write_json
+from cnc_tools.runs.folders import project_root
+
+#: The last commit before the reshape of issue 7 (its engine is the yardstick).
+BASELINE_COMMIT = "fd8ef2a"
+SCENARIO = "scenarios/paper000_circle_high.yaml"
+PACKAGES = ("cnc_contour_control", "cnc_plant_sim", "cnc_tools")
+
+#: Runs in a child: time ``repeats`` engine runs of the scenario, print µs per tick as JSON.
+_CHILD = """
+import json, sys, time
+from cnc_tools.{scenario_module} import load_scenario
+from cnc_tools.{engine_module} import run_engine
+scenario = load_scenario(sys.argv[1], {{"sample_time_s": float(sys.argv[2])}})
+costs = []
+for _ in range(int(sys.argv[3])):
+    started = time.perf_counter()
+    result = run_engine(scenario)
+    elapsed = time.perf_counter() - started
+    ticks = getattr(result, "ticks")
+    costs.append(elapsed / ticks * 1e6)
+print(json.dumps({{"us_per_tick": costs, "ticks": ticks}}))
+"""
+
+
+def extract_src(commit: str, root: Path, into: Path) -> Path:
+    """``src/`` of ``commit`` extracted into ``into``; a CncError naming the commit if git cannot."""
+    try:
+        archive = subprocess.run(["git", "-C", str(root), "archive", "--format=tar", commit, "src"],
+                                 check=True, capture_output=True).stdout
+    except (subprocess.CalledProcessError, FileNotFoundError) as err:
+        raise CncError(f"--against {commit!r}: cannot read that commit's src/ with git archive ({err})") from err
+    with tarfile.open(fileobj=BytesIO(archive)) as tar:
+        tar.extractall(into, filter="data")
+    return into / "src"
+
+
+def _modules(src: Path) -> tuple[str, str]:
+    """Where that tree keeps the scenario and engine modules (before or after the split into trades)."""
+    runs = (src / "cnc_tools" / "cnc_tools" / "runs").is_dir()
+    return ("runs.scenario", "runs.engine") if runs else ("scenario", "engine")
+
+
+def time_engine(src: Path, scenario: Path, sample_time_s: float, repeats: int) -> list[float]:
+    """µs per tick of ``repeats`` engine runs of the tree at ``src``, in a child process."""
+    scenario_module, engine_module = _modules(src)
+    code = _CHILD.format(scenario_module=scenario_module, engine_module=engine_module)
+    path = ":".join(str(src / p) for p in PACKAGES)
+    env = {**os.environ, "PYTHONPATH": f"{path}:{os.environ.get('PYTHONPATH', '')}"}
+    done = subprocess.run([sys.executable, "-c", code, str(scenario), str(sample_time_s), str(repeats)],
+                          capture_output=True, text=True, env=env, check=False)
+    if done.returncode != 0:
+        raise CncError(f"engine run of {src} failed: {done.stderr.strip().splitlines()[-1:]}")
+    return list(json.loads(done.stdout)["us_per_tick"])
+
+
+def add_options(parser: argparse.ArgumentParser) -> None:
+    """The bench's own options (``cnc-contour bench engine --against REV``)."""
+    parser.add_argument("--against", default=BASELINE_COMMIT,
+                        help=f"commit whose engine is the yardstick (engine bench; default {BASELINE_COMMIT})")
+
+
+def engine_bench(options: argparse.Namespace) -> int:
+    """This tree's engine vs ``--against``'s: median µs per tick, alternating rounds, and their ratio."""
+    root = project_root()
+    against = getattr(options, "against", None) or BASELINE_COMMIT
+    rounds, repeats = (3, 2) if options.quick else (7, 3)
+    sample_time_s = 0.001
+    load = machine()["load_average_1min"]
+    with tempfile.TemporaryDirectory(prefix="cnc_bench_engine_") as tmp:
+        theirs_src = extract_src(against, root, Path(tmp))
+        ours_src = root / "src"
+        ours: list[float] = []
+        theirs: list[float] = []
+        for index in range(rounds):
+            print(f"  round {index + 1}/{rounds} ...", flush=True)
+            theirs += time_engine(theirs_src, root / SCENARIO, sample_time_s, repeats)
+            ours += time_engine(ours_src, root / SCENARIO, sample_time_s, repeats)
+    figures = _figures(against, ours, theirs, load)
+    _print(figures)
+    write_json(options.json, figures)
+    return 0
+
+
+def _figures(against: str, ours: list[float], theirs: list[float], load: Any) -> dict[str, Any]:
+    ours_median, theirs_median = statistics.median(ours), statistics.median(theirs)
+    return {"bench": "engine", "scenario": SCENARIO, "sample_time_s": 0.001, "against": against,
+            "ours_us_per_tick": ours_median, "theirs_us_per_tick": theirs_median,
+            "ratio_ours_to_theirs": ours_median / theirs_median, "runs_each": len(ours),
+            "load_average_1min_at_start": load, "machine": machine()}
+
+
+def _print(figures: dict[str, Any]) -> None:
+    rows = [["this tree", round(figures["ours_us_per_tick"], 2)],
+            [f"commit {figures['against']}", round(figures["theirs_us_per_tick"], 2)]]
+    print(format_table(["engine", "µs per tick (median)"], rows))
+    print(f"ratio this tree / {figures['against']}: {figures['ratio_ours_to_theirs']:.3f} "
+          f"({figures['runs_each']} runs each, alternating; load {figures['load_average_1min_at_start']} at start)")

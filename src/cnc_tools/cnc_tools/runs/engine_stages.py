@@ -1,0 +1,199 @@
+"""The engine's stages: each pipeline stage's core objects, stepped in process (no DDS).
+
+A stage answers one tick from the :class:`Board` (the tick's topics in
+process) and keeps its own series; :func:`~cnc_tools.runs.engine.run_engine`
+steps them in the pipeline's order and collects the series into a run record.
+Each stage calls the same core objects with the same floats as its node does
+(stamps in integer ns, dt from the stamps, references as the message carries
+them), so the node graph and the engine give the same trajectories.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+import dataclasses
+from typing import Any, Protocol
+
+import numpy as np
+
+from cnc_contour_control.interpolation import Interpolator, ReferenceSample
+from cnc_contour_control.servo import ServoController, ServoOutput, ServoParts
+from cnc_contour_control.stages import Pipeline
+from cnc_plant_sim.plant import make_plant
+from cnc_tools.run_record import CommandSeries, IntArray, JointStateSeries, ReferenceSeries
+from cnc_tools.runs.scenario import Scenario
+
+
+class Board:
+    """One tick's values as the stages hand them on (SI units, axis order).
+
+    Attributes
+    ----------
+    tick, stamp_ns : int
+        Tick index and its stamp.
+    dt_s : float
+        The period the servos see (from the stamps).
+    position_m, velocity_m_s : list of float
+        The plant's state at the stamp (``joint_states``).
+    ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2 : list of float
+        The interpolator's reference (``reference``).
+    compensation : list of float
+        The compensator's corrections in drive units (zeros without a compensator).
+    commands : list of float
+        Every servo's command (``servo/<axis>/command``).
+    feed_override_ratio : float
+        The applied feed override (1 without a regulator).
+    """
+
+    __slots__ = ("tick", "stamp_ns", "dt_s", "position_m", "velocity_m_s", "ref_position_m", "ref_velocity_m_s",
+                 "ref_acceleration_m_s2", "compensation", "commands", "feed_override_ratio")
+
+    def __init__(self, dt_s: float) -> None:
+        self.tick, self.stamp_ns, self.dt_s = 0, 0, dt_s
+        self.position_m: list[float] = []
+        self.velocity_m_s: list[float] = []
+        self.ref_position_m: list[float] = []
+        self.ref_velocity_m_s: list[float] = []
+        self.ref_acceleration_m_s2: list[float] = []
+        self.compensation: list[float] = []
+        self.commands: list[float] = []
+        self.feed_override_ratio = 1.0
+
+
+class EngineStage(Protocol):
+    """A stage of the engine: answers a tick from the board, then hands over its series."""
+
+    def step(self, board: Board) -> None:
+        """Answer tick ``board.tick``: read the inputs from the board, put the outputs on it."""
+
+    def series(self) -> dict[str, Any]:
+        """This stage's series for the run record (``RunRecord`` field name -> series)."""
+
+
+class PlantStage:
+    """The plant: opens a tick with its state, closes it by integrating the commands over T."""
+
+    def __init__(self, scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> None:
+        self.plant = make_plant(scenario.plant)
+        self.plant.reset(list(scenario.program.start_m))
+        self.sample_time_s = scenario.sample_time_s
+        self._state = self.plant.state
+        self._stamps_ns = stamps_ns
+        self._positions: list[list[float]] = []
+        self._velocities: list[list[float]] = []
+
+    def observe(self, board: Board) -> None:
+        """The state at the tick's stamp (what ``joint_states(k)`` carries)."""
+        board.position_m, board.velocity_m_s = positions, velocities = self._state()
+        self._positions.append(positions)
+        self._velocities.append(velocities)
+
+    def step(self, board: Board) -> None:
+        """The plant answers no one within a tick (it opens and closes it)."""
+
+    def integrate(self, board: Board) -> None:
+        """Hold every axis's command over T."""
+        self.plant.step(board.commands, self.sample_time_s)
+
+    def series(self) -> dict[str, Any]:
+        """``joint_states`` and the plant as drawn (into the summary)."""
+        n_axes = len(self.plant.axis_names)
+        shape = (len(self._positions), n_axes)
+        return {"joint_states": JointStateSeries(self._stamps_ns, np.array(self._positions, float).reshape(shape),
+                                                 np.array(self._velocities, float).reshape(shape)),
+                "summary": {"plant": self.plant.describe()}}
+
+
+class InterpolatorStage:
+    """The interpolator: the reference at the tick's stamp.
+
+    Open loop (no feed override in the run) the whole reference is computed up
+    front with :meth:`Interpolator.sample_array` and handed out row by row;
+    otherwise it is sampled per tick.
+    """
+
+    def __init__(self, scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray,
+                 vectorised: bool | None = None) -> None:
+        self.interpolator: Interpolator = scenario.make_interpolator()
+        self._stamps_ns = stamps_ns
+        self.vectorised = not pipeline.has("force_regulator") if vectorised is None else vectorised
+        self._samples: list[ReferenceSample] = []
+        if self.vectorised:
+            self._trajectory = self.interpolator.sample_array(stamps_ns * 1e-9)
+            self._rows = list(zip(self._trajectory.position_m.tolist(), self._trajectory.velocity_m_s.tolist(),
+                                  self._trajectory.acceleration_m_s2.tolist()))
+
+    def step(self, board: Board) -> None:
+        """Put the reference of the tick on the board."""
+        if self.vectorised:
+            board.ref_position_m, board.ref_velocity_m_s, board.ref_acceleration_m_s2 = self._rows[board.tick]
+            return
+        sample = self.interpolator.sample(board.stamp_ns * 1e-9)
+        self._samples.append(sample)
+        board.ref_position_m = sample.position_m.tolist()
+        board.ref_velocity_m_s = sample.velocity_m_s.tolist()
+        board.ref_acceleration_m_s2 = sample.acceleration_m_s2.tolist()
+
+    def series(self) -> dict[str, Any]:
+        """``reference`` as the ``reference`` topic carries it."""
+        if self.vectorised:
+            t = self._trajectory
+            return {"reference": ReferenceSeries(self._stamps_ns, t.position_m, t.velocity_m_s, t.acceleration_m_s2,
+                                                 t.path_length_m, t.segment_index.astype(np.int64), t.feed_m_s,
+                                                 t.done)}
+        s = self._samples
+        return {"reference": ReferenceSeries(
+            self._stamps_ns[:len(s)], np.array([x.position_m for x in s]), np.array([x.velocity_m_s for x in s]),
+            np.array([x.acceleration_m_s2 for x in s]), np.array([x.path_length_m for x in s]),
+            np.array([x.segment_index for x in s], np.int64), np.array([x.feed_m_s for x in s]),
+            np.array([x.done for x in s], bool))}
+
+
+class ServoStage:
+    """Every axis's servo: a command per axis from the reference and the measured state."""
+
+    def __init__(self, scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> None:
+        self.servos = [ServoController(config) for config in scenario.servos]
+        self._zeros = [0.0] * len(self.servos)
+        self._stamps_ns = stamps_ns
+        self._outputs: list[list[ServoParts]] = [[] for _ in self.servos]
+
+    def step(self, board: Board) -> None:
+        """One servo sample per axis; the commands go on the board."""
+        dt_s = board.dt_s
+        compensation = board.compensation or self._zeros
+        commands = []
+        for servo, outputs, r, v, a, x, xv, c in zip(self.servos, self._outputs, board.ref_position_m,
+                                                     board.ref_velocity_m_s, board.ref_acceleration_m_s2,
+                                                     board.position_m, board.velocity_m_s, compensation):
+            parts = servo.parts(dt_s, r, v, a, x, xv, c)
+            outputs.append(parts)
+            commands.append(parts[0])
+        board.commands = commands
+
+    def series(self) -> dict[str, Any]:
+        """``commands``: one series per axis with the command's parts, as the command topics carry them."""
+        return {"commands": {servo.config.axis_name: _command_series(servo, outputs, self._stamps_ns)
+                             for servo, outputs in zip(self.servos, self._outputs)}}
+
+
+#: :class:`ServoOutput`'s fields, the order of :meth:`ServoController.parts`.
+_PARTS = tuple(f.name for f in dataclasses.fields(ServoOutput))
+
+
+def _command_series(servo: ServoController, outputs: list[ServoParts], stamps_ns: IntArray) -> CommandSeries:
+    table = np.array(outputs, dtype=float).reshape(len(outputs), len(_PARTS))
+    columns = {name: table[:, k].copy() for k, name in enumerate(_PARTS)}
+    columns["saturated"] = columns["saturated"].astype(bool)
+    return CommandSeries(axis_name=servo.config.axis_name, law=servo.config.law,
+                         command_unit=servo.config.command_unit, stamp_ns=stamps_ns[:len(outputs)], **columns)
+
+
+#: A stage factory: (scenario, pipeline, tick stamps) -> engine stage.
+StageFactory = Callable[[Scenario, Pipeline, IntArray], EngineStage]
+
+#: Engine implementations of the pipeline's stages, by stage name.
+ENGINE_STAGES: dict[str, StageFactory] = {
+    "plant": PlantStage,
+    "interpolator": InterpolatorStage,
+    "servo": ServoStage,
+}

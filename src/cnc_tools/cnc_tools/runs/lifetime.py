@@ -1,0 +1,139 @@
+"""How a run's processes end with their runner: stop signals, death of the parent, the last word in summary.json.
+
+Every way out of ``cnc-contour run`` stops and reaps the graph:
+
+* SIGINT, SIGTERM, SIGHUP to the runner: :class:`StopSignals` notes the first
+  signal (later ones are ignored while the stop is under way) and the runner's
+  wait loop raises :class:`RunInterrupted` at its next poll (within 50 ms), so
+  :class:`~cnc_tools.runs.graph.GraphRun` stops every node (SIGINT, SIGTERM,
+  SIGKILL) and reaps it; the recorder closes its bag.
+* An exception in the runner: the same stop, from ``GraphRun.__exit__``.
+* The runner killed (SIGKILL, a crash of the interpreter): every node is
+  started with :func:`die_with_parent` as its ``preexec_fn``, which asks Linux
+  (``prctl(PR_SET_PDEATHSIG, SIGTERM)``) to send it SIGTERM when the runner dies;
+  the nodes then stop as on a SIGTERM (the recorder closes its bag, the plant
+  writes an ``interrupted`` summary).
+
+:func:`settle_summary` gives ``summary.json`` its last word when the plant could
+not (killed, never started): ``summary.json`` never says ``running`` after a run.
+"""
+from __future__ import annotations
+
+import ctypes
+import json
+import os
+import signal
+import sys
+import threading
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from types import FrameType, TracebackType
+from typing import Any
+
+#: Signals that stop a run cleanly (the runner's own SIGINT handler replaces KeyboardInterrupt).
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+#: Signal a node gets when its runner dies (Linux only).
+PARENT_DEATH_SIGNAL = signal.SIGTERM
+_PR_SET_PDEATHSIG = 1
+#: summary.json statuses of a run that ended: the plant's own, and the runner's when the plant could not say.
+ENDED_STATUSES = ("finished", "faulted", "interrupted", "node died", "timed out")
+
+
+class RunInterrupted(KeyboardInterrupt):
+    """The runner got a stop signal; the run was stopped and its processes reaped.
+
+    A :class:`KeyboardInterrupt`, so callers treat SIGTERM and SIGHUP as they treat Ctrl-C.
+    ``exit_code`` is the shell's convention, 128 + the signal number.
+    """
+
+    def __init__(self, signum: int, run_dir: Path | None = None) -> None:
+        self.signum = signum
+        self.exit_code = 128 + signum
+        where = f"; {run_dir} keeps what was recorded" if run_dir is not None else ""
+        super().__init__(f"interrupted by {signal.Signals(signum).name}{where}")
+
+
+class StopSignals:
+    """Within ``with``: SIGINT, SIGTERM and SIGHUP are noted, not acted on; :meth:`check` raises for the first.
+
+    A signal handler that raised would leave the run at an arbitrary point
+    (between a fork and the bookkeeping of the child); a noted signal is acted
+    on by the runner's wait loop, where stopping is safe. Outside the main thread
+    (where Python cannot install handlers) this does nothing.
+    """
+
+    def __init__(self, run_dir: Path | None = None) -> None:
+        self.run_dir = run_dir
+        self.received: int | None = None
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> StopSignals:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = {s: signal.signal(s, self._note) for s in STOP_SIGNALS}
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 traceback: TracebackType | None) -> None:
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+    def _note(self, signum: int, frame: FrameType | None) -> None:
+        if self.received is None:
+            self.received = signum
+
+    def check(self) -> None:
+        """Raise :class:`RunInterrupted` if a stop signal arrived."""
+        if self.received is not None:
+            raise RunInterrupted(self.received, self.run_dir)
+
+
+def die_with_parent() -> Callable[[], None] | None:
+    """A ``preexec_fn`` that makes the child get SIGTERM when this process dies (None where Linux's prctl is missing).
+
+    The death signal follows the *thread* that started the child: start a run's
+    nodes from a thread that lives as long as the run (the runner's wait does).
+    If the parent died between fork and prctl, the child ends itself at once.
+    """
+    if not sys.platform.startswith("linux"):
+        return None
+    prctl = ctypes.CDLL(None, use_errno=True).prctl  # resolved here: the child only calls it
+    parent = os.getpid()
+
+    def preexec() -> None:
+        prctl(_PR_SET_PDEATHSIG, int(PARENT_DEATH_SIGNAL), 0, 0, 0)
+        if os.getppid() != parent:
+            os.kill(os.getpid(), PARENT_DEATH_SIGNAL)
+
+    return preexec
+
+
+def read_summary(path: Path) -> dict[str, Any] | None:
+    """The summary in ``path``; None when absent or unreadable (a plant killed while writing it)."""
+    try:
+        summary = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return summary if isinstance(summary, dict) else None
+
+
+def settle_summary(path: Path, status: str, reason: str, exit_codes: Mapping[str, int | None]) -> dict[str, Any]:
+    """Give ``summary.json`` the runner's account of a run that did not end well, and return it.
+
+    The plant's own ``finished`` or ``faulted`` stays; anything else (``running``,
+    the plant's ``interrupted``, no summary at all) becomes ``status`` with
+    ``reason``. A node that died is a fault of the run. The exit codes of every
+    node are kept under ``exit_codes``.
+    """
+    summary = read_summary(path) or {"ticks": 0, "simulated_time_s": 0.0, "wall_time_s": 0.0,
+                                     "real_time_factor": float("nan"), "faults": []}
+    if summary.get("status") in ("finished", "faulted"):
+        summary.setdefault("runner_problems", []).append(reason)
+    else:
+        summary.update(status=status, reason=reason)
+        if status == "node died":
+            summary["faults"] = [*summary.get("faults", []), reason]
+    summary["exit_codes"] = dict(exit_codes)
+    partial = path.with_name(f".{path.name}.partial")
+    partial.write_text(json.dumps(summary, indent=2))
+    os.replace(partial, path)
+    return summary

@@ -1,0 +1,130 @@
+"""Tier 3: every way out of a run stops and reaps the graph, and the run's verdict tells how it ended."""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from cnc_contour_control.errors import BagError
+from cnc_tools.runs.graph import NodeDied, run_graph
+from cnc_tools.runs.outputs import judge_bag
+from cnc_tools.runs.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"
+#: Long enough that no run here finishes before it is stopped.
+LONG_S = 60.0
+pytestmark = pytest.mark.e2e
+
+
+def _alive(pid: int) -> bool:
+    """True while ``pid`` runs (a zombie waiting for its reaper counts as gone)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state != "Z"
+
+
+def _wait_for(condition, timeout_s: float, what: str) -> None:  # noqa: ANN001
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+        time.sleep(0.05)
+
+
+def _summary(run_dir: Path) -> dict:
+    try:
+        return json.loads((run_dir / "summary.json").read_text())
+    except (OSError, ValueError):
+        return {}
+
+
+def _node_pids(run_dir: Path) -> dict[str, int]:
+    return json.loads((run_dir / "pids.json").read_text())["nodes"]
+
+
+def _score(bag: Path, *options: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([sys.executable, "-m", "cnc_tools.cli.main", "score", str(bag), *options],
+                          capture_output=True, text=True, timeout=120)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGINT, signal.SIGKILL],
+                         ids=lambda s: signal.Signals(s).name)
+def test_a_signal_to_cnc_contour_run_stops_and_reaps_every_node(tmp_path: Path, sig: int) -> None:
+    run_dir = tmp_path / "run"
+    parent = subprocess.Popen([sys.executable, "-m", "cnc_tools.cli.main", "run", str(CIRCLE), "--out", str(run_dir),
+                               "--set", f"duration_s={LONG_S}"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True)
+    pids: dict[str, int] = {}
+    try:
+        _wait_for(lambda: _summary(run_dir).get("status") == "running", 90.0, "the graph to run")
+        pids = _node_pids(run_dir)
+        assert all(_alive(pid) for pid in pids.values())
+        parent.send_signal(sig)
+        _, err = parent.communicate(timeout=60)
+        _wait_for(lambda: not any(_alive(pid) for pid in pids.values()), 30.0, f"the nodes {pids} to end")
+    finally:
+        for pid in [parent.pid, *pids.values()]:
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+        parent.wait(timeout=10)
+    if sig != signal.SIGKILL:
+        assert parent.returncode == 128 + sig, err
+        assert f"interrupted by {signal.Signals(sig).name}" in err and "Traceback" not in err
+    summary = _summary(run_dir)
+    assert summary["status"] == "interrupted" and summary.get("reason"), summary
+    refused = _score(run_dir / "bag")
+    assert refused.returncode == 1 and "PARTIAL" in refused.stderr and "Traceback" not in refused.stderr
+    scored = _score(run_dir / "bag", "--allow-partial")
+    assert scored.returncode == 0, scored.stderr
+    assert "verdict: PARTIAL: the run did not finish" in scored.stdout
+
+
+class _KillWhenRunning:
+    """A runner poll that kills node ``name`` (SIGKILL, by its pid) once the plant reports it is running."""
+
+    def __init__(self, run_dir: Path, name: str) -> None:
+        self.run_dir, self.name, self.pid = run_dir, name, None
+
+    def __call__(self) -> None:
+        if self.pid is None and _summary(self.run_dir).get("status") == "running":
+            self.pid = _node_pids(self.run_dir)[self.name]
+            os.kill(self.pid, signal.SIGKILL)
+
+
+@pytest.mark.parametrize("node", ["plant", "interpolator", "servo_x", "recorder"])
+def test_a_node_killed_mid_run_gives_a_faulted_verdict_naming_it(tmp_path: Path, node: str) -> None:
+    scenario = load_scenario(CIRCLE, {"duration_s": LONG_S})
+    killer = _KillWhenRunning(tmp_path, node)
+    with pytest.raises(NodeDied, match=f"node {node} ") as died:
+        run_graph(scenario, tmp_path, record=True, on_poll=killer, timeout_s=120.0)
+    assert died.value.node == node and killer.pid is not None
+    assert not any(_alive(pid) for pid in _node_pids(tmp_path).values()), "every node reaped"
+    summary = _summary(tmp_path)
+    assert summary["status"] == "node died" and f"node {node} " in summary["reason"]
+    assert summary["exit_codes"][node] == -signal.SIGKILL
+    if node == "recorder":  # killed, it leaves what it had flushed (rosbags buffers chunks of 1 MiB): often nothing
+        _the_bag_is_salvaged_or_refused_in_one_line(tmp_path / "bag")
+        return
+    record, verdict = judge_bag(tmp_path / "bag")
+    assert verdict.status == "faulted" and f"node {node} " in verdict.describe(), verdict.describe()
+    assert record.ticks > 0 and record.integrity.complete, record.integrity.describe()
+
+
+def _the_bag_is_salvaged_or_refused_in_one_line(bag: Path) -> None:
+    try:
+        record, verdict = judge_bag(bag)
+    except BagError as err:
+        assert "INCOMPLETE, read by scan" in str(err)
+        result = _score(bag, "--allow-partial")
+        assert result.returncode == 2 and len(result.stderr.strip().splitlines()) == 1, result.stderr
+        return
+    assert not record.integrity.complete and verdict.status == "faulted", verdict.describe()
