@@ -100,7 +100,8 @@ class StampMatcher:
     Rules (each broken one is a :class:`FaultError` naming the input): an
     input stamped at or before the last released tick is stale and ignored
     (callers check its values first); one stamped more than ``max_ahead_ns``
-    after the last released (or expected) tick, or a second input of the same
+    after the last released (or expected) tick and after the same input's
+    latest earlier stamp held, or a second input of the same
     name for a pending tick, or a pending tick passed by a later complete one,
     comes from outside the run.
 
@@ -138,6 +139,8 @@ class StampMatcher:
         self._last_released_ns: int | None = None
         self._expected_ns: int | None = None
         self._released_at_s: float | None = None
+        self._latest_ns: dict[str, int] = {}  # per input, its latest stamp held or released
+        self._unchecked: list[tuple[str, int]] = []  # inputs held before any tick was released or expected
 
     @property
     def last_released_ns(self) -> int | None:
@@ -155,7 +158,13 @@ class StampMatcher:
             raise FaultError(f"unexpected input {name!r}; this stage takes {list(self.required)}")
         if self._last_released_ns is not None and stamp_ns <= self._last_released_ns:
             return None
-        self._check_horizon(name, stamp_ns)
+        if self._last_released_ns is None and self._expected_ns is None:
+            self._unchecked.append((name, stamp_ns))  # nothing to compare with yet: checked at the first release
+        else:
+            previous_ns = self._latest_ns.get(name)
+            self._check_horizon(name, stamp_ns, previous_ns if previous_ns is not None and previous_ns < stamp_ns
+                                else None)
+        self._latest_ns[name] = max(stamp_ns, self._latest_ns.get(name, stamp_ns))
         pending = self._pending.setdefault(stamp_ns, _Pending(now_s))
         if name in pending.items:
             raise FaultError(f"{name}: a second message for tick t={ns_to_s(stamp_ns):.6f} s "
@@ -175,13 +184,18 @@ class StampMatcher:
             names = ", ".join(self._pending[passed[0]].items)
             raise FaultError(f"{names} stamped t={ns_to_s(passed[0]):.6f} s never completed a tick and was "
                              f"passed by tick t={ns_to_s(stamp_ns):.6f} s (a message from outside the run?)")
-        for later_ns, later in self._pending.items():
-            for name in later.items:
-                self._check_horizon(name, later_ns)
+        held, self._unchecked = self._unchecked, []
+        previous: dict[str, int] = {}
+        for name, later_ns in sorted(held, key=lambda item: item[1]):
+            if later_ns in self._pending and name in self._pending[later_ns].items:
+                self._check_horizon(name, later_ns, previous.get(name))
+                previous[name] = later_ns
         return items
 
-    def _check_horizon(self, name: str, stamp_ns: int) -> None:
-        known = [s for s in (self._last_released_ns, self._expected_ns) if s is not None]
+    def _check_horizon(self, name: str, stamp_ns: int, previous_ns: int | None = None) -> None:
+        # The base is the last released or expected tick, or this input's own previous stamp: in real time a
+        # stage may lag, holding one input's stream while the producer of another input catches up.
+        known = [s for s in (self._last_released_ns, self._expected_ns, previous_ns) if s is not None]
         if self.max_ahead_ns is None or not known:
             return
         base_ns = max(known)

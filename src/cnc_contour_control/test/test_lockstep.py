@@ -121,6 +121,20 @@ def test_a_far_future_input_held_before_the_first_tick_is_a_fault_once_the_first
         matcher.add("reference", 0, None, 0.0)
 
 
+def test_a_stage_lagging_behind_one_input_in_real_time_is_no_fault() -> None:
+    # Real time: the plant does not wait, so joint_states runs ahead while the references lag by over 1 s.
+    matcher = StampMatcher(("joint_states", "reference"), 1.0, max_ahead_ns=stamp_horizon_ns(T_NS))
+    for k in range(150):  # held before the first tick (checked on its release), then after it
+        assert matcher.add("joint_states", k * T_NS, None, 0.0) is None
+        if k == 60:
+            assert matcher.add("reference", 0, "r", 0.0) == {"joint_states": None, "reference": "r"}
+    for k in range(1, 150):
+        assert matcher.add("reference", k * T_NS, "r", 0.0) == {"joint_states": None, "reference": "r"}
+    matcher.add("joint_states", 240 * T_NS, None, 0.0)  # a gap within the horizon of its own stream
+    with pytest.raises(FaultError, match=r"joint_states stamped t=1000\.000000 s, more than 1\.0 s after tick t=2\.4"):
+        matcher.add("joint_states", 1000 * 1_000_000_000, None, 0.0)
+
+
 def test_a_second_message_for_a_pending_tick_is_a_fault() -> None:
     matcher = StampMatcher(("joint_states", "reference"), 1.0)
     matcher.add("joint_states", T_NS, None, 0.0)

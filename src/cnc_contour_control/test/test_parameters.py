@@ -18,7 +18,8 @@ from rclpy.parameter import Parameter
 from cnc_contour_control.config import build_config
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.laws.fuzzy import FuzzyConfig
-from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config, ros_type, ros_value
+from cnc_contour_control.nodes.parameters import (ConfigParameters, Section, command_line_words, declare_config,
+                                                  given_value, ros_type, ros_value)
 from cnc_contour_control.params import ParamSpec, config_values, flat_specs
 from cnc_contour_control.stage_params import InterpolatorRunParams, ServoRunParams
 
@@ -171,6 +172,18 @@ def test_an_axis_name_rcl_read_as_a_boolean_is_the_letter_and_other_strings_are_
             declare_config(node, InterpolatorRunParams)
     finally:
         node.destroy_node()
+
+
+def test_a_string_rcl_read_as_a_boolean_is_the_word_written_on_the_command_line() -> None:
+    argv = ["servo", "-p", "x:=1", "--ros-args", "-p", "axis:=on", "--param", "servo_x:frame_id:=Off",
+            "-p", "plant:frame_id:=no", "-r", "__ns:=/a", "--", "-p", "gains.kp:=3"]
+    words = command_line_words(argv, "servo_x")
+    assert words == {"axis": "on", "frame_id": "Off"}, "only ROS arguments, and node-scoped ones for this node"
+    assert given_value("axis", Parameter.Type.STRING, True, words["axis"]) == "on"
+    assert given_value("frame_id", Parameter.Type.STRING, False, words["frame_id"]) == "Off"
+    assert given_value("axis", Parameter.Type.STRING, True) == "y", "a parameters file has no word: the letter"
+    with pytest.raises(ConfigError, match="frame_id must be a string, got the boolean true"):
+        given_value("frame_id", Parameter.Type.STRING, True, "Off")  # a word that is not this boolean
 
 
 def test_a_change_is_validated_by_the_config_on_set_and_applied_after_it(context: Context) -> None:

@@ -78,24 +78,25 @@ def test_a_gain_set_at_run_time_is_applied_keeping_the_laws_state_and_a_bad_one_
         "a law restarted at the change would command otherwise (so the check can fail)"
 
 
-def test_a_servo_process_started_with_p_axis_y_drives_axis_y(tmp_path: Path) -> None:
-    namespace = f"/axis_y_{os.getpid()}"  # its own topics, whatever else runs in this domain
+@pytest.mark.parametrize("axis", ["y", "on"])
+def test_a_servo_process_started_with_p_axis_y_drives_axis_y(tmp_path: Path, axis: str) -> None:
+    namespace = f"/axis_{axis}_{os.getpid()}"  # its own topics, whatever else runs in this domain
     command = [str(find_executable("cnc_contour_control", "servo")), "--ros-args", "-r", f"__ns:={namespace}",
-               "-p", "axis:=y"]  # rcl's YAML 1.1 reads the unquoted y as the boolean true
+               "-p", f"axis:={axis}"]  # rcl's YAML 1.1 reads an unquoted y or on as the boolean true
     with open(tmp_path / "servo.log", "wb") as log:
         process = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=loopback_env(),
                                    start_new_session=True)
     try:
         with TopicProbe({}, name="axis_probe") as probe:
             probe.wait_for(lambda: process.poll() is not None
-                           or probe.node.count_publishers(f"{namespace}/servo/y/command") > 0, 60.0, "the servo")
+                           or probe.node.count_publishers(f"{namespace}/servo/{axis}/command") > 0, 60.0, "the servo")
             assert process.poll() is None, (tmp_path / "servo.log").read_text()
             client = AsyncParameterClient(probe.node, f"{namespace}/servo")
             assert client.wait_for_services(30.0)
             future = client.get_parameters(["axis"])
             probe.wait_for(future.done, 10.0, "the axis parameter")
         value = future.result().values[0]
-        assert (value.type, value.string_value) == (ParameterType.PARAMETER_STRING, "y")
+        assert (value.type, value.string_value) == (ParameterType.PARAMETER_STRING, axis)
     finally:
         _stop(process)
     assert process.returncode == 0, (tmp_path / "servo.log").read_text()

@@ -122,6 +122,7 @@ def _draw(rng: np.random.Generator, nominal: AxisConfig, variation: VariationCon
     )
 
 
+
 class FeedDrivePlant:
     """Several independent feed-drive axes stepped together (a :class:`~cnc_plant_sim.plant.Plant`).
 
@@ -163,7 +164,8 @@ class FeedDrivePlant:
         FaultError
             On a wrong count, a non-finite command or a bad ``dt_s``; no axis moves then.
         """
-        self._check_length("commands", commands)
+        if len(commands) != len(self.axes):
+            self._check_length("commands", commands)
         if not _all_finite(commands):
             self._check_commands(commands)
         if not (dt_s > 0.0 and dt_s < math.inf):  # also refuses NaN
@@ -194,8 +196,11 @@ class FeedDrivePlant:
 
     def state(self) -> tuple[list[float], list[float]]:
         """Positions [m] and velocities [m/s] as lists in axis order (the per-tick read; nothing allocated in numpy)."""
-        axes = self.axes
-        return [axis.position_m for axis in axes], [axis.velocity_m_s for axis in axes]
+        positions, velocities = [], []
+        for axis in self.axes:  # one loop, no comprehension frames: this runs every tick
+            positions.append(axis.position_m)
+            velocities.append(axis.velocity_m_s)
+        return positions, velocities
 
     def forces_n(self) -> None:
         """None: the model's friction is in drive units, it knows no force in N."""

@@ -67,7 +67,7 @@ class BagIntegrity:
         """One line for people: complete, or what was lost."""
         notes = "".join(f"; {p}" for p in self.problems)
         if self.complete and self.method == "engine":
-            return f"complete (engine run, {sum(self.found.values())} samples on the per-tick topics, no bag{notes})"
+            return f"complete (engine run in process, {sum(self.found.values())} samples on the per-tick topics{notes})"
         if self.complete:
             return f"complete ({sum(self.found.values())} messages read through the index{notes})"
         lost = self.lost

@@ -24,14 +24,17 @@ post-set callback hands the new config to the node once the change is set.
 Strings and YAML 1.1: rcl reads an unquoted ``y``, ``n``, ``yes``, ``no``,
 ``on``, ``off``, ``true`` or ``false`` as a boolean, so ``-p axis:=y``
 arrives as ``true``. Every parameter is therefore first read with dynamic
-typing and then declared with its static type: an axis name given as a
-boolean is the letter rcl took for one (``y`` or ``n``); any other string
-given as a boolean is refused with a line that says how to quote it; an
-integer given for a float is that float.
+typing and then declared with its static type: a string parameter given as a
+boolean is the word written on the process's command line (``-p axis:=on``
+is ``on``, :func:`command_line_words`); without one (a parameters file) an
+axis name is the letter rcl took for one (``y`` or ``n``) and any other
+string is refused with a line that says how to quote it; an integer given
+for a float is that float.
 """
 from __future__ import annotations
 
 import math
+import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
@@ -51,6 +54,9 @@ Type = Parameter.Type
 #: Parameters (last name part) that hold axis names: a YAML boolean there is the letter y or n.
 AXIS_NAME_PARAMETERS = frozenset({"axis", "axes"})
 _AXIS_LETTER = {True: "y", False: "n"}
+#: The words rcl's YAML 1.1 reads as booleans (any case).
+YAML_BOOLEAN_WORDS = {**dict.fromkeys(("y", "yes", "on", "true"), True),
+                      **dict.fromkeys(("n", "no", "off", "false"), False)}
 _SCALAR = {float: Type.DOUBLE, int: Type.INTEGER, bool: Type.BOOL, str: Type.STRING}
 _ARRAY = {float: Type.DOUBLE_ARRAY, int: Type.INTEGER_ARRAY, bool: Type.BOOL_ARRAY, str: Type.STRING_ARRAY}
 _INT64 = (-(2**63), 2**63 - 1)
@@ -136,11 +142,30 @@ def plain(value: Any) -> Any:
     return list(value) if value is not None and not isinstance(value, (str, bytes, bool, int, float)) else value
 
 
-def given_value(name: str, kind: Type, value: Any) -> Any:
+def command_line_words(argv: Sequence[str], node_name: str) -> dict[str, str]:
+    """The text of every ``-p NAME:=VALUE`` (``--param``) in the ROS arguments of ``argv``, by name.
+
+    ``-p NODE:NAME:=VALUE`` counts only for the node called ``node_name``.
+    """
+    words: dict[str, str] = {}
+    ros = False
+    for index, arg in enumerate(argv):
+        if arg in ("--ros-args", "--"):
+            ros = arg == "--ros-args"
+        elif ros and arg in ("-p", "--param") and index + 1 < len(argv) and ":=" in argv[index + 1]:
+            target, _, value = argv[index + 1].partition(":=")
+            node, _, name = target.rpartition(":")
+            if node in ("", node_name):
+                words[name] = value
+    return words
+
+
+def given_value(name: str, kind: Type, value: Any, word: str | None = None) -> Any:
     """A value given for parameter ``name`` as type ``kind`` where that loses nothing; else unchanged.
 
     Integers become floats for a double (array). A boolean where a string
-    belongs is rcl's reading of an unquoted YAML 1.1 word: for an axis name the
+    belongs is rcl's reading of an unquoted YAML 1.1 word: the ``word`` as
+    written on the command line if there is one, else for an axis name the
     letter (``y``/``n``), for any other string a :class:`ConfigError` that says
     how to quote it.
     """
@@ -152,6 +177,8 @@ def given_value(name: str, kind: Type, value: Any) -> Any:
     if kind == Type.DOUBLE_ARRAY and isinstance(value, list) and all(_is_int(v) for v in value):
         return [float(v) for v in value]
     if kind == Type.STRING and isinstance(value, bool):
+        if word is not None and YAML_BOOLEAN_WORDS.get(word.lower()) is value:
+            return word
         return _string_from_boolean(name, value)
     if kind == Type.STRING_ARRAY and isinstance(value, list) and all(isinstance(v, bool) for v in value):
         return [_string_from_boolean(name, v) for v in value]
@@ -220,13 +247,14 @@ class ConfigParameters(Generic[C]):
         self._declared: dict[str, tuple[Type, ParameterDescriptor]] = {}
         self._apply: Callable[[C], None] | None = None
         self.config: C | None = None
+        self._words = command_line_words(sys.argv, node.get_name())  # the process's -p NAME:=VALUE, as written
 
     def add(self, section: Section) -> dict[str, Any]:
         """Read the section's parameters (the given value or the start value); their values by parameter name."""
         read = {}
         for name, spec, start in section.parameters():
             kind = ros_type(spec, start)
-            read[name] = given_value(name, kind, _probe(self.node, name, ros_value(kind, start)))
+            read[name] = given_value(name, kind, _probe(self.node, name, ros_value(kind, start)), self._words.get(name))
             self._declared[name] = (kind, descriptor(spec, kind, section.read_only))
         self.values.update(read)
         return read

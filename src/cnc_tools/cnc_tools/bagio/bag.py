@@ -360,6 +360,17 @@ def _program(raw: RawBag, topic: str) -> Program:
 
 
 # =========================================================================== reading
+def _run_name(mcap_path: Path, is_dir: bool) -> str:
+    """A run's name: its bag folder's name, or ``<scenario>/<timestamp>`` for a run folder's ``bag/``."""
+    if not is_dir:
+        return mcap_path.stem
+    folder = mcap_path.parent
+    if folder.name != "bag":
+        return folder.name
+    run_dir = folder.resolve().parent
+    return f"{run_dir.parent.name}/{run_dir.name}"
+
+
 def read_bag(path: str | Path, *, namespace: str | None = None, commands: bool = True) -> RunRecord:
     """Read a recorded run.
 
@@ -395,7 +406,7 @@ def read_bag(path: str | Path, *, namespace: str | None = None, commands: bool =
         program = _program(raw, names.topic(topics.PATH.name))
         axes = tuple(program.axis_names)
         return RunRecord(
-            name=source.mcap_path.parent.name if Path(path).is_dir() else source.mcap_path.stem,
+            name=_run_name(source.mcap_path, Path(path).is_dir()),
             source=Path(path), program=program,
             joint_states=_joint_states(raw, names, axes),
             reference=_reference(raw, names, axes),

@@ -6,6 +6,7 @@ from collections.abc import Callable
 
 from cnc_contour_control.config import require_choice
 from cnc_tools.bench.engine import engine_bench
+from cnc_tools.bench.graph import graph_bench
 from cnc_tools.bench.laws import laws
 from cnc_tools.bench.lockstep import lockstep_bench
 from cnc_tools.bench.scoring import scoring
@@ -19,6 +20,7 @@ Bench = Callable[[argparse.Namespace], int]
 BENCHES: dict[str, Bench] = {
     "lockstep": lockstep_bench,
     "engine": engine_bench,
+    "graph": graph_bench,
     "scoring": scoring,
     "laws": laws,
     "paper000-pid": paper000_pid_bench,

@@ -49,5 +49,12 @@ def write_json(path: Path | None, figures: dict[str, Any]) -> None:
     if path is None:
         return
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(figures, indent=2) + "\n")
+    path.write_text(json.dumps(figures, indent=2, default=_plain) + "\n")
     print(f"figures written to {path}")
+
+
+def _plain(value: Any) -> Any:
+    """A NumPy scalar (``numpy.bool_``, ``numpy.float64``, ...) as the Python value JSON takes."""
+    if hasattr(value, "item"):
+        return value.item()
+    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")

@@ -1,15 +1,16 @@
-"""The ``cnc-contour bench NAME [--quick] [--json PATH] [--out DIR] [--engine] [--seeds N] [--against REV]`` subcommand."""
+"""The ``cnc-contour bench NAME [--quick] [--json PATH] [--out DIR] [--engine] [--seeds N] [--against REV] [--record]`` subcommand."""
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
 
 from cnc_tools.bench.engine import add_options as add_engine_options
+from cnc_tools.bench.graph import add_options as add_graph_options
 from cnc_tools.bench.registry import BENCHES, get_bench
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    """The options every bench shares, plus the engine bench's ``--against``."""
+    """The options every bench shares, plus ``--against`` (engine and graph benches) and ``--record`` (graph bench)."""
     parser.add_argument("name", help=f"benchmark, one of {sorted(BENCHES)}")
     parser.add_argument("--quick", action="store_true", help="shorter runs and fewer repetitions (< 30 s)")
     parser.add_argument("--json", type=Path, help="also write the measured figures to this JSON file")
@@ -17,6 +18,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--engine", action="store_true", help="run in-process instead of the node graph (paper benches)")
     parser.add_argument("--seeds", type=int, help="plant seeds 1..N per row (paper benches)")
     add_engine_options(parser)
+    add_graph_options(parser)
 
 
 def bench(args: argparse.Namespace) -> int:

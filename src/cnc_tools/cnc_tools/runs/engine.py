@@ -93,19 +93,30 @@ def run_engine(scenario: Scenario, clock: Callable[[], float] | None = None,
 
 
 def _tick_loop(stages: list[EngineStage], stamps_ns: IntArray, sample_ns: int) -> None:
-    """Every tick: the plant opens it, the other stages answer in order, the plant closes it."""
+    """Every tick: the plant's state opens it, the other stages answer in order, the plant closes it.
+
+    The plant's :meth:`PlantStage.advance` closes tick k and opens tick k+1
+    (integrate, then read the new state): one call per tick instead of two.
+    """
     plant = stages[0]
     if not isinstance(plant, PlantStage):
         raise ConfigError(f"the pipeline must start with the plant, got {type(plant).__name__}")
-    answers = [stage.step for stage in stages[1:]]
     board = Board(dt_s=sample_ns / NS_PER_S)
-    observe, integrate = plant.observe, plant.integrate
+    plant.observe(board)
+    answers, advance = [stage.step for stage in stages[1:]], plant.advance
+    if len(answers) == 2:  # the core pipeline (interpolator, servos): the same calls, no inner loop
+        first, second = answers
+        for k, stamp_ns in enumerate(stamps_ns.tolist()):
+            board.tick, board.stamp_ns = k, stamp_ns
+            first(board)
+            second(board)
+            advance(board)
+        return
     for k, stamp_ns in enumerate(stamps_ns.tolist()):
         board.tick, board.stamp_ns = k, stamp_ns
-        observe(board)
         for answer in answers:
             answer(board)
-        integrate(board)
+        advance(board)
 
 
 def _record(scenario: Scenario, stages: list[EngineStage], stamps_ns: IntArray, wall_time_s: float,

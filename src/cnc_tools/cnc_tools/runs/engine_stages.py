@@ -16,10 +16,10 @@ from typing import Any, Protocol
 import numpy as np
 
 from cnc_contour_control.interpolation import Interpolator, ReferenceSample
-from cnc_contour_control.servo import ServoController, ServoOutput, ServoParts
+from cnc_contour_control.servo import ServoController, ServoOutput
 from cnc_contour_control.stages import Pipeline
 from cnc_plant_sim.plant import make_plant
-from cnc_tools.run_record import CommandSeries, IntArray, JointStateSeries, ReferenceSeries
+from cnc_tools.run_record import CommandSeries, FloatArray, IntArray, JointStateSeries, ReferenceSeries
 from cnc_tools.runs.scenario import Scenario
 
 
@@ -78,14 +78,14 @@ class PlantStage:
         self.sample_time_s = scenario.sample_time_s
         self._state = self.plant.state
         self._stamps_ns = stamps_ns
-        self._positions: list[list[float]] = []
-        self._velocities: list[list[float]] = []
+        self._positions: list[float] = []
+        self._velocities: list[float] = []
 
     def observe(self, board: Board) -> None:
         """The state at the tick's stamp (what ``joint_states(k)`` carries)."""
         board.position_m, board.velocity_m_s = positions, velocities = self._state()
-        self._positions.append(positions)
-        self._velocities.append(velocities)
+        self._positions.extend(positions)  # flat lists of floats: nothing for the garbage collector to track
+        self._velocities.extend(velocities)
 
     def step(self, board: Board) -> None:
         """The plant answers no one within a tick (it opens and closes it)."""
@@ -94,11 +94,20 @@ class PlantStage:
         """Hold every axis's command over T."""
         self.plant.step(board.commands, self.sample_time_s)
 
+    def advance(self, board: Board) -> None:
+        """Close the tick (integrate) and open the next one (its state); the state after the last tick is dropped."""
+        self.plant.step(board.commands, self.sample_time_s)
+        board.position_m, board.velocity_m_s = positions, velocities = self._state()
+        self._positions.extend(positions)
+        self._velocities.extend(velocities)
+
     def series(self) -> dict[str, Any]:
         """``joint_states`` and the plant as drawn (into the summary)."""
         n_axes = len(self.plant.axis_names)
-        shape = (len(self._positions), n_axes)
-        return {"joint_states": JointStateSeries(self._stamps_ns, np.array(self._positions, float).reshape(shape),
+        shape = (min(len(self._positions) // n_axes, len(self._stamps_ns)), n_axes)
+        del self._positions[shape[0] * n_axes:], self._velocities[shape[0] * n_axes:]
+        return {"joint_states": JointStateSeries(self._stamps_ns[:shape[0]],
+                                                 np.array(self._positions, float).reshape(shape),
                                                  np.array(self._velocities, float).reshape(shape)),
                 "summary": {"plant": self.plant.describe()}}
 
@@ -155,37 +164,38 @@ class ServoStage:
         self.servos = [ServoController(config) for config in scenario.servos]
         self._zeros = [0.0] * len(self.servos)
         self._stamps_ns = stamps_ns
-        self._outputs: list[list[ServoParts]] = [[] for _ in self.servos]
+        self._parts = [servo.parts for servo in self.servos]
+        self._flat: list[float] = []
 
     def step(self, board: Board) -> None:
         """One servo sample per axis; the commands go on the board."""
         dt_s = board.dt_s
-        compensation = board.compensation or self._zeros
-        commands = []
-        for servo, outputs, r, v, a, x, xv, c in zip(self.servos, self._outputs, board.ref_position_m,
-                                                     board.ref_velocity_m_s, board.ref_acceleration_m_s2,
-                                                     board.position_m, board.velocity_m_s, compensation):
-            parts = servo.parts(dt_s, r, v, a, x, xv, c)
-            outputs.append(parts)
-            commands.append(parts[0])
-        board.commands = commands
+        rows = [parts(dt_s, r, v, a, x, xv, c) for parts, r, v, a, x, xv, c in zip(
+            self._parts, board.ref_position_m, board.ref_velocity_m_s, board.ref_acceleration_m_s2,
+            board.position_m, board.velocity_m_s, board.compensation or self._zeros)]
+        extend = self._flat.extend  # flat floats: nothing for the garbage collector to track
+        for row in rows:
+            extend(row)
+        board.commands = [row[0] for row in rows]
 
     def series(self) -> dict[str, Any]:
         """``commands``: one series per axis with the command's parts, as the command topics carry them."""
-        return {"commands": {servo.config.axis_name: _command_series(servo, outputs, self._stamps_ns)
-                             for servo, outputs in zip(self.servos, self._outputs)}}
+        per_tick = len(self.servos) * len(_PARTS)
+        table = np.array(self._flat, float).reshape(len(self._flat) // per_tick, len(self.servos), len(_PARTS))
+        return {"commands": {servo.config.axis_name: _command_series(servo, table[:, k, :], self._stamps_ns)
+                             for k, servo in enumerate(self.servos)}}
 
 
 #: :class:`ServoOutput`'s fields, the order of :meth:`ServoController.parts`.
 _PARTS = tuple(f.name for f in dataclasses.fields(ServoOutput))
 
 
-def _command_series(servo: ServoController, outputs: list[ServoParts], stamps_ns: IntArray) -> CommandSeries:
-    table = np.array(outputs, dtype=float).reshape(len(outputs), len(_PARTS))
+def _command_series(servo: ServoController, table: FloatArray, stamps_ns: IntArray) -> CommandSeries:
+    """One axis's series from its rows of :meth:`ServoController.parts`, ``table`` (N, 7)."""
     columns = {name: table[:, k].copy() for k, name in enumerate(_PARTS)}
     columns["saturated"] = columns["saturated"].astype(bool)
     return CommandSeries(axis_name=servo.config.axis_name, law=servo.config.law,
-                         command_unit=servo.config.command_unit, stamp_ns=stamps_ns[:len(outputs)], **columns)
+                         command_unit=servo.config.command_unit, stamp_ns=stamps_ns[:len(table)], **columns)
 
 
 #: A stage factory: (scenario, pipeline, tick stamps) -> engine stage.
