@@ -177,6 +177,14 @@ class StampMatcher:
     def _release(self, stamp_ns: int, now_s: float) -> dict[str, Any]:
         items = self._pending.pop(stamp_ns).items
         self._last_released_ns, self._released_at_s = stamp_ns, now_s
+        if self._pending:  # in lockstep nothing else is pending at a release: the checks below cost nothing then
+            self._drop_passed(stamp_ns)
+        if self._unchecked:
+            self._check_held()
+        return items
+
+    def _drop_passed(self, stamp_ns: int) -> None:
+        """Forget expected ticks that never came; a tick with inputs that a later one passed is a fault."""
         for waited_ns in [s for s, p in self._pending.items() if s < stamp_ns and not p.items]:
             del self._pending[waited_ns]  # an expected tick that never came (the run started later)
         passed = sorted(s for s in self._pending if s < stamp_ns)
@@ -184,22 +192,26 @@ class StampMatcher:
             names = ", ".join(self._pending[passed[0]].items)
             raise FaultError(f"{names} stamped t={ns_to_s(passed[0]):.6f} s never completed a tick and was "
                              f"passed by tick t={ns_to_s(stamp_ns):.6f} s (a message from outside the run?)")
+
+    def _check_held(self) -> None:
+        """Check the horizon of the inputs held before the first release, now that there is a base."""
         held, self._unchecked = self._unchecked, []
         previous: dict[str, int] = {}
         for name, later_ns in sorted(held, key=lambda item: item[1]):
             if later_ns in self._pending and name in self._pending[later_ns].items:
                 self._check_horizon(name, later_ns, previous.get(name))
                 previous[name] = later_ns
-        return items
 
     def _check_horizon(self, name: str, stamp_ns: int, previous_ns: int | None = None) -> None:
         # The base is the last released or expected tick, or this input's own previous stamp: in real time a
         # stage may lag, holding one input's stream while the producer of another input catches up.
-        known = [s for s in (self._last_released_ns, self._expected_ns, previous_ns) if s is not None]
-        if self.max_ahead_ns is None or not known:
+        if self.max_ahead_ns is None:
             return
-        base_ns = max(known)
-        if stamp_ns - base_ns > self.max_ahead_ns:
+        base_ns = self._last_released_ns
+        for other_ns in (self._expected_ns, previous_ns):  # the latest known stamp, without building a list
+            if other_ns is not None and (base_ns is None or other_ns > base_ns):
+                base_ns = other_ns
+        if base_ns is not None and stamp_ns - base_ns > self.max_ahead_ns:
             raise FaultError(f"{name} stamped t={ns_to_s(stamp_ns):.6f} s, more than {ns_to_s(self.max_ahead_ns)} s "
                              f"after tick t={ns_to_s(base_ns):.6f} s (a message from outside the run?)")
 

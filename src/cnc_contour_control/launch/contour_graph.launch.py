@@ -3,10 +3,11 @@
     cnc-contour params scenarios/paper000_circle_high.yaml --out /tmp/circle
     ros2 launch cnc_contour_control contour_graph.launch.py params_dir:=/tmp/circle
 
-``params_dir`` is a folder written by ``cnc-contour params`` (or a run folder
-of ``cnc-contour run``): ``graph.yaml`` lists the nodes (plant, interpolator,
-one servo per axis: the scenario's stage pipeline) and each node has its
-parameters file there, the same files the runner starts its processes with.
+``params_dir`` is a folder written by ``cnc-contour params``: ``graph.yaml``
+lists the nodes (plant, interpolator, one servo per axis: the scenario's stage
+pipeline) and each node has its parameters file there, the same files the
+runner starts its processes with. (A run folder of ``cnc-contour run`` is not
+one: it lists the run's recorder, whose bag folder exists already.)
 Each stage waits for its readers before it publishes: record with
 ``ros2 bag record`` or add a reader by hand only if the folder counted it
 (``cnc-contour params --extra-subscribers N``).
@@ -45,6 +46,6 @@ def generate_launch_description() -> Any:
     from launch.actions import DeclareLaunchArgument, OpaqueFunction
 
     return LaunchDescription([
-        DeclareLaunchArgument("params_dir", description="folder written by `cnc-contour params` or a run folder"),
+        DeclareLaunchArgument("params_dir", description="folder written by `cnc-contour params`"),
         OpaqueFunction(function=node_actions),
     ])

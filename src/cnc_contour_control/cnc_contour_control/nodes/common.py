@@ -8,8 +8,7 @@ from __future__ import annotations
 import importlib
 import sys
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import rclpy
@@ -197,8 +196,10 @@ class SuiteNode(Node):
         resolved = self.resolve_topic_name(topic)
 
         def receive(msg: Any) -> None:
-            with naming_topic(resolved):
+            try:  # a fault while checking names the topic
                 result = accept(msg)
+            except FaultError as err:
+                raise FaultError(f"{resolved}: {err}") from err
             if then is not None and result is not None:
                 then(result)
 
@@ -247,15 +248,6 @@ class SuiteNode(Node):
                 self.fault(str(err))
 
         return run
-
-
-@contextmanager
-def naming_topic(topic: str) -> Iterator[None]:
-    """Re-raise a :class:`FaultError` with ``topic`` in front (a fault says where the bad message came from)."""
-    try:
-        yield
-    except FaultError as err:
-        raise FaultError(f"{topic}: {err}") from err
 
 
 def type_name_of(msg_type: type) -> str:

@@ -64,19 +64,21 @@ class ServoNode(SuiteNode):
         self.create_timer(0.1, self.guarded(self._watchdog))
 
     def _subscribe(self, msg_type: type, topic: str) -> None:
+        decode = _DECODE[topic]
+
         def accept(msg: Any) -> dict[str, Any] | None:
-            _CHECKS[topic](msg, self.axis)  # values first: a bad message is a fault even when stale
-            return self.matcher.add(topic, stamp_to_ns(msg.header.stamp), msg, wall_time_s())
+            values = decode(msg, self.axis)  # values first: a bad message is a fault even when stale
+            return self.matcher.add(topic, stamp_to_ns(msg.header.stamp), values, wall_time_s())
 
         self.subscribe_checked(msg_type, topic, accept, then=self._step)
 
     def _step(self, items: dict[str, Any]) -> None:
-        stamp_ns = stamp_to_ns(items["reference"].header.stamp)
+        stamp_ns = self.matcher.last_released_ns
+        assert stamp_ns is not None  # a tick was just released
         dt_ns = self.sample_time_ns if self.last_stamp_ns is None else stamp_ns - self.last_stamp_ns
-        position_m = joint_position(items["joint_states"], self.axis)
-        ref = reference_axis(items["reference"], self.axis)
-        correction = compensation_for(items["compensation"], self.axis) if "compensation" in items else 0.0
-        velocity_m_s = joint_velocity(items["joint_states"], self.axis)
+        position_m, velocity_m_s = items["joint_states"]
+        ref = items["reference"]
+        correction = items.get("compensation", 0.0)
         output = self.controller.step(dt_ns / NS_PER_S, ref[0], ref[1], ref[2], position_m, velocity_m_s, correction)
         self.last_stamp_ns = stamp_ns
         config = self.controller.config
@@ -93,8 +95,8 @@ class ServoNode(SuiteNode):
             )
 
 
-#: What the servo checks of each input on arrival (one axis's values, with the field named).
-_CHECKS: dict[str, Callable[[Any, str], object]] = {
+#: Each input decoded and checked on arrival: this axis's values (a fault names the field); the tick uses them.
+_DECODE: dict[str, Callable[[Any, str], Any]] = {
     "joint_states": lambda msg, axis: (joint_position(msg, axis), joint_velocity(msg, axis)),
     "reference": reference_axis,
     "compensation": compensation_for,

@@ -18,8 +18,8 @@ def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float], velocitie
     msg.header.stamp = ns_to_stamp(stamp_ns)
     msg.header.frame_id = "machine"
     msg.name = list(axes)
-    msg.position = [float(v) for v in positions_m]
-    msg.velocity = [float(v) for v in velocities_m_s]
+    msg.position = list(map(float, positions_m))
+    msg.velocity = list(map(float, velocities_m_s))
     return msg
 
 

@@ -105,7 +105,8 @@ class PlantNode(SuiteNode):
     def _publish_tick(self) -> None:
         stamp_ns = self.clock.stamp_ns
         # joint_states first: it starts the next stages; /clock is off the critical path.
-        self.joint_pub.publish(joint_state_msg(self.axes, self.plant.positions_m(), self.plant.velocities_m_s(), stamp_ns))
+        positions_m, velocities_m_s = self.plant.state()
+        self.joint_pub.publish(joint_state_msg(self.axes, positions_m, velocities_m_s, stamp_ns))
         self.clock_pub.publish(clock_msg(stamp_ns))
         if self.mode == "lockstep":
             self.matcher.expect(stamp_ns, wall_time_s())
