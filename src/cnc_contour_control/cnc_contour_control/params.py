@@ -186,3 +186,9 @@ def check_ranges(config: Any, context: str = "") -> None:
             raise ConfigError(f"{where} must be <= {info.high}, got {value!r}")
         if f.type in (float, "float"):
             object.__setattr__(config, f.name, number)
+
+
+def declared_bounds(cls: type) -> list[tuple[ParamSpec, float, float]]:
+    """Every numeric bound of ``cls`` (nested sections flattened): (spec, bound, direction out of range: -1 or +1)."""
+    return [(spec, bound, direction) for spec in flat_specs(cls) if spec.kind in (float, int)
+            for bound, direction in ((spec.info.low, -1.0), (spec.info.high, 1.0)) if bound is not None]

@@ -20,7 +20,7 @@ from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.laws.fuzzy import FuzzyConfig
 from cnc_contour_control.nodes.parameters import (ConfigParameters, Section, command_line_words, declare_config,
                                                   given_value, ros_type, ros_value)
-from cnc_contour_control.params import ParamSpec, config_values, flat_specs
+from cnc_contour_control.params import ParamSpec, config_values, declared_bounds, flat_specs
 from cnc_contour_control.stage_params import InterpolatorRunParams, ServoRunParams
 
 
@@ -119,14 +119,9 @@ def _check_descriptor(desc: ParameterDescriptor, spec: ParamSpec) -> None:
 
 
 def _bound_cases() -> list[Any]:
-    cases = []
-    for cls, base in CONFIGS.items():
-        for spec in flat_specs(cls):
-            for bound, direction in ((spec.info.low, -1.0), (spec.info.high, 1.0)):
-                if bound is not None and spec.kind in (float, int):
-                    cases.append(pytest.param(cls, base, spec, bound, direction,
-                                              id=f"{cls.__name__}.{spec.name}{'<' if direction < 0 else '>'}"))
-    return cases
+    return [pytest.param(cls, base, spec, bound, direction,
+                         id=f"{cls.__name__}.{spec.name}{'<' if direction < 0 else '>'}")
+            for cls, base in CONFIGS.items() for spec, bound, direction in declared_bounds(cls)]
 
 
 @pytest.mark.parametrize(("cls", "base", "spec", "bound", "direction"), _bound_cases())

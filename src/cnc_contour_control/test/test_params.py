@@ -10,7 +10,7 @@ from cnc_contour_control.config import build_config
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.interpolation import AxisLimits, InterpolatorConfig
 from cnc_contour_control.laws import LAWS, law_config_class
-from cnc_contour_control.params import ParamSpec, config_values, flat_specs
+from cnc_contour_control.params import ParamSpec, config_values, declared_bounds, flat_specs
 from cnc_contour_control.servo import ServoConfig
 from cnc_contour_control.stage_params import InterpolatorRunParams, ServoRunParams, servo_config_values
 from cnc_plant_sim.axis import AxisConfig
@@ -50,14 +50,9 @@ def _outside(spec: ParamSpec, bound: float, direction: float) -> float:
 
 
 def _bounds() -> list[Any]:
-    cases = []
-    for cls, base in CONFIGS.items():
-        for spec in flat_specs(cls):
-            for bound, direction in ((spec.info.low, -1.0), (spec.info.high, 1.0)):
-                if bound is not None and spec.kind in (float, int):
-                    cases.append(pytest.param(cls, base, spec, bound, direction,
-                                              id=f"{cls.__name__}.{spec.name}{'<' if direction < 0 else '>'}"))
-    return cases
+    return [pytest.param(cls, base, spec, bound, direction,
+                         id=f"{cls.__name__}.{spec.name}{'<' if direction < 0 else '>'}")
+            for cls, base in CONFIGS.items() for spec, bound, direction in declared_bounds(cls)]
 
 
 @pytest.mark.parametrize(("cls", "base", "spec", "bound", "direction"), _bounds())

@@ -149,6 +149,15 @@ class FeedOverrideSeries:
     applied_ratio: FloatArray
 
 
+@dataclass(frozen=True, eq=False)
+class ForceSeries:
+    """The process force (``cutting_force`` topic, in the tool frame): force (N, 3) [N], torque (N, 3) [N·m]."""
+
+    stamp_ns: IntArray
+    force_n: FloatArray
+    torque_n_m: FloatArray
+
+
 #: Where a record came from.
 BACKENDS = ("graph", "engine", "bag")
 
@@ -169,8 +178,9 @@ class RunRecord:
         The per-tick series every run has (``reference`` None only in a bag without it).
     integrity : BagIntegrity
         How completely the series were read.
-    contour_error, compensation, feed_override
-        Series of the optional stages, None when the run had no such stage.
+    contour_error, compensation, feed_override, cutting_force
+        Series of the optional stages and of a plant that knows its process
+        force; None when the run had none.
     summary : Mapping
         The run's own account: ``ticks``, ``status``, ``faults``, ``wall_time_s``,
         ``real_time_factor``, the plant as drawn (what the plant node writes to
@@ -189,6 +199,7 @@ class RunRecord:
     contour_error: EstimateSeries | None = None
     compensation: CompensationSeries | None = None
     feed_override: FeedOverrideSeries | None = None
+    cutting_force: ForceSeries | None = None
     summary: Mapping[str, Any] = field(default_factory=dict)
     backend: str = "bag"
 

@@ -125,3 +125,26 @@ def test_engine_record_written_as_a_bag_reads_back_equal(circle: RunRecord, tmp_
             assert_allclose(getattr(back.commands[axis], name), getattr(series, name), rtol=0, atol=0)
         assert (back.commands[axis].saturated == series.saturated).all()
     assert back.program.total_length_m == circle.program.total_length_m
+
+
+def test_optional_stage_series_go_to_their_topics_and_come_back(circle: RunRecord, tmp_path: Path) -> None:
+    from cnc_tools.bagio.bag import read_bag
+    from cnc_tools.bagio.record_bag import write_record_bag
+    from cnc_tools.run_record import CompensationSeries, EstimateSeries, FeedOverrideSeries, ForceSeries
+
+    n, stamps, rng = circle.ticks, circle.joint_states.stamp_ns, np.random.default_rng(3)
+    full = circle.with_(
+        contour_error=EstimateSeries(stamps, rng.normal(size=n), rng.normal(size=(n, 2)),
+                                     rng.integers(0, 9, n).astype(np.int64), rng.normal(size=n)),
+        compensation=CompensationSeries(stamps, rng.normal(size=(n, 2)), "dac"),
+        feed_override=FeedOverrideSeries(stamps, rng.uniform(0, 1.5, n), rng.uniform(0, 1.5, n)),
+        cutting_force=ForceSeries(stamps, rng.normal(size=(n, 3)), rng.normal(size=(n, 3))))
+    back = read_bag(write_record_bag(full, tmp_path / "bag"))
+    for name in ("contour_error", "compensation", "feed_override", "cutting_force"):
+        got, sent = getattr(back, name), getattr(full, name)
+        for field in ("stamp_ns", "contour_error_m", "tracking_error_m", "segment_index", "angle_rad", "correction",
+                      "requested_ratio", "applied_ratio", "force_n", "torque_n_m"):
+            if hasattr(sent, field):
+                assert_allclose(getattr(got, field), getattr(sent, field), rtol=0, atol=0, err_msg=f"{name}.{field}")
+    assert back.compensation is not None and back.compensation.command_unit == "dac"
+    assert circle.contour_error is None and read_bag(write_record_bag(circle, tmp_path / "plain")).contour_error is None

@@ -36,6 +36,7 @@ from cnc_tools.run_record import (
     CompensationSeries,
     EstimateSeries,
     FeedOverrideSeries,
+    ForceSeries,
     RunRecord,
     FloatArray,
     IntArray,
@@ -156,7 +157,7 @@ class BagWriter:
 # =========================================================================== topics read
 #: Topics a run record is decoded from (relative names; ``servo/<axis>/command`` besides).
 _DECODED = (topics.JOINT_STATES.name, topics.REFERENCE.name, topics.PATH.name, topics.CONTOUR_ERROR.name,
-            topics.COMPENSATION.name, topics.FEED_OVERRIDE.name)
+            topics.COMPENSATION.name, topics.FEED_OVERRIDE.name, topics.CUTTING_FORCE.name)
 
 
 @dataclass(frozen=True)
@@ -293,10 +294,12 @@ def _commands(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict[str
 _ESTIMATE = _Fields("axis_names", {"tracking_error_m": False}, ("contour_error_m", "segment_index", "angle_rad"))
 _COMPENSATION = _Fields("axis_names", {"correction": True}, strings=("command_unit",))
 _FEED_OVERRIDE = _Fields(scalars=("requested_ratio", "applied_ratio"))
+_XYZ = ("x", "y", "z")
+_WRENCH = _Fields(scalars=tuple(f"wrench.{part}.{c}" for part in ("force", "torque") for c in _XYZ))
 
 
 def _stage_series(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict[str, object]:
-    """The optional stages' series (estimator, compensator, feed override) where the bag has them."""
+    """The optional stages' series (estimator, compensator, feed override, cutting force) where the bag has them."""
     out: dict[str, object] = {}
     topic = names.topic(topics.CONTOUR_ERROR.name)
     if raw.data.get(topic):
@@ -311,6 +314,11 @@ def _stage_series(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict
     if raw.data.get(topic):
         c = _columns(raw, topic, _FEED_OVERRIDE, axes, names)
         out["feed_override"] = FeedOverrideSeries(c["stamp_ns"], c["requested_ratio"], c["applied_ratio"])  # type: ignore[arg-type]
+    topic = names.topic(topics.CUTTING_FORCE.name)
+    if raw.data.get(topic):
+        c = _columns(raw, topic, _WRENCH, axes, names)
+        force, torque = (np.column_stack([c[f"wrench.{part}.{x}"] for x in _XYZ]) for part in ("force", "torque"))
+        out["cutting_force"] = ForceSeries(c["stamp_ns"], force, torque)  # type: ignore[arg-type]
     return out
 
 

@@ -63,6 +63,42 @@ def _commands(series: CommandSeries) -> Iterator[tuple[int, Any]]:
                           error_m=float(s.error_m[k]))
 
 
+def _estimates(record: RunRecord) -> Iterator[tuple[int, Any]]:
+    make, e = project_typestore().types[topics.CONTOUR_ERROR.type_name], record.contour_error
+    for k, stamp in enumerate([] if e is None else e.stamp_ns.tolist()):
+        yield stamp, make(header=_header(stamp), axis_names=list(record.axis_names),
+                          contour_error_m=float(e.contour_error_m[k]), tracking_error_m=e.tracking_error_m[k].copy(),
+                          segment_index=int(e.segment_index[k]), angle_rad=float(e.angle_rad[k]))
+
+
+def _compensations(record: RunRecord) -> Iterator[tuple[int, Any]]:
+    make, c = project_typestore().types[topics.COMPENSATION.type_name], record.compensation
+    for k, stamp in enumerate([] if c is None else c.stamp_ns.tolist()):
+        yield stamp, make(header=_header(stamp), axis_names=list(record.axis_names),
+                          correction=c.correction[k].copy(), command_unit=c.command_unit)
+
+
+def _overrides(record: RunRecord) -> Iterator[tuple[int, Any]]:
+    make, o = project_typestore().types[topics.FEED_OVERRIDE.type_name], record.feed_override
+    for k, stamp in enumerate([] if o is None else o.stamp_ns.tolist()):
+        yield stamp, make(header=_header(stamp), requested_ratio=float(o.requested_ratio[k]),
+                          applied_ratio=float(o.applied_ratio[k]), quantum=0.0)
+
+
+def _wrenches(record: RunRecord) -> Iterator[tuple[int, Any]]:
+    types, w = project_typestore().types, record.cutting_force
+    vector, wrench = types["geometry_msgs/msg/Vector3"], types["geometry_msgs/msg/Wrench"]
+    for k, stamp in enumerate([] if w is None else w.stamp_ns.tolist()):
+        yield stamp, types[topics.CUTTING_FORCE.type_name](
+            header=_header(stamp, "tool"), wrench=wrench(force=vector(*map(float, w.force_n[k])),
+                                                         torque=vector(*map(float, w.torque_n_m[k]))))
+
+
+#: Optional series: record field -> (topic, its messages).
+_OPTIONAL = {"contour_error": (topics.CONTOUR_ERROR, _estimates), "compensation": (topics.COMPENSATION, _compensations),
+             "feed_override": (topics.FEED_OVERRIDE, _overrides), "cutting_force": (topics.CUTTING_FORCE, _wrenches)}
+
+
 def _tagged(order: int, topic: str, stream: Iterator[tuple[int, Any]]) -> Iterator[tuple[int, int, str, Any]]:
     """(stamp, order, topic, message): merged by (stamp, order), the order a tick's topics are published in."""
     for stamp, message in stream:
@@ -78,6 +114,9 @@ def write_record_bag(record: RunRecord, path: Path, namespace: str = topics.DEFA
     types = {q(topics.PATH.name): topics.PATH.type_name, q(topics.JOINT_STATES.name): topics.JOINT_STATES.type_name,
              q(topics.REFERENCE.name): topics.REFERENCE.type_name}
     types.update({q(topics.command_topic(axis)): topics.COMMAND.type_name for axis in record.commands})
+    for field_name, (topic, messages) in _OPTIONAL.items():
+        if getattr(record, field_name) is not None:
+            streams[q(topic.name)], types[q(topic.name)] = messages(record), topic.type_name
     with BagWriter(path, types) as writer:
         writer.write_message(q(topics.PATH.name), 0, path_message(record.program))
         tagged = [_tagged(order, topic, stream) for order, (topic, stream) in enumerate(streams.items())]

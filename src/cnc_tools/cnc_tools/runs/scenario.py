@@ -68,13 +68,15 @@ class Scenario:
         return pipeline(self.axes, self.optional_stages)
 
     def variant(self, overrides: Mapping[str, Any] | None = None, **changes: Any) -> Scenario:
-        """A validated copy with ``overrides`` (nested, merged as ``--set`` merges) and top-level ``changes``.
+        """A validated copy: ``overrides`` deep-merged (as ``--set`` merges), then top-level ``changes`` replacing keys.
 
         The one way to make scenario variants (sweeps, benches, tuning): the
         copy goes through the same validation as a file, relative program
-        files still resolve against the original scenario's folder.
+        files still resolve against the original scenario's folder. A key in
+        ``changes`` replaces the whole section (``servo=...`` drops the old
+        law's gains, where a merge would keep them beside the new law's).
         """
-        raw = merge(merge(self.raw, overrides or {}), changes)
+        raw = {**merge(self.raw, overrides or {}), **changes}
         return build_scenario(raw, base_dir=self.source.parent if self.source else None, source=self.source)
 
 

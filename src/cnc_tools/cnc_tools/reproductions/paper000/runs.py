@@ -4,11 +4,10 @@
   gains), ``flc`` (Eqs. 3-8, Tables 1, 3, 4), ``pid+ff`` / ``flc+ff`` (the same
   plus the feedforward of :func:`feedforward_axes`) and ``flc:<rule base>``
   for every alternative rule base of ``fuzzy.RULE_BASES``.
-- A run goes through the node graph (recorded to MCAP, read back with
-  :func:`cnc_tools.bagio.bag.read_bag`) or through the in-process engine; the
-  engine's arrays are put into the same :class:`RecordedRun` a bag gives
-  (:func:`engine_recorded_run`), so both are scored by the one scorer,
-  :func:`cnc_tools.analysis.scoring.score_run`.
+- A run goes through the node graph (recorded to MCAP, read back) or through
+  the in-process engine (:func:`cnc_tools.runs.backends.run_scenario`); both
+  give the one :class:`~cnc_tools.run_record.RunRecord`, scored by the one
+  scorer, :func:`cnc_tools.analysis.scoring.score_run`.
 - A *view* (:data:`VIEWS`) chooses what is scored, by cutting the recorded
   run before it reaches the scorer: the paper's view (``paper``: the contour
   of Eqs. 9/10 while the reference moves) or the project's default
@@ -25,19 +24,17 @@ from typing import Any
 import numpy as np
 
 from cnc_contour_control.config import require_choice
-from cnc_contour_control.errors import BagError, FaultError
+from cnc_contour_control.errors import BagError
 from cnc_contour_control.geometry import LineSegment, Program, Segment
 from cnc_contour_control.laws.fuzzy import RULE_BASES
-from cnc_contour_control.lockstep import NS_PER_S, seconds_to_ns
-from cnc_contour_control.servo import ServoConfig
+from cnc_contour_control.lockstep import NS_PER_S
 from cnc_contour_control.units import M_PER_BLU_PAPER000
 from cnc_plant_sim.plant import PlantConfig
-from cnc_tools.bagio.bag import read_bag
 from cnc_tools.reproductions.paper000.data import TABLE4_PID_PARAMS
 from cnc_tools.runs.engine import run_engine
-from cnc_tools.run_record import BagIntegrity, CommandSeries, JointStateSeries, RecordedRun, ReferenceSeries
-from cnc_tools.runs.graph import run_graph
-from cnc_tools.runs.scenario import Scenario, build_scenario, load_scenario
+from cnc_tools.run_record import RecordedRun, RunRecord
+from cnc_tools.runs.backends import run_scenario
+from cnc_tools.runs.scenario import Scenario, load_scenario
 from cnc_tools.analysis.scoring import Score, score_run
 
 
@@ -100,10 +97,8 @@ def scenario_for(path: Path, controller: Controller, seed: int,
     keep the PID's gains beside the FLC's parameters).
     """
     base = load_scenario(path, {**dict(overrides or {}), "seed": seed})
-    raw = dict(base.raw)
-    raw["servo"] = _servo_section(raw, controller, base.plant)
-    raw["name"] = f"{base.name}_{controller.name.replace(':', '_')}_seed{seed}"
-    return build_scenario(raw, base_dir=path.parent, source=path)
+    return base.variant(servo=_servo_section(base.raw, controller, base.plant),
+                        name=f"{base.name}_{controller.name.replace(':', '_')}_seed{seed}")
 
 
 # =========================================================================== running
@@ -112,12 +107,9 @@ def engine_recorded_run(scenario: Scenario, result: RunRecord | None = None) -> 
     return result if result is not None else run_engine(scenario)
 
 
-def graph_recorded_run(scenario: Scenario, run_dir: Path) -> RecordedRun:
-    """Run ``scenario`` through the node graph, recorded to ``run_dir/bag``, and read the bag back."""
-    result = run_graph(scenario, run_dir, record=True)
-    if result.faults or result.bag_path is None:
-        raise FaultError(f"{scenario.name}: node-graph run in {run_dir} faulted: {result.faults}")
-    return read_bag(result.bag_path)
+def graph_recorded_run(scenario: Scenario, run_dir: Path) -> RunRecord:
+    """Run ``scenario`` through the node graph, recorded to ``run_dir/bag``: the record read back from the bag."""
+    return run_scenario(scenario, "graph", run_dir)
 
 
 # =========================================================================== views
