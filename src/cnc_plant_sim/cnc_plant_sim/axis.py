@@ -287,10 +287,18 @@ class FeedDriveAxis:
         u = command if type(command) is float else self._as_float(command)
         if u - u != 0.0:  # a NaN or an infinity
             raise FaultError(f"axis {self.name}: command must be finite, got {command!r}")
-        limit = self._limit
-        u = -limit if u < -limit else (limit if u > limit else u)
         if not (dt_s > 0.0 and dt_s < math.inf):  # also refuses NaN
             raise FaultError(f"axis {self.name}: dt_s must be finite and > 0, got {dt_s!r}")
+        self.advance(u, dt_s)
+
+    def advance(self, u: float, dt_s: float) -> None:
+        """:meth:`step` for a command and a period already checked (finite float, ``dt_s`` > 0).
+
+        The plant checks every axis's command before any axis moves, then
+        advances each through here; the checks are not made twice.
+        """
+        limit = self._limit
+        u = -limit if u < -limit else (limit if u > limit else u)
         if self._substeps == 1:
             p, v, f = self._substep(self._pos_blu, self._vel_blu_s, u, dt_s)
         else:

@@ -170,8 +170,8 @@ class FeedDrivePlant:
             self._check_commands(commands)
         if not (dt_s > 0.0 and dt_s < math.inf):  # also refuses NaN
             raise FaultError(f"plant: dt_s must be finite and > 0, got {dt_s!r}")
-        for axis, command in zip(self.axes, commands):
-            axis.step(command, dt_s)
+        for axis, command in zip(self.axes, commands):  # every command checked above: no axis re-checks
+            axis.advance(command if type(command) is float else float(command), dt_s)
 
     def _check_commands(self, commands: Sequence[float]) -> None:
         """Raise :class:`FaultError` naming the first axis whose command is not a finite number."""
