@@ -134,6 +134,24 @@ class BagWriter:
             return dict(self._closed_counts)
         return {topic: self._writer.counts[conn.id] for topic, conn in self._connections.items()}
 
+    def flush(self) -> None:
+        """Write the messages buffered so far to the file as a complete chunk, and hand them to the OS.
+
+        rosbags' MCAP writer keeps up to 1 MiB in memory; a writer killed
+        before :meth:`close` would lose all of it. After a flush, a killed
+        writer leaves a file whose chunks up to here the salvage scan recovers.
+        """
+        storage = getattr(self._writer, "storage", None) if self._writer is not None else None
+        chunk = getattr(storage, "chunk", None)
+        if storage is None or chunk is None:  # closed, or a storage without chunks
+            return
+        try:
+            if chunk.bio.tell():
+                storage.close_chunk()
+            storage.bio.flush()
+        except (AttributeError, OSError) as err:
+            raise BagError(f"cannot flush bag {self.path}: {err}") from err
+
     def close(self) -> None:
         """Finish the MCAP summary and write ``metadata.yaml``; calling it again does nothing."""
         if self._writer is None:

@@ -14,6 +14,10 @@ from cnc_tools.bagio.bag import BagWriter
 from cnc_tools.bagio.recording import Completion, header_stamp_ns, is_latched, is_wall_stamped, per_tick_topics, run_topics
 
 
+#: Wall seconds between flushes of the bag to disk (what a SIGKILLed recorder can lose at most).
+FLUSH_PERIOD_S = 1.0
+
+
 class RecorderNode(SuiteNode):
     """Subscribes raw to every topic of the run (its namespace, remaps applied) and appends each message to the bag.
 
@@ -44,6 +48,7 @@ class RecorderNode(SuiteNode):
             self.create_subscription(message_class(type_name, topic), topic, self._writer_for(topic, type_name), qos,
                                      raw=True)
         self.create_timer(0.05, self.guarded(self._check_done))
+        self.create_timer(FLUSH_PERIOD_S, self.guarded(self.writer.flush))  # a killed recorder loses <= 1 s
 
     def _writer_for(self, topic: str, type_name: str) -> Any:
         wall_stamped = is_wall_stamped(type_name)
