@@ -14,7 +14,7 @@ from cnc_contour_control.stages import STAGES, pipeline
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.backends import run_scenario
 from cnc_tools.runs.engine import ENGINE_STAGES, build_stages, run_engine, tick_count
-from cnc_tools.runs.engine_stages import InterpolatorStage
+from cnc_tools.runs.engine_stages import SampledInterpolatorStage, VectorisedInterpolatorStage
 from cnc_tools.runs.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -58,8 +58,8 @@ def test_engine_command_parts_are_what_the_servo_computes(circle: RunRecord) -> 
 def test_per_tick_reference_equals_the_vectorised_one() -> None:
     scenario = load_scenario(HELIX, {"duration_s": 2.0})
     stamps = np.arange(tick_count(scenario), dtype=np.int64) * 10_000_000
-    fast = InterpolatorStage(scenario, scenario.pipeline(), stamps, vectorised=True)
-    slow = InterpolatorStage(scenario, scenario.pipeline(), stamps, vectorised=False)
+    fast = VectorisedInterpolatorStage(scenario, scenario.pipeline(), stamps)
+    slow = SampledInterpolatorStage(scenario, scenario.pipeline(), stamps)
     from cnc_tools.runs.engine_stages import Board
 
     board = Board(0.01)

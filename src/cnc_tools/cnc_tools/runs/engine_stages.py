@@ -112,30 +112,16 @@ class PlantStage:
                 "summary": {"plant": self.plant.describe()}}
 
 
-class InterpolatorStage:
-    """The interpolator: the reference at the tick's stamp.
+class SampledInterpolatorStage:
+    """The interpolator stepped per tick: one :meth:`Interpolator.sample` at the tick's stamp (as the node does)."""
 
-    Open loop (no feed override in the run) the whole reference is computed up
-    front with :meth:`Interpolator.sample_array` and handed out row by row;
-    otherwise it is sampled per tick.
-    """
-
-    def __init__(self, scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray,
-                 vectorised: bool | None = None) -> None:
+    def __init__(self, scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> None:
         self.interpolator: Interpolator = scenario.make_interpolator()
         self._stamps_ns = stamps_ns
-        self.vectorised = not pipeline.has("force_regulator") if vectorised is None else vectorised
         self._samples: list[ReferenceSample] = []
-        if self.vectorised:
-            self._trajectory = self.interpolator.sample_array(stamps_ns * 1e-9)
-            self._rows = list(zip(self._trajectory.position_m.tolist(), self._trajectory.velocity_m_s.tolist(),
-                                  self._trajectory.acceleration_m_s2.tolist()))
 
     def step(self, board: Board) -> None:
         """Put the reference of the tick on the board."""
-        if self.vectorised:
-            board.ref_position_m, board.ref_velocity_m_s, board.ref_acceleration_m_s2 = self._rows[board.tick]
-            return
         sample = self.interpolator.sample(board.stamp_ns * 1e-9)
         self._samples.append(sample)
         board.ref_position_m = sample.position_m.tolist()
@@ -144,17 +130,42 @@ class InterpolatorStage:
 
     def series(self) -> dict[str, Any]:
         """``reference`` as the ``reference`` topic carries it."""
-        if self.vectorised:
-            t = self._trajectory
-            return {"reference": ReferenceSeries(self._stamps_ns, t.position_m, t.velocity_m_s, t.acceleration_m_s2,
-                                                 t.path_length_m, t.segment_index.astype(np.int64), t.feed_m_s,
-                                                 t.done)}
         s = self._samples
         return {"reference": ReferenceSeries(
             self._stamps_ns[:len(s)], np.array([x.position_m for x in s]), np.array([x.velocity_m_s for x in s]),
             np.array([x.acceleration_m_s2 for x in s]), np.array([x.path_length_m for x in s]),
             np.array([x.segment_index for x in s], np.int64), np.array([x.feed_m_s for x in s]),
             np.array([x.done for x in s], bool))}
+
+
+class VectorisedInterpolatorStage:
+    """The interpolator computed for every tick up front (:meth:`Interpolator.sample_array`), handed out row by row.
+
+    Valid only while the reference depends on the stamp alone: no stage
+    upstream of the interpolator (no feed override) in the run.
+    """
+
+    def __init__(self, scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> None:
+        self.interpolator: Interpolator = scenario.make_interpolator()
+        self._stamps_ns = stamps_ns
+        self._trajectory = t = self.interpolator.sample_array(stamps_ns * 1e-9)
+        self._rows = iter(list(zip(t.position_m.tolist(), t.velocity_m_s.tolist(), t.acceleration_m_s2.tolist())))
+
+    def step(self, board: Board) -> None:
+        """Put the next tick's reference on the board."""
+        board.ref_position_m, board.ref_velocity_m_s, board.ref_acceleration_m_s2 = next(self._rows)
+
+    def series(self) -> dict[str, Any]:
+        """``reference`` as the ``reference`` topic carries it."""
+        t = self._trajectory
+        return {"reference": ReferenceSeries(self._stamps_ns, t.position_m, t.velocity_m_s, t.acceleration_m_s2,
+                                             t.path_length_m, t.segment_index.astype(np.int64), t.feed_m_s, t.done)}
+
+
+def interpolator_stage(scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> EngineStage:
+    """The vectorised interpolator while nothing upstream of it exists (no feed override), else the sampled one."""
+    stage = SampledInterpolatorStage if pipeline.has("force_regulator") else VectorisedInterpolatorStage
+    return stage(scenario, pipeline, stamps_ns)
 
 
 class ServoStage:
@@ -204,6 +215,6 @@ StageFactory = Callable[[Scenario, Pipeline, IntArray], EngineStage]
 #: Engine implementations of the pipeline's stages, by stage name.
 ENGINE_STAGES: dict[str, StageFactory] = {
     "plant": PlantStage,
-    "interpolator": InterpolatorStage,
+    "interpolator": interpolator_stage,
     "servo": ServoStage,
 }
