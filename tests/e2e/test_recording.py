@@ -81,7 +81,8 @@ def test_recorder_closes_the_bag_cleanly_on_sigterm(tmp_path: Path) -> None:
         for topic, kind in (("/cnc/reference", Reference), ("/cnc/servo/x/command", AxisCommand),
                             ("/cnc/servo/y/command", AxisCommand)):
             probe.node.create_subscription(kind, topic, lambda _m: None, 10)
-        probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 30, 30.0, "the run to be going")
+        # The recorder may trail the probe by a few ticks: wait for a margin above what the bag must hold.
+        probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 60, 30.0, "the run to be going")
         recorder = run.processes["recorder"]
         recorder.send_signal(signal.SIGTERM)
         assert recorder.wait(timeout=20) == 0

@@ -20,7 +20,7 @@ from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.laws.fuzzy import FuzzyConfig
 from cnc_contour_control.nodes.parameters import (ConfigParameters, Section, command_line_words, declare_config,
                                                   given_value, ros_type, ros_value)
-from cnc_contour_control.params import ParamSpec, config_values, declared_bounds, flat_specs
+from cnc_contour_control.params import ParamSpec, config_values, flat_specs
 from cnc_contour_control.stage_params import InterpolatorRunParams, ServoRunParams
 
 
@@ -118,13 +118,7 @@ def _check_descriptor(desc: ParameterDescriptor, spec: ParamSpec) -> None:
     assert ranges[0].to_value == (high if high is not None else (math.inf if spec.kind is float else 2**63 - 1))
 
 
-def _bound_cases() -> list[Any]:
-    return [pytest.param(cls, base, spec, bound, direction,
-                         id=f"{cls.__name__}.{spec.name}{'<' if direction < 0 else '>'}")
-            for cls, base in CONFIGS.items() for spec, bound, direction in declared_bounds(cls)]
-
-
-@pytest.mark.parametrize(("cls", "base", "spec", "bound", "direction"), _bound_cases())
+@pytest.mark.parametrize(("cls", "base", "spec", "bound", "direction"), _cases._bounds())
 def test_a_node_takes_a_bound_and_refuses_the_next_value_with_the_configs_error(
         context: Context, cls: type, base: dict[str, Any], spec: ParamSpec, bound: float, direction: float) -> None:
     at = int(bound) if spec.kind is int else float(bound)

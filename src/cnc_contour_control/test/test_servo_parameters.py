@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import os
-import signal
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -21,6 +20,7 @@ from cnc_contour_control.servo import ServoConfig, ServoController
 from cnc_tools.runs.dds import loopback_env
 from cnc_tools.runs.graph import find_executable
 from cnc_tools.testing import InProcessNode, TopicProbe
+from cnc_tools.runs.lifetime import stop_process
 
 pytestmark = pytest.mark.nodes
 GAINS = {"kp": 2.4, "ki": 10.0, "kd": 0.067}
@@ -98,16 +98,7 @@ def test_a_servo_process_started_with_p_axis_y_drives_axis_y(tmp_path: Path, axi
         value = future.result().values[0]
         assert (value.type, value.string_value) == (ParameterType.PARAMETER_STRING, axis)
     finally:
-        _stop(process)
+        stop_process(process, 15.0)
     assert process.returncode == 0, (tmp_path / "servo.log").read_text()
 
 
-def _stop(process: subprocess.Popen[bytes]) -> None:
-    """SIGINT, then SIGKILL if it does not end; always reaped."""
-    if process.poll() is None:
-        process.send_signal(signal.SIGINT)
-        try:
-            process.wait(timeout=15.0)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()

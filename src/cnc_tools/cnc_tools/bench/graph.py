@@ -24,7 +24,6 @@ import argparse
 import json
 import os
 import re
-import signal
 import statistics
 import subprocess
 import sys
@@ -40,7 +39,7 @@ from cnc_tools.bench.report import format_table, machine, write_json
 from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import POLL_S
-from cnc_tools.runs.lifetime import StopSignals, die_with_parent
+from cnc_tools.runs.lifetime import StopSignals, die_with_parent, stop_process
 
 SCENARIO = "scenarios/paper000_circle_high.yaml"
 SAMPLE_TIMES_S = (0.01, 0.001)
@@ -198,19 +197,9 @@ def _wait_child(child: subprocess.Popen[bytes]) -> int:
                 signals.check()
                 time.sleep(POLL_S)
         except BaseException:
-            _stop(child)
+            stop_process(child, 30.0)
             raise
     return child.returncode
-
-
-def _stop(child: subprocess.Popen[bytes]) -> None:
-    """SIGINT the runner (in its own session, so this is its only one: it stops its nodes), then kill it if it hangs."""
-    child.send_signal(signal.SIGINT)
-    try:
-        child.wait(timeout=30.0)
-    except subprocess.TimeoutExpired:
-        child.kill()
-        child.wait()
 
 
 def per_tick(runs: dict[str, Any]) -> dict[float, tuple[float, float]]:

@@ -23,6 +23,7 @@ import ctypes
 import json
 import os
 import signal
+import subprocess
 import sys
 import threading
 from collections.abc import Callable, Mapping
@@ -137,3 +138,14 @@ def settle_summary(path: Path, status: str, reason: str, exit_codes: Mapping[str
     partial.write_text(json.dumps(summary, indent=2))
     os.replace(partial, path)
     return summary
+
+
+def stop_process(process: subprocess.Popen[Any], timeout_s: float) -> None:
+    """SIGINT ``process`` (a runner stops its nodes on it), SIGKILL it if it has not ended within ``timeout_s``; reap it."""
+    if process.poll() is None:
+        process.send_signal(signal.SIGINT)
+        try:
+            process.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            process.kill()
+    process.wait()
