@@ -227,7 +227,9 @@ class FeedDriveAxis:
                                   self.friction, float(config.blu_m), limit)
         self._k = self.params.gain_blu_s_per_dac
         self._tau = self.params.time_constant_s
+        self._blu_m = self.params.blu_m
         self._mm_per_blu = self.params.blu_m / M_PER_MM
+        self._linearise = self.friction.linearise
         self._limit = limit
         self._substeps = int(config.substeps)
         self._break_pos = self.friction.breakaway_positive
@@ -247,12 +249,17 @@ class FeedDriveAxis:
     @property
     def position_m(self) -> float:
         """Position [m]."""
-        return self._pos_blu * self.params.blu_m
+        return self._pos_blu * self._blu_m
 
     @property
     def velocity_m_s(self) -> float:
         """Velocity [m/s]."""
-        return self._vel_blu_s * self.params.blu_m
+        return self._vel_blu_s * self._blu_m
+
+    def state_m(self) -> tuple[float, float]:
+        """(position [m], velocity [m/s]): both properties in one call (the plant's per-tick read)."""
+        blu_m = self._blu_m
+        return self._pos_blu * blu_m, self._vel_blu_s * blu_m
 
     @property
     def position_blu(self) -> float:
@@ -328,9 +335,11 @@ class FeedDriveAxis:
             direction = 1 if u > self._break_pos else -1
         else:
             direction = 1 if v > 0.0 else -1
-        f0, slope = self.friction.linearise(v * self._mm_per_blu, direction)
-        a = max(1.0 + self._k * slope * self._mm_per_blu, 0.0) / self._tau
-        d0 = (self._k * (u - f0) - v) / self._tau
+        mm_per_blu, k, tau = self._mm_per_blu, self._k, self._tau
+        f0, slope = self._linearise(v * mm_per_blu, direction)
+        a = 1.0 + k * slope * mm_per_blu
+        a = (a if a > 0.0 else 0.0) / tau
+        d0 = (k * (u - f0) - v) / tau
         phi1, phi2 = _phi(a, h)
         v1 = v + d0 * phi1
         if v != 0.0 and v1 * direction < 0.0:

@@ -164,13 +164,18 @@ class FeedDrivePlant:
         FaultError
             On a wrong count, a non-finite command or a bad ``dt_s``; no axis moves then.
         """
-        if len(commands) != len(self.axes):
+        axes = self.axes
+        if len(commands) != len(axes):
             self._check_length("commands", commands)
-        if not _all_finite(commands):
+        try:
+            total = sum(commands, 0.0)  # one C-level sum: NaN for a NaN or an infinity (or an overflow)
+        except TypeError:
+            total = math.nan
+        if total - total != 0.0:
             self._check_commands(commands)
         if not (dt_s > 0.0 and dt_s < math.inf):  # also refuses NaN
             raise FaultError(f"plant: dt_s must be finite and > 0, got {dt_s!r}")
-        for axis, command in zip(self.axes, commands):  # every command checked above: no axis re-checks
+        for axis, command in zip(axes, commands):  # every command checked above: no axis re-checks
             axis.advance(command if type(command) is float else float(command), dt_s)
 
     def _check_commands(self, commands: Sequence[float]) -> None:
@@ -198,8 +203,9 @@ class FeedDrivePlant:
         """Positions [m] and velocities [m/s] as lists in axis order (the per-tick read; nothing allocated in numpy)."""
         positions, velocities = [], []
         for axis in self.axes:  # one loop, no comprehension frames: this runs every tick
-            positions.append(axis.position_m)
-            velocities.append(axis.velocity_m_s)
+            position, velocity = axis.state_m()
+            positions.append(position)
+            velocities.append(velocity)
         return positions, velocities
 
     def forces_n(self) -> None:
@@ -219,15 +225,6 @@ class FeedDrivePlant:
             "variation": dataclasses.asdict(self.variation),
             "axes": {a.name: _describe_axis(a, n) for a, n in zip(self.axes, self.nominal_configs)},
         }
-
-
-def _all_finite(values: Sequence[float]) -> bool:
-    """True if every value is a finite number (one C-level sum; an overflow gives False too)."""
-    try:
-        total = sum(values, 0.0)
-    except TypeError:
-        return False
-    return total - total == 0.0  # NaN for a NaN or an infinity
 
 
 def _is_finite_number(value: Any) -> bool:

@@ -80,6 +80,8 @@ class PlantStage:
         self._stamps_ns = stamps_ns
         self._positions: list[float] = []
         self._velocities: list[float] = []
+        self._plant_step = self.plant.step  # bound once: advance runs every tick
+        self._keep_positions, self._keep_velocities = self._positions.extend, self._velocities.extend
 
     def observe(self, board: Board) -> None:
         """The state at the tick's stamp (what ``joint_states(k)`` carries)."""
@@ -96,10 +98,10 @@ class PlantStage:
 
     def advance(self, board: Board) -> None:
         """Close the tick (integrate) and open the next one (its state); the state after the last tick is dropped."""
-        self.plant.step(board.commands, self.sample_time_s)
+        self._plant_step(board.commands, self.sample_time_s)
         board.position_m, board.velocity_m_s = positions, velocities = self._state()
-        self._positions.extend(positions)
-        self._velocities.extend(velocities)
+        self._keep_positions(positions)
+        self._keep_velocities(velocities)
 
     def series(self) -> dict[str, Any]:
         """``joint_states`` and the plant as drawn (into the summary)."""
@@ -180,14 +182,14 @@ class ServoStage:
 
     def step(self, board: Board) -> None:
         """One servo sample per axis; the commands go on the board."""
-        dt_s = board.dt_s
-        rows = [parts(dt_s, r, v, a, x, xv, c) for parts, r, v, a, x, xv, c in zip(
-            self._parts, board.ref_position_m, board.ref_velocity_m_s, board.ref_acceleration_m_s2,
-            board.position_m, board.velocity_m_s, board.compensation or self._zeros)]
-        extend = self._flat.extend  # flat floats: nothing for the garbage collector to track
-        for row in rows:
+        dt_s, extend = board.dt_s, self._flat.extend  # flat floats: nothing for the garbage collector to track
+        board.commands = commands = []
+        for parts, r, v, a, x, xv, c in zip(self._parts, board.ref_position_m, board.ref_velocity_m_s,
+                                            board.ref_acceleration_m_s2, board.position_m, board.velocity_m_s,
+                                            board.compensation or self._zeros):
+            row = parts(dt_s, r, v, a, x, xv, c)
             extend(row)
-        board.commands = [row[0] for row in rows]
+            commands.append(row[0])
 
     def series(self) -> dict[str, Any]:
         """``commands``: one series per axis with the command's parts, as the command topics carry them."""
