@@ -23,6 +23,8 @@ setup(
         "console_scripts": [
             "interpolator = cnc_contour_control.nodes.interpolator_node:main",
             "servo = cnc_contour_control.nodes.servo_node:main",
+            "estimator = cnc_contour_control.nodes.estimator_node:main",
+            "compensator = cnc_contour_control.nodes.compensator_node:main",
         ],
     },
 )

@@ -5,7 +5,7 @@ One tick k, in order::
     stage          node (package executable)              inputs                         outputs
     plant          cnc_plant_sim plant                    servo/{axis}/command           joint_states, /clock
     interpolator   cnc_contour_control interpolator       joint_states [feed_override]   reference, path
-    estimator      cnc_contour_control estimator          joint_states, reference, path  contour_error
+    estimator      cnc_contour_control estimator          joint_states, reference        contour_error
     compensator    cnc_contour_control compensator        joint_states, reference,       compensation
                                                           contour_error
     servo (1/axis) cnc_contour_control servo              joint_states, reference        servo/{axis}/command
@@ -13,7 +13,8 @@ One tick k, in order::
     force_regulator cnc_contour_control force_regulator   cutting_force                  feed_override
 
 The plant closes the tick: it integrates once it holds every axis's command
-for the tick. A stage whose ``optional`` flag is set runs only when the
+for the tick. The estimator reads the part program from its file, as the
+interpolator does (the path estimator measures against its geometry). A stage whose ``optional`` flag is set runs only when the
 scenario asks for it; an optional *input* (in brackets) is taken only when
 the stage that produces it runs. The engine steps the same list in the same
 order; the runner starts one node per stage (one per axis for the servo);
@@ -68,7 +69,7 @@ PLANT = Stage("plant", "cnc_plant_sim", "plant", (t.COMMAND.name,), (t.JOINT_STA
 INTERPOLATOR = Stage("interpolator", "cnc_contour_control", "interpolator", (t.JOINT_STATES.name,),
                      (t.REFERENCE.name, t.PATH.name), optional_inputs=(t.FEED_OVERRIDE.name,))
 ESTIMATOR = Stage("estimator", "cnc_contour_control", "estimator",
-                  (t.JOINT_STATES.name, t.REFERENCE.name, t.PATH.name), (t.CONTOUR_ERROR.name,), optional=True)
+                  (t.JOINT_STATES.name, t.REFERENCE.name), (t.CONTOUR_ERROR.name,), optional=True)
 COMPENSATOR = Stage("compensator", "cnc_contour_control", "compensator",
                     (t.JOINT_STATES.name, t.REFERENCE.name, t.CONTOUR_ERROR.name), (t.COMPENSATION.name,),
                     optional=True)

@@ -18,6 +18,10 @@ from cnc_plant_sim.plant import PlantConfig, VariationConfig
 from cnc_plant_sim.run_params import PlantRunParams
 
 #: Every config class a node declares parameters from, with the required fields it needs to build.
+from cnc_contour_control.compensators import COMPENSATORS, compensator_config_class
+from cnc_contour_control.estimators import ESTIMATORS, estimator_config_class
+from cnc_contour_control.stage_params import CompensatorRunParams, EstimatorRunParams
+
 CONFIGS: dict[type, dict[str, Any]] = {
     InterpolatorConfig: {},
     AxisLimits: {"max_velocity_m_s": (0.1, 0.2), "max_acceleration_m_s2": (1.0, 2.0)},
@@ -29,6 +33,10 @@ CONFIGS: dict[type, dict[str, Any]] = {
     AxisConfig: {"name": "x", "gain_blu_s_per_dac": 28.35, "time_constant_s": 0.055},
     PlantRunParams: {"command_timeout_s": 0.01, "startup_timeout_s": 3600.0},
     **{law_config_class(name): {} for name in LAWS},
+    **{estimator_config_class(name): {} for name in ESTIMATORS},
+    **{compensator_config_class(name): {} for name in COMPENSATORS if name != "none"},  # none: no fields
+    EstimatorRunParams: {"input_timeout_s": 0.01, "startup_timeout_s": 3600.0},
+    CompensatorRunParams: {"input_timeout_s": 0.01, "startup_timeout_s": 3600.0},
 }
 
 

@@ -26,6 +26,7 @@ from cnc_contour_control.geometry import Program
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+BoolArray = NDArray[np.bool_]
 
 
 @dataclass(frozen=True)
@@ -122,13 +123,23 @@ class CommandSeries:
 
 @dataclass(frozen=True, eq=False)
 class EstimateSeries:
-    """The estimator's contour errors (``contour_error`` topic): scalars (N,), tracking errors (N, n_axes)."""
+    """The estimator's contour errors (``contour_error`` topic): scalars (N,), per-axis arrays (N, n_axes).
+
+    ``point_a_m``/``point_b_m`` are the two points each estimate used,
+    ``window_size``/``window_steps`` the stored points searched and the steps
+    walked (0 where a bag of an older run lacks them), ``method`` the estimator.
+    """
 
     stamp_ns: IntArray
     contour_error_m: FloatArray
     tracking_error_m: FloatArray
     segment_index: IntArray
     angle_rad: FloatArray
+    point_a_m: FloatArray
+    point_b_m: FloatArray
+    window_size: IntArray
+    window_steps: IntArray
+    method: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,6 +149,8 @@ class CompensationSeries:
     stamp_ns: IntArray
     correction: FloatArray
     command_unit: str
+    learning: BoolArray | None = None
+    method: str = ""
 
 
 @dataclass(frozen=True, eq=False)

@@ -80,8 +80,8 @@ def test_every_core_stage_has_an_engine_implementation() -> None:
 
 def test_a_stage_without_engine_implementation_is_named() -> None:
     scenario = load_scenario(CIRCLE, {"duration_s": 0.1})
-    with pytest.raises(ConfigError, match="'estimator' has no engine implementation"):
-        build_stages(scenario, pipeline(scenario.axes, ["estimator"]), np.zeros(3, np.int64))
+    with pytest.raises(ConfigError, match="'force_regulator' has no engine implementation"):
+        build_stages(scenario, pipeline(scenario.axes, ["force_regulator"]), np.zeros(3, np.int64))
 
 
 def test_engine_run_folder_is_like_a_graph_runs(tmp_path: Path) -> None:
@@ -135,16 +135,22 @@ def test_optional_stage_series_go_to_their_topics_and_come_back(circle: RunRecor
     n, stamps, rng = circle.ticks, circle.joint_states.stamp_ns, np.random.default_rng(3)
     full = circle.with_(
         contour_error=EstimateSeries(stamps, rng.normal(size=n), rng.normal(size=(n, 2)),
-                                     rng.integers(0, 9, n).astype(np.int64), rng.normal(size=n)),
-        compensation=CompensationSeries(stamps, rng.normal(size=(n, 2)), "dac"),
+                                     rng.integers(0, 9, n).astype(np.int64), rng.normal(size=n),
+                                     rng.normal(size=(n, 2)), rng.normal(size=(n, 2)),
+                                     rng.integers(1, 9, n).astype(np.int64), rng.integers(0, 5, n).astype(np.int64),
+                                     "window"),
+        compensation=CompensationSeries(stamps, rng.normal(size=(n, 2)), "dac", rng.integers(0, 2, n).astype(bool),
+                                        "neural"),
         feed_override=FeedOverrideSeries(stamps, rng.uniform(0, 1.5, n), rng.uniform(0, 1.5, n)),
         cutting_force=ForceSeries(stamps, rng.normal(size=(n, 3)), rng.normal(size=(n, 3))))
     back = read_bag(write_record_bag(full, tmp_path / "bag"))
     for name in ("contour_error", "compensation", "feed_override", "cutting_force"):
         got, sent = getattr(back, name), getattr(full, name)
-        for field in ("stamp_ns", "contour_error_m", "tracking_error_m", "segment_index", "angle_rad", "correction",
-                      "requested_ratio", "applied_ratio", "force_n", "torque_n_m"):
+        for field in ("stamp_ns", "contour_error_m", "tracking_error_m", "segment_index", "angle_rad", "point_a_m",
+                      "point_b_m", "window_size", "window_steps", "correction", "learning", "requested_ratio",
+                      "applied_ratio", "force_n", "torque_n_m"):
             if hasattr(sent, field):
                 assert_allclose(getattr(got, field), getattr(sent, field), rtol=0, atol=0, err_msg=f"{name}.{field}")
     assert back.compensation is not None and back.compensation.command_unit == "dac"
+    assert back.compensation.method == "neural" and back.contour_error is not None and back.contour_error.method == "window"
     assert circle.contour_error is None and read_bag(write_record_bag(circle, tmp_path / "plain")).contour_error is None

@@ -4,10 +4,11 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import NoReturn
 
-from cnc_contour_interfaces.msg import AxisCommand, Path, PathSegment, Reference
+from cnc_contour_interfaces.msg import AxisCommand, Compensation, ContourError, Path, PathSegment, Reference
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.errors import FaultError
+from cnc_contour_control.estimators import ContourEstimate
 from cnc_contour_control.geometry import ArcSegment, Program
 from cnc_contour_control.interpolation import ReferenceSample
 from cnc_contour_control.lockstep import require_finite_values, require_same_axes
@@ -146,3 +147,52 @@ def compensation_for(msg: object, axis: str) -> float:
     value = float(msg.correction[names.index(axis)])  # type: ignore[attr-defined]
     require_finite_values((value,), f"compensation.correction[{axis}]")
     return value
+
+
+def reference_positions(msg: Reference, axes: Sequence[str]) -> list[float]:
+    """Reference positions [m] of ``axes`` (in that order) from a Reference; faults on bad data."""
+    require_same_axes(msg.axis_names, axes, "reference")
+    require_length(msg.position_m, len(msg.axis_names), "reference.position_m", "axis_names")
+    values = [float(v) for v in msg.position_m]  # the axes are ours, in our order
+    require_finite_values(values, "reference.position_m")
+    return values
+
+
+def estimate_to_msg(estimate: ContourEstimate, axes: Sequence[str], stamp_ns: int, method: str) -> ContourError:
+    """A core contour-error estimate to a ContourError message."""
+    msg = ContourError()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.axis_names = list(axes)
+    msg.contour_error_m = float(estimate.contour_error_m)
+    msg.tracking_error_m = [float(v) for v in estimate.tracking_error_m]
+    msg.segment_index = int(estimate.segment_index)
+    msg.angle_rad = float(estimate.angle_rad)
+    msg.point_a_m = [float(v) for v in estimate.point_a_m]
+    msg.point_b_m = [float(v) for v in estimate.point_b_m]
+    msg.window_size = int(estimate.window_size)
+    msg.window_steps = int(estimate.steps)
+    msg.method = method
+    return msg
+
+
+def contour_error_values(msg: ContourError, axes: Sequence[str]) -> tuple[float, float, list[float]]:
+    """(contour error [m], tangent angle [rad], tracking errors [m] in ``axes`` order) from a ContourError."""
+    require_same_axes(msg.axis_names, axes, "contour_error")
+    require_length(msg.tracking_error_m, len(msg.axis_names), "contour_error.tracking_error_m", "axis_names")
+    tracking = [float(v) for v in msg.tracking_error_m]  # the axes are ours, in our order
+    require_finite_values((msg.contour_error_m, msg.angle_rad), "contour_error (contour_error_m, angle_rad)")
+    require_finite_values(tracking, "contour_error.tracking_error_m")
+    return float(msg.contour_error_m), float(msg.angle_rad), tracking
+
+
+def compensation_to_msg(correction: Sequence[float], axes: Sequence[str], unit: str, stamp_ns: int, method: str,
+                        learning: bool) -> Compensation:
+    """Per-axis corrections to a Compensation message."""
+    msg = Compensation()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.axis_names = list(axes)
+    msg.correction = [float(v) for v in correction]
+    msg.command_unit = unit
+    msg.method = method
+    msg.learning = bool(learning)
+    return msg

@@ -309,8 +309,9 @@ def _commands(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict[str
     return series
 
 
-_ESTIMATE = _Fields("axis_names", {"tracking_error_m": False}, ("contour_error_m", "segment_index", "angle_rad"))
-_COMPENSATION = _Fields("axis_names", {"correction": True}, strings=("command_unit",))
+_ESTIMATE = _Fields("axis_names", {"tracking_error_m": False, "point_a_m": False, "point_b_m": False},
+                    ("contour_error_m", "segment_index", "angle_rad", "window_size", "window_steps"), ("method",))
+_COMPENSATION = _Fields("axis_names", {"correction": True}, ("learning",), ("command_unit", "method"))
 _FEED_OVERRIDE = _Fields(scalars=("requested_ratio", "applied_ratio"))
 _XYZ = ("x", "y", "z")
 _WRENCH = _Fields(scalars=tuple(f"wrench.{part}.{c}" for part in ("force", "torque") for c in _XYZ))
@@ -322,12 +323,15 @@ def _stage_series(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict
     topic = names.topic(topics.CONTOUR_ERROR.name)
     if raw.data.get(topic):
         c = _columns(raw, topic, _ESTIMATE, axes, names)
-        out["contour_error"] = EstimateSeries(c["stamp_ns"], c["contour_error_m"], c["tracking_error_m"],  # type: ignore[arg-type]
-                                              c["segment_index"].astype(np.int64), c["angle_rad"])  # type: ignore[union-attr]
+        out["contour_error"] = EstimateSeries(
+            c["stamp_ns"], c["contour_error_m"], c["tracking_error_m"], c["segment_index"].astype(np.int64),  # type: ignore[arg-type, union-attr]
+            c["angle_rad"], c["point_a_m"], c["point_b_m"], c["window_size"].astype(np.int64),  # type: ignore[arg-type, union-attr]
+            c["window_steps"].astype(np.int64), str(c["method"]))  # type: ignore[union-attr]
     topic = names.topic(topics.COMPENSATION.name)
     if raw.data.get(topic):
         c = _columns(raw, topic, _COMPENSATION, axes, names)
-        out["compensation"] = CompensationSeries(c["stamp_ns"], c["correction"], str(c["command_unit"]))  # type: ignore[arg-type]
+        out["compensation"] = CompensationSeries(c["stamp_ns"], c["correction"], str(c["command_unit"]),  # type: ignore[arg-type]
+                                                 c["learning"].astype(bool), str(c["method"]))  # type: ignore[union-attr]
     topic = names.topic(topics.FEED_OVERRIDE.name)
     if raw.data.get(topic):
         c = _columns(raw, topic, _FEED_OVERRIDE, axes, names)

@@ -68,14 +68,17 @@ def _estimates(record: RunRecord) -> Iterator[tuple[int, Any]]:
     for k, stamp in enumerate([] if e is None else e.stamp_ns.tolist()):
         yield stamp, make(header=_header(stamp), axis_names=list(record.axis_names),
                           contour_error_m=float(e.contour_error_m[k]), tracking_error_m=e.tracking_error_m[k].copy(),
-                          segment_index=int(e.segment_index[k]), angle_rad=float(e.angle_rad[k]))
+                          segment_index=int(e.segment_index[k]), angle_rad=float(e.angle_rad[k]),
+                          point_a_m=e.point_a_m[k].copy(), point_b_m=e.point_b_m[k].copy(),
+                          window_size=int(e.window_size[k]), window_steps=int(e.window_steps[k]), method=e.method)
 
 
 def _compensations(record: RunRecord) -> Iterator[tuple[int, Any]]:
     make, c = project_typestore().types[topics.COMPENSATION.type_name], record.compensation
     for k, stamp in enumerate([] if c is None else c.stamp_ns.tolist()):
         yield stamp, make(header=_header(stamp), axis_names=list(record.axis_names),
-                          correction=c.correction[k].copy(), command_unit=c.command_unit)
+                          correction=c.correction[k].copy(), command_unit=c.command_unit, method=c.method,
+                          learning=bool(c.learning[k]) if c.learning is not None else False)
 
 
 def _overrides(record: RunRecord) -> Iterator[tuple[int, Any]]:

@@ -5,7 +5,10 @@ import argparse
 from collections.abc import Callable
 
 from cnc_contour_control.config import require_choice
+from cnc_tools.bench.cross_axis import cross_axis_bench
+from cnc_tools.bench.compensator import compensator_bench
 from cnc_tools.bench.engine import engine_bench
+from cnc_tools.bench.estimator import estimator_bench
 from cnc_tools.bench.graph import graph_bench
 from cnc_tools.bench.laws import laws
 from cnc_tools.bench.lockstep import lockstep_bench
@@ -21,8 +24,11 @@ BENCHES: dict[str, Bench] = {
     "lockstep": lockstep_bench,
     "engine": engine_bench,
     "graph": graph_bench,
+    "cross-axis": cross_axis_bench,
     "scoring": scoring,
     "laws": laws,
+    "compensator": compensator_bench,
+    "estimator": estimator_bench,
     "paper000-pid": paper000_pid_bench,
     "paper000": paper000_bench,
     "paper000-assumptions": paper000_assumptions_bench,

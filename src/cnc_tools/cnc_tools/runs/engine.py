@@ -36,10 +36,14 @@ from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.lockstep import NS_PER_S, duration_to_ns, seconds_to_ns
 from cnc_contour_control.stages import Pipeline
 from cnc_tools.run_record import BagIntegrity, FloatArray, IntArray, JointStateSeries, RunRecord
-from cnc_tools.runs.engine_stages import ENGINE_STAGES, Board, EngineStage, PlantStage
+from cnc_tools.runs.engine_cross_axis import CompensatorStage, EstimatorStage
+from cnc_tools.runs.engine_stages import CORE_STAGES, Board, EngineStage, PlantStage, StageFactory
 from cnc_tools.runs.scenario import Scenario
 
 __all__ = ["Board", "EngineStage", "ENGINE_STAGES", "run_engine", "tick_count", "tick_stamps_s"]
+
+#: Engine implementations of the pipeline's stages, by stage name.
+ENGINE_STAGES: dict[str, StageFactory] = {**CORE_STAGES, "estimator": EstimatorStage, "compensator": CompensatorStage}
 
 
 class Clock(Protocol):
@@ -89,6 +93,8 @@ def run_engine(scenario: Scenario, clock: Callable[[], float] | None = None,
     started = wall()
     _tick_loop(stages, stamps_ns, sample_ns)
     wall_time_s = wall() - started
+    for stage in stages:
+        stage.finish()
     return _record(scenario, stages, stamps_ns, wall_time_s, run_dir)
 
 
@@ -122,9 +128,11 @@ def _tick_loop(stages: list[EngineStage], stamps_ns: IntArray, sample_ns: int) -
 def _record(scenario: Scenario, stages: list[EngineStage], stamps_ns: IntArray, wall_time_s: float,
             run_dir: Path | None) -> RunRecord:
     """The run record of a finished engine run (every stage contributes its series)."""
-    parts: dict[str, Any] = {}
+    parts: dict[str, Any] = {"summary": {}}
     for stage in stages:
-        parts.update(stage.series())
+        series = stage.series()
+        parts["summary"].update(series.pop("summary", {}))
+        parts.update(series)
     ticks = int(stamps_ns.size)
     simulated_s = (ticks * (stamps_ns[1] - stamps_ns[0]) if ticks > 1 else 0) / NS_PER_S
     summary = {"status": "finished", "ticks": ticks, "simulated_time_s": float(stamps_ns[-1]) / NS_PER_S,

@@ -36,6 +36,8 @@ class Board:
         The plant's state at the stamp (``joint_states``).
     ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2 : list of float
         The interpolator's reference (``reference``).
+    estimate : ContourEstimate or None
+        The estimator's contour error (``contour_error``; None without an estimator).
     compensation : list of float
         The compensator's corrections in drive units (zeros without a compensator).
     commands : list of float
@@ -45,7 +47,7 @@ class Board:
     """
 
     __slots__ = ("tick", "stamp_ns", "dt_s", "position_m", "velocity_m_s", "ref_position_m", "ref_velocity_m_s",
-                 "ref_acceleration_m_s2", "compensation", "commands", "feed_override_ratio")
+                 "ref_acceleration_m_s2", "estimate", "compensation", "commands", "feed_override_ratio")
 
     def __init__(self, dt_s: float) -> None:
         self.tick, self.stamp_ns, self.dt_s = 0, 0, dt_s
@@ -54,6 +56,7 @@ class Board:
         self.ref_position_m: list[float] = []
         self.ref_velocity_m_s: list[float] = []
         self.ref_acceleration_m_s2: list[float] = []
+        self.estimate: Any = None
         self.compensation: list[float] = []
         self.commands: list[float] = []
         self.feed_override_ratio = 1.0
@@ -65,8 +68,11 @@ class EngineStage(Protocol):
     def step(self, board: Board) -> None:
         """Answer tick ``board.tick``: read the inputs from the board, put the outputs on it."""
 
+    def finish(self) -> None:
+        """After the last tick (a learner's run-to-run update, a state file)."""
+
     def series(self) -> dict[str, Any]:
-        """This stage's series for the run record (``RunRecord`` field name -> series)."""
+        """This stage's series for the run record (``RunRecord`` field name -> series; ``summary``: merged)."""
 
 
 class PlantStage:
@@ -103,6 +109,9 @@ class PlantStage:
         self._keep_positions(positions)
         self._keep_velocities(velocities)
 
+    def finish(self) -> None:
+        """Nothing to do after the run."""
+
     def series(self) -> dict[str, Any]:
         """``joint_states`` and the plant as drawn (into the summary)."""
         n_axes = len(self.plant.axis_names)
@@ -130,6 +139,9 @@ class SampledInterpolatorStage:
         board.ref_velocity_m_s = sample.velocity_m_s.tolist()
         board.ref_acceleration_m_s2 = sample.acceleration_m_s2.tolist()
 
+    def finish(self) -> None:
+        """Nothing to do after the run."""
+
     def series(self) -> dict[str, Any]:
         """``reference`` as the ``reference`` topic carries it."""
         s = self._samples
@@ -156,6 +168,9 @@ class VectorisedInterpolatorStage:
     def step(self, board: Board) -> None:
         """Put the next tick's reference on the board."""
         board.ref_position_m, board.ref_velocity_m_s, board.ref_acceleration_m_s2 = next(self._rows)
+
+    def finish(self) -> None:
+        """Nothing to do after the run."""
 
     def series(self) -> dict[str, Any]:
         """``reference`` as the ``reference`` topic carries it."""
@@ -191,6 +206,9 @@ class ServoStage:
             extend(row)
             commands.append(row[0])
 
+    def finish(self) -> None:
+        """Nothing to do after the run."""
+
     def series(self) -> dict[str, Any]:
         """``commands``: one series per axis with the command's parts, as the command topics carry them."""
         per_tick = len(self.servos) * len(_PARTS)
@@ -214,8 +232,8 @@ def _command_series(servo: ServoController, table: FloatArray, stamps_ns: IntArr
 #: A stage factory: (scenario, pipeline, tick stamps) -> engine stage.
 StageFactory = Callable[[Scenario, Pipeline, IntArray], EngineStage]
 
-#: Engine implementations of the pipeline's stages, by stage name.
-ENGINE_STAGES: dict[str, StageFactory] = {
+#: Engine implementations of the core stages, by stage name (the engine adds the cross-axis ones).
+CORE_STAGES: dict[str, StageFactory] = {
     "plant": PlantStage,
     "interpolator": interpolator_stage,
     "servo": ServoStage,

@@ -210,13 +210,15 @@ def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_sub
 
 def _supervise(run: GraphRun, record: bool, timeout_s: float, poll: Callable[[], None]) -> dict[str, Any]:
     """Wait for the plant's end (and the recorder's); the plant's summary of a finished or faulted run."""
-    codes = run.wait("plant", timeout_s, poll, may_finish=["recorder"])
+    learner = [name for name in run.processes if name == "compensator"]  # exits once its state is saved
+    codes = run.wait("plant", timeout_s, poll, may_finish=["recorder", *learner])
     summary = read_summary(run.run_dir / "summary.json")
     if summary is None or summary.get("status") not in ("finished", "faulted"):
         raise NodeDied("plant", f"node plant exited with code {codes['plant']} before the run ended: "
                                 f"{run.last_output('plant')!r}")
-    if record and not summary.get("faults"):
-        run.wait_exit("recorder", 60.0, poll)
+    if not summary.get("faults"):
+        for name in (*learner, *(["recorder"] if record else [])):
+            run.wait_exit(name, 60.0, poll)
     return summary
 
 

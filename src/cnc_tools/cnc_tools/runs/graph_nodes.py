@@ -30,8 +30,14 @@ from cnc_contour_control import topics
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.graph_files import params_yaml, write_manifest, write_params_file
 from cnc_contour_control.params import config_values
-from cnc_contour_control.stage_params import InterpolatorRunParams, ServoRunParams, servo_config_values
-from cnc_contour_control.stages import Pipeline, Stage, pipeline
+from cnc_contour_control.stage_params import (
+    CompensatorRunParams,
+    EstimatorRunParams,
+    InterpolatorRunParams,
+    ServoRunParams,
+    servo_config_values,
+)
+from cnc_contour_control.stages import Pipeline, Stage
 from cnc_plant_sim.run_params import PlantRunParams
 from cnc_tools.runs.scenario import Scenario
 
@@ -84,7 +90,7 @@ def graph_nodes(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0,
 def graph_specs(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0, input_timeout_s: float = 5.0,
                 extra_readers: Sequence[str] = ()) -> list[NodeSpec]:
     """:func:`graph_nodes` without writing anything: a ConfigError for a value a node would refuse."""
-    run = _Run(scenario, pipeline(scenario.axes), run_dir, input_timeout_s)
+    run = _Run(scenario, scenario.pipeline(), run_dir, input_timeout_s)
     readers = stage_readers(run.stages)
     specs = []
     for stage in run.stages.stages:
@@ -162,10 +168,39 @@ def _servo_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
     return _merge(config_values(servo_run), servo_config_values(config))
 
 
+def _timeouts(run: _Run, cls: type) -> dict[str, float]:
+    return {"input_timeout_s": run.input_timeout_s,
+            "startup_timeout_s": max(cls.startup_timeout_s, run.input_timeout_s)}  # type: ignore[attr-defined]
+
+
+def _estimator_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
+    """EstimatorSettings (method, ``params.*``) and the estimator's run parameters."""
+    scenario = run.scenario
+    assert scenario.estimator is not None  # the stage runs only with the section
+    estimator_run = EstimatorRunParams(axes=scenario.axes, program_file=str(run.program_file),
+                                       sample_time_s=scenario.sample_time_s, **_timeouts(run, EstimatorRunParams))
+    return _merge(config_values(estimator_run), config_values(scenario.estimator))
+
+
+def _compensator_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
+    """CompensatorSettings (method, ``params.*``, state files) and the compensator's run parameters."""
+    scenario = run.scenario
+    assert scenario.compensator is not None  # the stage runs only with the section
+    settings = config_values(scenario.compensator)
+    for name in ("state_in", "state_out"):  # the node runs in another folder: absolute paths
+        settings[name] = str(Path(settings[name]).resolve()) if settings[name] else ""
+    compensator_run = CompensatorRunParams(axes=scenario.axes, command_unit=scenario.servos[0].command_unit,
+                                           sample_time_s=scenario.sample_time_s,
+                                           **_timeouts(run, CompensatorRunParams))
+    return _merge(config_values(compensator_run), settings)
+
+
 #: Stage name -> (run, stage, node name, axis or None) -> the node's parameters.
 STAGE_PARAMETERS: dict[str, Callable[[_Run, Stage, str, str | None], dict[str, Any]]] = {
     "plant": _plant_parameters,
     "interpolator": _interpolator_parameters,
+    "estimator": _estimator_parameters,
+    "compensator": _compensator_parameters,
     "servo": _servo_parameters,
 }
 
@@ -183,7 +218,10 @@ def write_program(scenario: Scenario, run_dir: Path) -> Path:
 
 def recorder_spec(scenario: Scenario, bag_path: Path) -> NodeSpec:
     """The recorder of a run: every topic of the graph, into ``bag_path``."""
-    return NodeSpec("cnc_tools", "recorder", "recorder", {"output": str(bag_path), "axes": list(scenario.axes)})
+    parameters: dict[str, Any] = {"output": str(bag_path), "axes": list(scenario.axes)}
+    if scenario.optional_stages:
+        parameters["optional_stages"] = list(scenario.optional_stages)
+    return NodeSpec("cnc_tools", "recorder", "recorder", parameters)
 
 
 def ros_params_yaml(node: str, parameters: Mapping[str, Any]) -> str:

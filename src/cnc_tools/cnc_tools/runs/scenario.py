@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Any
 
 from cnc_contour_control.config import build_config, read_yaml_mapping, require_choice, require_non_negative, require_positive
+from cnc_contour_control.cross_axis import CompensatorSettings, EstimatorSettings
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.geometry import Program
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
@@ -24,10 +25,10 @@ from cnc_plant_sim.plant import PlantConfig
 from cnc_plant_sim.run_params import PlantRunParams
 
 MODES = ("lockstep", "realtime")
-#: Scenario sections that switch on an optional stage of the pipeline (none has an implementation yet).
-OPTIONAL_STAGE_KEYS: tuple[str, ...] = ()
+#: Scenario sections that switch on an optional stage of the pipeline (the section's name is the stage's).
+OPTIONAL_STAGE_KEYS: tuple[str, ...] = ("estimator", "compensator")
 _TOP_KEYS = ("name", "description", "sample_time_s", "duration_s", "settle_s", "seed", "mode",
-             "plant", "limits", "program", "servo", "interpolator", "paper")
+             "plant", "limits", "program", "servo", "interpolator", "paper", *OPTIONAL_STAGE_KEYS)
 _LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2")
 
 
@@ -48,6 +49,8 @@ class Scenario:
     servos: tuple[ServoConfig, ...]
     raw: Mapping[str, Any] = field(repr=False, compare=False)
     source: Path | None = None
+    estimator: EstimatorSettings | None = None
+    compensator: CompensatorSettings | None = None
 
     @property
     def axes(self) -> tuple[str, ...]:
@@ -130,6 +133,7 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         servos=_servos(raw.get("servo", {}), plant.axes),
         raw=dict(raw),
         source=source,
+        **_cross_axis(raw),
     )
 
 
@@ -210,3 +214,15 @@ def _servos(section: Any, axes: tuple[str, ...]) -> tuple[ServoConfig, ...]:
         ServoConfig.from_mapping({"axis_name": axis, **merge(defaults, per_axis.get(axis, {}))}, f"scenario.servo[{axis}]")
         for axis in axes
     )
+
+
+def _cross_axis(raw: Mapping[str, Any]) -> dict[str, Any]:
+    """The estimator and compensator sections (None when absent); a compensator needs an estimator."""
+    out: dict[str, Any] = {}
+    for key, settings in (("estimator", EstimatorSettings), ("compensator", CompensatorSettings)):
+        section = raw.get(key)
+        out[key] = None if section is None else settings.from_mapping(_section(raw, key), f"scenario.{key}")
+    if out["compensator"] is not None and out["estimator"] is None:
+        raise ConfigError("scenario.compensator learns from the contour error: it needs a scenario.estimator "
+                          "section too (e.g. estimator: {method: window})")
+    return out

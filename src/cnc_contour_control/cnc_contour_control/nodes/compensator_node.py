@@ -1,0 +1,126 @@
+"""Compensator node: joint state + reference + contour error -> ``compensation`` every tick, learning online.
+
+When the plant announces the end of the run (:data:`~cnc_contour_control.topics.RUN_FINISHED`
+on ``/diagnostics``), the compensator makes its run-to-run update, writes its
+learned state to ``state_out`` (if set), reports it and exits with code 0, so
+the next run can start from it (``state_in``).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from cnc_contour_interfaces.msg import Compensation, ContourError, Reference
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from sensor_msgs.msg import JointState
+
+from cnc_contour_control.compensators import CompensatorSample, compensator_config_class
+from cnc_contour_control.cross_axis import CompensatorSettings
+from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
+from cnc_contour_control.nodes.common import SuiteNode, spin_node, stamp_to_ns, wall_time_s
+from cnc_contour_control.nodes.conversions import (
+    compensation_to_msg,
+    contour_error_values,
+    joint_positions,
+    reference_positions,
+)
+from cnc_contour_control.nodes.method_params import method_parameters
+from cnc_contour_control.nodes.parameters import declare_config
+from cnc_contour_control.stage_params import CompensatorRunParams
+from cnc_contour_control.topics import DIAGNOSTICS, RUN_FINISHED, RUN_ID_KEY
+
+
+class CompensatorNode(SuiteNode):
+    """Publishes ``compensation`` for every tick whose joint state, reference and contour error it holds.
+
+    Parameters: :class:`~cnc_contour_control.stage_params.CompensatorRunParams`,
+    ``method``, ``state_in``, ``state_out``, ``freeze`` (may change while
+    running) and the method's config as ``params.*``
+    (:class:`~cnc_contour_control.cross_axis.CompensatorSettings`).
+    """
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__("compensator", **kwargs)
+        run = declare_config(self, CompensatorRunParams)
+        self.axes, self.command_unit = run.axes, run.command_unit
+        self.sample_time_ns = seconds_to_ns(run.sample_time_s)
+        parameters = method_parameters(self, CompensatorSettings, compensator_config_class)
+        self.settings: CompensatorSettings = parameters.declare()
+        self.compensator = self.settings.make(self.axes, run.sample_time_s)
+        parameters.watch(self._retune)
+        self.sample = CompensatorSample()
+        self.sample.tick = -1
+        self.last_stamp_ns: int | None = None
+        self._fault_reported = False
+        self.matcher = StampMatcher(("joint_states", "reference", "contour_error"), run.input_timeout_s,
+                                    run.startup_timeout_s, stamp_horizon_ns(self.sample_time_ns))
+        self.publisher = self.gated_publisher(Compensation, "compensation", 1)
+        for msg_type, topic in ((JointState, "joint_states"), (Reference, "reference"),
+                                (ContourError, "contour_error")):
+            self._subscribe(msg_type, topic)
+        self.create_subscription(DiagnosticArray, DIAGNOSTICS.name, self.guarded(self._watch_run_end), 100)
+        self.create_timer(0.1, self.guarded(self._watchdog))
+
+    def _retune(self, settings: CompensatorSettings) -> None:
+        """Only ``freeze`` may change while running (the rest is read-only)."""
+        self.settings = settings
+        self.compensator.frozen = settings.freeze
+
+    def _subscribe(self, msg_type: type, topic: str) -> None:
+        decode = _DECODE[topic]
+
+        def accept(msg: Any) -> dict[str, Any] | None:
+            values = decode(msg, self.axes)  # values first: a bad message is a fault even when stale
+            return self.matcher.add(topic, stamp_to_ns(msg.header.stamp), values, wall_time_s())
+
+        self.subscribe_checked(msg_type, topic, accept, then=self._step)
+
+    def _step(self, items: dict[str, Any]) -> None:
+        stamp_ns = self.matcher.last_released_ns
+        assert stamp_ns is not None  # a tick was just released
+        sample = self.sample
+        sample.tick += 1
+        sample.dt_s = (self.sample_time_ns if self.last_stamp_ns is None else stamp_ns - self.last_stamp_ns) / NS_PER_S
+        sample.position_m, sample.ref_position_m = items["joint_states"], items["reference"]
+        sample.contour_error_m, sample.angle_rad, sample.tracking_error_m = items["contour_error"]
+        correction = self.compensator.step(sample)
+        self.last_stamp_ns = stamp_ns
+        learning = not self.compensator.frozen and self.compensator.fault is None
+        self.publisher.publish(compensation_to_msg(correction, self.axes, self.command_unit, stamp_ns,
+                                                   self.settings.method, learning))
+        if self.compensator.fault is not None and not self._fault_reported:
+            self._fault_reported = True  # the compensation is zeroed and learning stopped; the run goes on
+            self.report(DiagnosticStatus.WARN, f"compensator: {self.compensator.fault}")
+
+    def _watch_run_end(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
+            if status.message == RUN_FINISHED and values.get(RUN_ID_KEY) == self.get_namespace():
+                self._finish_run()
+
+    def _finish_run(self) -> None:
+        saved = self.settings.finish(self.compensator)
+        message = f"compensator: run finished after {self.sample.tick + 1} ticks"
+        self.report(DiagnosticStatus.OK, message + (f", state saved to {saved}" if saved else ""))
+        self.finished = True  # done: spin_node flushes and exits with 0
+
+    def _watchdog(self) -> None:
+        overdue = self.matcher.overdue(wall_time_s())
+        if overdue is not None:
+            stamp_ns, missing = overdue
+            topics = ", ".join(self.resolve_topic_name(name) for name in missing)
+            self.fault(f"compensator: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s "
+                       f"within {self.matcher.current_timeout_s} s")
+
+
+#: Each input decoded and checked on arrival (a fault names the field): no NaN ever reaches the compensator.
+_DECODE: dict[str, Callable[[Any, Any], Any]] = {
+    "joint_states": lambda msg, axes: joint_positions(msg, axes)[0],
+    "reference": reference_positions,
+    "contour_error": contour_error_values,
+}
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point: ``ros2 run cnc_contour_control compensator --ros-args -p method:=neural``."""
+    raise SystemExit(spin_node(CompensatorNode, args))

@@ -1,0 +1,1 @@
+"""Paper 001: neuro-contouring (contour-error estimator, online neural compensator, baselines) reproduced."""
