@@ -175,7 +175,7 @@ def check_ranges(config: Any, context: str = "") -> None:
         if info is None or (info.low is None and info.high is None):
             continue
         value, where = getattr(config, f.name), f"{context}.{f.name}" if context else f.name
-        if isinstance(value, bool):
+        if isinstance(value, (bool, str)):  # YAML 1.1 reads 1.0e6 as a string: the nodes would refuse it too
             raise ConfigError(f"{where} must be a number, got {value!r}")
         number = require_finite(f.name, value, context)
         if info.low is not None and info.high is not None:

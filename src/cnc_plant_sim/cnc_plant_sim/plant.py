@@ -11,7 +11,9 @@ drawn, plain types, for the run record).
 validated :class:`PlantConfig` and a check of the model's own keys).
 Today's entries are the feed drives of :mod:`cnc_plant_sim.feed_drives`:
 ``paper000`` (Table 2's axes, Eq. 15's friction) and ``custom`` (axes given
-in ``axis_overrides``). A new plant (a cutting process, an inner velocity
+in ``axis_overrides``), and ``paper001``, the mass-friction axes of
+:mod:`cnc_plant_sim.mass_friction` (options in the ``mass_friction`` section).
+A new plant (a cutting process, an inner velocity
 loop) is a module with a class keeping :class:`Plant` and one line in
 :data:`PLANTS`. :func:`make_plant` builds any entry.
 """
@@ -35,6 +37,7 @@ from cnc_plant_sim.feed_drives import (
     FeedDrivePlant,
     VariationConfig,
 )
+from cnc_plant_sim.mass_friction import MassFrictionAxisConfig, MassFrictionOptions, MassFrictionPlant, paper001_axes
 
 __all__ = ["MAX_VARIATION_PCT", "PLANTS", "FeedDrivePlant", "Plant", "PlantConfig", "PlantEntry",
            "VariationConfig", "make_plant"]
@@ -94,7 +97,10 @@ class PlantConfig:
     substeps : int
         Sub-steps per plant step for every axis without its own ``substeps``, >= 1.
     axis_overrides : Mapping[str, Mapping]
-        Per axis name, :class:`AxisConfig` keys replacing the model's nominal values.
+        Per axis name, keys of the model's axis config (``PLANTS[model].axis_config``,
+        :class:`AxisConfig` for feed drives) replacing the model's nominal values.
+    mass_friction : MassFrictionOptions or Mapping
+        Length unit and cutting load of the mass-friction models (``paper001``); other models ignore it.
     """
 
     model: str = param("paper000", description="plant model (registry name)", read_only=True)
@@ -105,6 +111,8 @@ class PlantConfig:
     substeps: int = param(1, low=1, description="integration sub-steps per sample", read_only=True)
     axis_overrides: Mapping[str, Mapping[str, Any]] = param(default_factory=dict, read_only=True,
                                                             description="per-axis model keys replacing the nominal")
+    mass_friction: MassFrictionOptions = param(default_factory=MassFrictionOptions, read_only=True,
+                                               description="options of the mass-friction plant (paper001)")
 
     def __post_init__(self) -> None:
         require_choice("model", self.model, PLANTS)
@@ -114,6 +122,11 @@ class PlantConfig:
             object.__setattr__(self, "variation", variation)
         elif not isinstance(self.variation, VariationConfig):
             raise ConfigError(f"variation must be a mapping, got {self.variation!r}")
+        if isinstance(self.mass_friction, Mapping):
+            options = build_config(MassFrictionOptions, self.mass_friction, context="mass_friction")
+            object.__setattr__(self, "mass_friction", options)
+        elif not isinstance(self.mass_friction, MassFrictionOptions):
+            raise ConfigError(f"mass_friction must be a mapping, got {self.mass_friction!r}")
         _require_int_at_least("seed", self.seed, 0)
         _require_int_at_least("substeps", self.substeps, 1)
         object.__setattr__(self, "axis_overrides", _checked_overrides(self.axis_overrides, self.axes))
@@ -179,10 +192,13 @@ class PlantEntry:
     check : Callable
         Validates the model's own use of the config (known axes, complete
         overrides), raising :class:`ConfigError`; called by ``PlantConfig``.
+    axis_config : type
+        The config class whose keys ``axis_overrides`` takes (the plant node declares them).
     """
 
     build: Callable[[PlantConfig], Plant]
     check: Callable[[PlantConfig], object]
+    axis_config: type = AxisConfig
 
 
 def _feed_drives(config: PlantConfig) -> FeedDrivePlant:
@@ -190,10 +206,21 @@ def _feed_drives(config: PlantConfig) -> FeedDrivePlant:
     return FeedDrivePlant(config.model, config.nominal_axes(), config.variation, config.seed)
 
 
+def _paper001_axes(config: PlantConfig) -> tuple[MassFrictionAxisConfig, ...]:
+    """Paper 001's Table 1 axes of ``config`` with its overrides."""
+    return paper001_axes(config.axes, config.axis_overrides)
+
+
+def _mass_friction(config: PlantConfig) -> MassFrictionPlant:
+    """Paper 001's mass-friction axes (no random variation: the paper draws none)."""
+    return MassFrictionPlant(config.model, _paper001_axes(config), config.mass_friction, config.substeps)
+
+
 #: Plant models by name.
 PLANTS: dict[str, PlantEntry] = {
     "paper000": PlantEntry(_feed_drives, PlantConfig.nominal_axes),
     "custom": PlantEntry(_feed_drives, PlantConfig.nominal_axes),
+    "paper001": PlantEntry(_mass_friction, _paper001_axes, MassFrictionAxisConfig),
 }
 
 

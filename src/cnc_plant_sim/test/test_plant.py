@@ -13,7 +13,7 @@ from numpy.testing import assert_allclose
 
 from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_plant_sim.axis import AxisConfig, FeedDriveAxis
-from cnc_plant_sim.feed_drives import FeedDrivePlant
+from cnc_plant_sim.feed_drives import FEED_DRIVE_MODELS, FeedDrivePlant
 from cnc_plant_sim.plant import PLANTS, Plant, PlantConfig, PlantEntry, make_plant
 
 NO_VARIATION = {"gain_pct": 0, "time_constant_pct": 0, "friction_pct": 0}
@@ -110,7 +110,7 @@ def test_custom_plant_and_overrides() -> None:
 
 
 @pytest.mark.parametrize(("mapping", "message"), [
-    ({"model": "paper999"}, "model must be one of ['custom', 'paper000'], got 'paper999'"),
+    ({"model": "paper999"}, "model must be one of ['custom', 'paper000', 'paper001'], got 'paper999'"),
     ({"axes": ["x", "w"]}, "paper000 has axes ['x', 'y', 'z'], got 'w'"),
     ({"axes": ["x", "x"]}, "axes must be unique"),
     ({"axes": []}, "axes must be a non-empty list of names, got []"),
@@ -133,11 +133,11 @@ def test_bad_plant_config(mapping: dict, message: str) -> None:
 
 
 def test_registry_names() -> None:
-    assert set(PLANTS) == {"paper000", "custom"}
+    assert set(PLANTS) == {"paper000", "custom", "paper001"}
     assert isinstance(make_plant(PlantConfig()), Plant)
 
 
-@pytest.mark.parametrize("model", sorted(PLANTS))
+@pytest.mark.parametrize("model", sorted(FEED_DRIVE_MODELS))  # paper001: test_mass_friction.py
 def test_every_entry_keeps_the_protocol(model: str) -> None:
     overrides = {"x": {"gain_blu_s_per_dac": 20.0, "time_constant_s": 0.05}} if model == "custom" else {}
     plant = make_plant({"model": model, "axes": ["x"], "axis_overrides": overrides})

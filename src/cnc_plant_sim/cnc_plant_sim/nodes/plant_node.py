@@ -25,11 +25,12 @@ from cnc_contour_control.nodes.parameters import ConfigParameters, Section, decl
 from cnc_plant_sim.axis import AxisConfig
 from cnc_plant_sim.friction import friction_config_class
 from cnc_plant_sim.nodes.conversions import clock_msg, command_value, joint_state_msg
-from cnc_plant_sim.plant import PlantConfig, make_plant
+from cnc_plant_sim.plant import PLANTS, PlantConfig, make_plant
 from cnc_plant_sim.run_clock import RunClock
 from cnc_plant_sim.run_params import PlantRunParams
 
-#: Per-axis overrides of the model are the parameters ``axis_overrides.<axis>.<AxisConfig key>`` and
+#: Per-axis overrides of the model are the parameters ``axis_overrides.<axis>.<key>`` (keys of the model's
+#: ``PLANTS[model].axis_config``, :class:`AxisConfig` for feed drives) and
 #: ``axis_overrides.<axis>.friction_params.<key>`` (the keys of the axis's friction model).
 OVERRIDES = "axis_overrides"
 
@@ -37,10 +38,13 @@ OVERRIDES = "axis_overrides"
 def plant_parameters(node: SuiteNode) -> ConfigParameters[PlantConfig]:
     """PlantConfig's fields as parameters (``variation.*`` nested) and each axis's overrides, unset unless given."""
     parameters = ConfigParameters(node, lambda mapping: PlantConfig.from_mapping(mapping))
-    axes = parameters.add(Section(PlantConfig, skip=(OVERRIDES,)))["axes"]
+    values = parameters.add(Section(PlantConfig, skip=(OVERRIDES,)))
+    axes = values["axes"]
     axes = [a for a in axes if isinstance(a, str)] if isinstance(axes, list) else []
+    entry = PLANTS.get(values["model"])  # an unknown model: declare() reports it with the config's error
+    axis_config = entry.axis_config if entry is not None else AxisConfig
     for axis in axes:
-        parameters.add(Section(AxisConfig, f"{OVERRIDES}.{axis}", skip=("name", "friction_params"), unset=True))
+        parameters.add(Section(axis_config, f"{OVERRIDES}.{axis}", skip=("name", "friction_params"), unset=True))
     for axis, friction in _frictions(parameters, axes).items():
         parameters.add(Section(friction_config_class(friction), f"{OVERRIDES}.{axis}.friction_params", unset=True,
                                read_only=True))
