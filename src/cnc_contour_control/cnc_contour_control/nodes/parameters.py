@@ -219,7 +219,13 @@ def _probe(node: Node, name: str, default: Any) -> Any:
 
 
 def _declare(node: Node, name: str, kind: Type, value: Any, desc: ParameterDescriptor) -> None:
-    """Declare ``name`` statically typed with its descriptor and the (already validated) ``value``."""
+    """Declare ``name`` statically typed with its descriptor and the (already validated) ``value``.
+
+    An empty list is declared typed but unset: rcl cannot tell an empty
+    array's element type (the config reads it as its empty default).
+    """
+    if isinstance(value, list) and not value:
+        value = None
     if value is not None and Type.from_parameter_value(value) != kind:
         raise ConfigError(f"{name} must be a {kind.name.lower().replace('_', ' ')}, got {value!r}")
     try:
