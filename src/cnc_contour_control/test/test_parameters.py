@@ -95,7 +95,9 @@ def test_a_config_class_becomes_parameters_with_its_descriptors_and_builds_again
             kind, value = ros_type(spec, values.get(spec.name)), values.get(spec.name)
             if spec.kind is str and not isinstance(value, str):  # a name the config resolved (fuzzy rule_base)
                 value = spec.default
-            if value is not None:
+            if isinstance(value, (list, tuple)) and not value:  # an empty array: declared typed, unset
+                assert node.describe_parameter(spec.name).type == kind.value, spec.name
+            elif value is not None:
                 assert _plain(node.get_parameter(spec.name).value) == ros_value(kind, value), spec.name
     finally:
         node.destroy_node()
