@@ -75,13 +75,11 @@ def require_startup_after(timeout_s: float, startup_s: float, timeout_name: str)
 
 
 @dataclass(frozen=True)
-class ServoRunParams:
-    """Run parameters of one axis's servo node."""
+class LockstepInputs:
+    """What every stage that waits for its inputs each tick declares: the sample time and the two timeouts."""
 
-    axis: str = param("x", read_only=True, description="the axis this servo drives (a name in joint_states and reference)")
     sample_time_s: float = param(0.01, unit="s", low=SAMPLE_TIME_RANGE_S[0], high=SAMPLE_TIME_RANGE_S[1],
                                  read_only=True, description="nominal sample time T, the dt of the first tick")
-    use_compensation: bool = param(False, read_only=True, description="wait for /compensation every tick and add it")
     input_timeout_s: float = param(5.0, unit="s", low=TIMEOUT_RANGE_S[0], high=TIMEOUT_RANGE_S[1], read_only=True,
                                    description="wall time a tick may wait for its inputs before it is a fault")
     startup_timeout_s: float = param(30.0, unit="s", low=TIMEOUT_RANGE_S[0], high=TIMEOUT_RANGE_S[1],
@@ -90,10 +88,21 @@ class ServoRunParams:
                                                  ">= input_timeout_s")
 
     def __post_init__(self) -> None:
-        require_name("axis", self.axis)
-        require_flag("use_compensation", self.use_compensation)
         check_ranges(self)
         require_startup_after(self.input_timeout_s, self.startup_timeout_s, "input_timeout_s")
+
+
+@dataclass(frozen=True)
+class ServoRunParams(LockstepInputs):
+    """Run parameters of one axis's servo node."""
+
+    axis: str = param("x", read_only=True, description="the axis this servo drives (a name in joint_states and reference)")
+    use_compensation: bool = param(False, read_only=True, description="wait for /compensation every tick and add it")
+
+    def __post_init__(self) -> None:
+        require_name("axis", self.axis)
+        require_flag("use_compensation", self.use_compensation)
+        super().__post_init__()
 
 
 @dataclass(frozen=True)
@@ -114,44 +123,30 @@ class InterpolatorRunParams:
 
 
 @dataclass(frozen=True)
-class EstimatorRunParams:
+class EstimatorRunParams(LockstepInputs):
     """Run parameters of the contour-error estimator node."""
 
     axes: tuple[str, ...] = param(("x", "y"), read_only=True,
                                   description="axis names in order, those of joint_states and reference")
     program_file: str = param("", read_only=True, description="the part program (as the interpolator reads it); "
                                                                "the path estimator measures against it")
-    sample_time_s: float = param(0.01, unit="s", low=SAMPLE_TIME_RANGE_S[0], high=SAMPLE_TIME_RANGE_S[1],
-                                 read_only=True, description="nominal sample time T")
-    input_timeout_s: float = param(5.0, unit="s", low=TIMEOUT_RANGE_S[0], high=TIMEOUT_RANGE_S[1], read_only=True,
-                                   description="wall time a tick may wait for its inputs before it is a fault")
-    startup_timeout_s: float = param(30.0, unit="s", low=TIMEOUT_RANGE_S[0], high=TIMEOUT_RANGE_S[1],
-                                     read_only=True, description="wall time the first tick may wait, >= input_timeout_s")
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "axes", require_names("axes", self.axes))
         if not isinstance(self.program_file, str):
             raise ConfigError(f"program_file must be a path, got {self.program_file!r}")
-        check_ranges(self)
-        require_startup_after(self.input_timeout_s, self.startup_timeout_s, "input_timeout_s")
+        super().__post_init__()
 
 
 @dataclass(frozen=True)
-class CompensatorRunParams:
+class CompensatorRunParams(LockstepInputs):
     """Run parameters of the compensator node."""
 
     axes: tuple[str, ...] = param(("x", "y"), read_only=True,
                                   description="axis names in order (one correction each)")
     command_unit: str = param("dac", read_only=True, description="the servos' command unit (the correction's)")
-    sample_time_s: float = param(0.01, unit="s", low=SAMPLE_TIME_RANGE_S[0], high=SAMPLE_TIME_RANGE_S[1],
-                                 read_only=True, description="nominal sample time T, the dt of the first tick")
-    input_timeout_s: float = param(5.0, unit="s", low=TIMEOUT_RANGE_S[0], high=TIMEOUT_RANGE_S[1], read_only=True,
-                                   description="wall time a tick may wait for its inputs before it is a fault")
-    startup_timeout_s: float = param(30.0, unit="s", low=TIMEOUT_RANGE_S[0], high=TIMEOUT_RANGE_S[1],
-                                     read_only=True, description="wall time the first tick may wait, >= input_timeout_s")
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "axes", require_names("axes", self.axes))
         require_name("command_unit", self.command_unit)
-        check_ranges(self)
-        require_startup_after(self.input_timeout_s, self.startup_timeout_s, "input_timeout_s")
+        super().__post_init__()

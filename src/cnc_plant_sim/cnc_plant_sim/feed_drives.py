@@ -25,7 +25,6 @@ U(−friction_pct, friction_pct)/100`` (in that order). Same seed, same plant;
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -34,10 +33,11 @@ import numpy as np
 import numpy.typing as npt
 
 from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.params import check_ranges, param
 
 from cnc_plant_sim.axis import AxisConfig, FeedDriveAxis
+from cnc_plant_sim.step_checks import check_length, check_step
 
 #: Largest allowed variation [%] (K and τ must stay positive).
 MAX_VARIATION_PCT = 50.0
@@ -152,7 +152,7 @@ class FeedDrivePlant:
         """Put every axis at rest, at ``positions_m`` (shape (n,), m) or at 0."""
         if positions_m is None:
             positions_m = [0.0] * len(self.axes)
-        self._check_length("positions_m", positions_m)
+        check_length(self.axis_names, "positions_m", positions_m)
         for axis, position in zip(self.axes, positions_m):
             axis.reset(float(position), 0.0)
 
@@ -164,32 +164,9 @@ class FeedDrivePlant:
         FaultError
             On a wrong count, a non-finite command or a bad ``dt_s``; no axis moves then.
         """
-        axes = self.axes
-        if len(commands) != len(axes):
-            self._check_length("commands", commands)
-        try:
-            total = sum(commands, 0.0)  # one C-level sum: NaN for a NaN or an infinity (or an overflow)
-        except TypeError:
-            total = math.nan
-        if total - total != 0.0:
-            self._check_commands(commands)
-        if not (dt_s > 0.0 and dt_s < math.inf):  # also refuses NaN
-            raise FaultError(f"plant: dt_s must be finite and > 0, got {dt_s!r}")
-        for axis, command in zip(axes, commands):  # every command checked above: no axis re-checks
+        check_step(self.axis_names, commands, dt_s)
+        for axis, command in zip(self.axes, commands):  # every command checked above: no axis re-checks
             axis.advance(command if type(command) is float else float(command), dt_s)
-
-    def _check_commands(self, commands: Sequence[float]) -> None:
-        """Raise :class:`FaultError` naming the first axis whose command is not a finite number."""
-        for axis, command in zip(self.axes, commands):
-            if not _is_finite_number(command):
-                raise FaultError(f"axis {axis.name}: command must be finite, got {command!r}")
-
-    def _check_length(self, name: str, values: Sequence[float]) -> None:
-        if len(values) != len(self.axes):
-            raise FaultError(
-                f"plant: {name} must have {len(self.axes)} entries {list(self.axis_names)}, "
-                f"got {len(values)}"
-            )
 
     def positions_m(self) -> npt.NDArray[np.float64]:
         """Axis positions, shape (n,), m."""
@@ -225,13 +202,6 @@ class FeedDrivePlant:
             "variation": dataclasses.asdict(self.variation),
             "axes": {a.name: _describe_axis(a, n) for a, n in zip(self.axes, self.nominal_configs)},
         }
-
-
-def _is_finite_number(value: Any) -> bool:
-    try:
-        return math.isfinite(value)
-    except TypeError:
-        return False
 
 
 def _describe_axis(axis: FeedDriveAxis, nominal: AxisConfig) -> dict[str, Any]:

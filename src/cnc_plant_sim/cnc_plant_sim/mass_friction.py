@@ -58,7 +58,7 @@ from cnc_contour_control.params import check_ranges, config_values, param
 from cnc_contour_control.units import M_PER_MM, M_PER_UM
 
 from cnc_plant_sim.axis import _phi
-from cnc_plant_sim.feed_drives import _is_finite_number
+from cnc_plant_sim.step_checks import check_length, check_step, is_finite_number
 
 #: Metres per model length unit: the unit c and ċ carry in Eqs. 18-19.
 LENGTH_UNITS: dict[str, float] = {"m": 1.0, "mm": M_PER_MM, "um": M_PER_UM}
@@ -343,9 +343,9 @@ class MassFrictionPlant:
     def reset(self, positions_m: Sequence[float] | None = None) -> None:
         """Put every axis at rest at ``positions_m`` (shape (n,), m; None: 0)."""
         values = [0.0] * len(self._params) if positions_m is None else list(positions_m)
-        self._check_length("positions_m", values)
+        check_length(self.axis_names, "positions_m", values)
         for name, value in zip(self.axis_names, values):
-            if not _is_finite_number(value):
+            if not is_finite_number(value):
                 raise FaultError(f"axis {name}: reset position_m must be finite, got {value!r}")
         self._pos = [float(v) / self._m_per_unit for v in values]
         self._vel = [0.0] * len(values)
@@ -361,15 +361,7 @@ class MassFrictionPlant:
             On a wrong count, a non-finite command (naming the axis), a bad
             ``dt_s`` or a non-finite result; no axis moves then.
         """
-        self._check_length("commands", commands)
-        try:
-            total = sum(commands, 0.0)  # one C-level sum: NaN for a NaN or an infinity (or an overflow)
-        except TypeError:
-            total = math.nan
-        if total - total != 0.0:
-            self._check_commands(commands)
-        if not (dt_s > 0.0 and dt_s < math.inf):  # also refuses NaN
-            raise FaultError(f"plant: dt_s must be finite and > 0, got {dt_s!r}")
+        check_step(self.axis_names, commands, dt_s)
         scale, n, h = self._m_per_unit, self.substeps, dt_s / self.substeps
         cutting = self._load([v * scale for v in self._vel], self.options)
         positions, velocities, frictions = [], [], []
@@ -383,17 +375,6 @@ class MassFrictionPlant:
             velocities.append(v)
             frictions.append(friction_after(v, net, prm))
         self._pos, self._vel, self._friction, self._cutting = positions, velocities, frictions, cutting
-
-    def _check_commands(self, commands: Sequence[float]) -> None:
-        """Raise :class:`FaultError` naming the first axis whose command is not a finite number."""
-        for name, command in zip(self.axis_names, commands):
-            if not _is_finite_number(command):
-                raise FaultError(f"axis {name}: command must be finite, got {command!r}")
-
-    def _check_length(self, name: str, values: Sequence[float]) -> None:
-        if len(values) != len(self._params):
-            raise FaultError(f"plant: {name} must have {len(self._params)} entries {list(self.axis_names)}, "
-                             f"got {len(values)}")
 
     def positions_m(self) -> npt.NDArray[np.float64]:
         """Axis positions, shape (n,), m."""

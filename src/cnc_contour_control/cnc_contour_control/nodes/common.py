@@ -22,7 +22,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from cnc_contour_control.errors import CncError, FaultError
-from cnc_contour_control.lockstep import join_ns, split_ns
+from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, join_ns, split_ns
 from cnc_contour_control.topics import RUN_ID_KEY, qualify
 
 #: Lockstep data: reliable and deep, so nothing is dropped while a stage is busy.
@@ -235,6 +235,33 @@ class SuiteNode(Node):
             self.fault_message = message
             self.get_logger().error(f"FAULT: {message}")
             self.report(DiagnosticStatus.ERROR, message)
+
+    def subscribe_matched(self, matcher: StampMatcher, msg_type: type, topic: str, decode: Callable[[Any], Any],
+                          then: Callable[[dict[str, Any]], None]) -> Any:
+        """A lockstep input: each message decoded and checked first, then matched by stamp; ``then`` gets a whole tick.
+
+        The values are decoded before the stamp is looked at, so a bad message
+        is a fault even when it is stale.
+        """
+
+        def accept(msg: Any) -> dict[str, Any] | None:
+            values = decode(msg)
+            return matcher.add(topic, stamp_to_ns(msg.header.stamp), values, wall_time_s())
+
+        return self.subscribe_checked(msg_type, topic, accept, then=then)
+
+    def watch_inputs(self, matcher: StampMatcher, who: str) -> None:
+        """Every 0.1 s: a tick whose inputs are overdue is a fault naming ``who``, the tick and the missing topics."""
+
+        def check() -> None:
+            overdue = matcher.overdue(wall_time_s())
+            if overdue is not None:
+                stamp_ns, missing = overdue
+                topics = ", ".join(self.resolve_topic_name(name) for name in missing)
+                self.fault(f"{who}: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s "
+                           f"within {matcher.current_timeout_s} s")
+
+        self.create_timer(0.1, self.guarded(check))
 
     def guarded(self, callback: Callable[..., None]) -> Callable[..., None]:
         """Wrap a callback so a suite error becomes a fault, not a traceback."""

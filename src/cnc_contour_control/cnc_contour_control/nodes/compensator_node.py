@@ -17,7 +17,7 @@ from sensor_msgs.msg import JointState
 from cnc_contour_control.compensators import CompensatorSample, compensator_config_class
 from cnc_contour_control.cross_axis import CompensatorSettings
 from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
-from cnc_contour_control.nodes.common import SuiteNode, spin_node, stamp_to_ns, wall_time_s
+from cnc_contour_control.nodes.common import SuiteNode, spin_node
 from cnc_contour_control.nodes.conversions import (
     compensation_to_msg,
     contour_error_values,
@@ -57,23 +57,15 @@ class CompensatorNode(SuiteNode):
         self.publisher = self.gated_publisher(Compensation, "compensation", 1)
         for msg_type, topic in ((JointState, "joint_states"), (Reference, "reference"),
                                 (ContourError, "contour_error")):
-            self._subscribe(msg_type, topic)
+            decode = _DECODE[topic]
+            self.subscribe_matched(self.matcher, msg_type, topic, lambda msg, d=decode: d(msg, self.axes), self._step)
         self.create_subscription(DiagnosticArray, DIAGNOSTICS.name, self.guarded(self._watch_run_end), 100)
-        self.create_timer(0.1, self.guarded(self._watchdog))
+        self.watch_inputs(self.matcher, "compensator")
 
     def _retune(self, settings: CompensatorSettings) -> None:
         """Only ``freeze`` may change while running (the rest is read-only)."""
         self.settings = settings
         self.compensator.frozen = settings.freeze
-
-    def _subscribe(self, msg_type: type, topic: str) -> None:
-        decode = _DECODE[topic]
-
-        def accept(msg: Any) -> dict[str, Any] | None:
-            values = decode(msg, self.axes)  # values first: a bad message is a fault even when stale
-            return self.matcher.add(topic, stamp_to_ns(msg.header.stamp), values, wall_time_s())
-
-        self.subscribe_checked(msg_type, topic, accept, then=self._step)
 
     def _step(self, items: dict[str, Any]) -> None:
         stamp_ns = self.matcher.last_released_ns
@@ -103,14 +95,6 @@ class CompensatorNode(SuiteNode):
         message = f"compensator: run finished after {self.sample.tick + 1} ticks"
         self.report(DiagnosticStatus.OK, message + (f", state saved to {saved}" if saved else ""))
         self.finished = True  # done: spin_node flushes and exits with 0
-
-    def _watchdog(self) -> None:
-        overdue = self.matcher.overdue(wall_time_s())
-        if overdue is not None:
-            stamp_ns, missing = overdue
-            topics = ", ".join(self.resolve_topic_name(name) for name in missing)
-            self.fault(f"compensator: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s "
-                       f"within {self.matcher.current_timeout_s} s")
 
 
 #: Each input decoded and checked on arrival (a fault names the field): no NaN ever reaches the compensator.

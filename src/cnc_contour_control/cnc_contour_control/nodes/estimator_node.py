@@ -9,8 +9,8 @@ from sensor_msgs.msg import JointState
 
 from cnc_contour_control.cross_axis import EstimatorSettings
 from cnc_contour_control.estimators import estimator_config_class
-from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
-from cnc_contour_control.nodes.common import SuiteNode, spin_node, stamp_to_ns, wall_time_s
+from cnc_contour_control.lockstep import StampMatcher, seconds_to_ns, stamp_horizon_ns
+from cnc_contour_control.nodes.common import SuiteNode, spin_node
 from cnc_contour_control.nodes.conversions import estimate_to_msg, joint_positions, reference_positions
 from cnc_contour_control.nodes.method_params import method_parameters
 from cnc_contour_control.nodes.parameters import declare_config
@@ -35,32 +35,16 @@ class EstimatorNode(SuiteNode):
         self.matcher = StampMatcher(("joint_states", "reference"), run.input_timeout_s, run.startup_timeout_s,
                                     stamp_horizon_ns(seconds_to_ns(run.sample_time_s)))
         self.publisher = self.gated_publisher(ContourError, "contour_error", 1)
-        self._subscribe(JointState, "joint_states")
-        self._subscribe(Reference, "reference")
-        self.create_timer(0.1, self.guarded(self._watchdog))
-
-    def _subscribe(self, msg_type: type, topic: str) -> None:
-        decode = _DECODE[topic]
-
-        def accept(msg: Any) -> dict[str, Any] | None:
-            values = decode(msg, self.axes)  # values first: a bad message is a fault even when stale
-            return self.matcher.add(topic, stamp_to_ns(msg.header.stamp), values, wall_time_s())
-
-        self.subscribe_checked(msg_type, topic, accept, then=self._step)
+        for msg_type, topic in ((JointState, "joint_states"), (Reference, "reference")):
+            decode = _DECODE[topic]
+            self.subscribe_matched(self.matcher, msg_type, topic, lambda msg, d=decode: d(msg, self.axes), self._step)
+        self.watch_inputs(self.matcher, "estimator")
 
     def _step(self, items: dict[str, Any]) -> None:
         stamp_ns = self.matcher.last_released_ns
         assert stamp_ns is not None  # a tick was just released
         estimate = self.estimator.step(items["reference"], items["joint_states"])
         self.publisher.publish(estimate_to_msg(estimate, self.axes, stamp_ns, self.settings.method))
-
-    def _watchdog(self) -> None:
-        overdue = self.matcher.overdue(wall_time_s())
-        if overdue is not None:
-            stamp_ns, missing = overdue
-            topics = ", ".join(self.resolve_topic_name(name) for name in missing)
-            self.fault(f"estimator: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s "
-                       f"within {self.matcher.current_timeout_s} s")
 
 
 #: Each input decoded and checked on arrival (a fault names the field).

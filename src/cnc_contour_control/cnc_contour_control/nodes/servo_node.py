@@ -12,8 +12,6 @@ from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, 
 from cnc_contour_control.nodes.common import (
     SuiteNode,
     spin_node,
-    stamp_to_ns,
-    wall_time_s,
 )
 from cnc_contour_control.nodes.conversions import (
     command_to_msg,
@@ -61,16 +59,11 @@ class ServoNode(SuiteNode):
         self._subscribe(Reference, "reference")
         if run.use_compensation:
             self._subscribe(Compensation, "compensation")
-        self.create_timer(0.1, self.guarded(self._watchdog))
+        self.watch_inputs(self.matcher, f"servo {self.axis}")
 
     def _subscribe(self, msg_type: type, topic: str) -> None:
         decode = _DECODE[topic]
-
-        def accept(msg: Any) -> dict[str, Any] | None:
-            values = decode(msg, self.axis)  # values first: a bad message is a fault even when stale
-            return self.matcher.add(topic, stamp_to_ns(msg.header.stamp), values, wall_time_s())
-
-        self.subscribe_checked(msg_type, topic, accept, then=self._step)
+        self.subscribe_matched(self.matcher, msg_type, topic, lambda msg: decode(msg, self.axis), self._step)
 
     def _step(self, items: dict[str, Any]) -> None:
         stamp_ns = self.matcher.last_released_ns
@@ -83,16 +76,6 @@ class ServoNode(SuiteNode):
         self.last_stamp_ns = stamp_ns
         config = self.controller.config
         self.command_pub.publish(command_to_msg(output, self.axis, config.law, config.command_unit, stamp_ns))
-
-    def _watchdog(self) -> None:
-        overdue = self.matcher.overdue(wall_time_s())
-        if overdue is not None:
-            stamp_ns, missing = overdue
-            topics = ", ".join(self.resolve_topic_name(name) for name in missing)
-            self.fault(
-                f"servo {self.axis}: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s "
-                f"within {self.matcher.current_timeout_s} s"
-            )
 
 
 #: Each input decoded and checked on arrival: this axis's values (a fault names the field); the tick uses them.
