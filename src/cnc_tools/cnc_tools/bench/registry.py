@@ -15,6 +15,7 @@ from cnc_tools.bench.lockstep import lockstep_bench
 from cnc_tools.bench.scoring import scoring
 from cnc_tools.reproductions.paper000.assumptions import paper000_assumptions_bench
 from cnc_tools.reproductions.paper000.bench import paper000_bench, paper000_pid_bench
+from cnc_tools.reproductions.paper001.bench import paper001_bench
 
 #: A bench: parsed options in, exit code out.
 Bench = Callable[[argparse.Namespace], int]
@@ -32,6 +33,7 @@ BENCHES: dict[str, Bench] = {
     "paper000-pid": paper000_pid_bench,
     "paper000": paper000_bench,
     "paper000-assumptions": paper000_assumptions_bench,
+    "paper001": paper001_bench,
 }
 
 
