@@ -23,6 +23,7 @@ from cnc_tools.bench.graph import (
     graph_bench,
     graph_modules,
     per_tick,
+    graph_messages,
     require_same_messages,
     write_wrappers,
 )
@@ -98,6 +99,12 @@ def test_a_missing_console_script_is_named(tmp_path: Path) -> None:
 
 def test_messages_of_the_baseline_are_this_tree_s() -> None:
     require_same_messages(ROOT, "fd8ef2a")
+
+
+def test_the_core_graph_messages_include_the_nested_ones_and_not_the_optional_stages() -> None:
+    names = {Path(m).stem for m in graph_messages(ROOT)}
+    assert {"Reference", "Path", "PathSegment", "AxisCommand"} <= names
+    assert not names & {"ContourError", "Compensation"}
 
 
 def test_an_unknown_commit_is_refused() -> None:
