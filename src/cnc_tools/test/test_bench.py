@@ -146,3 +146,13 @@ def test_peers_stop_what_they_started(tmp_path: Path) -> None:
     with Peers(tmp_path) as peers:
         echo = peers.start("echo", PINGPONG, ["echo", "--ping", "/bench_test/ping", "--pong", "/bench_test/pong"])
     assert echo.poll() is not None
+
+
+def test_sweep_bench_gives_the_same_results_in_every_configuration(capsys: pytest.CaptureFixture[str]) -> None:
+    import argparse
+
+    assert get_bench("sweep")(argparse.Namespace(quick=True, json=None)) == 0
+    out = capsys.readouterr().out
+    rows = [line for line in out.splitlines()
+            if line.strip().startswith(("1 process", "pool", "Dask")) and not line.rstrip().endswith("...")]
+    assert len(rows) == 3 and all(row.rstrip().endswith("True") for row in rows), out

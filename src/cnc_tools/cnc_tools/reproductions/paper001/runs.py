@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,6 +40,7 @@ from cnc_tools.reproductions.paper001.data import SCENARIOS, TABLE1_NETWORK
 from cnc_tools.reproductions.paper001.readings import measure
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.executor import LocalExecutor
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.scenario import Scenario, load_scenario
 
@@ -260,11 +260,9 @@ def run_session(spec: SessionSpec) -> Session:
 
 
 def run_sessions(specs: Sequence[SessionSpec], workers: int = 1) -> dict[str, Session]:
-    """Every session of ``specs`` by key, in ``workers`` processes (1: in this process)."""
+    """Every session of ``specs`` by key, in ``workers`` processes (1: in this process), through a LocalExecutor."""
     keys = [spec.key for spec in specs]
     if len(set(keys)) != len(keys):
         raise ConfigError(f"session keys must be unique, got {keys}")
-    if workers <= 1 or len(specs) <= 1:
-        return {spec.key: run_session(spec) for spec in specs}
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        return {spec.key: session for spec, session in zip(specs, pool.map(run_session, specs))}
+    with LocalExecutor(max(1, workers)) as executor:
+        return dict(zip(keys, executor.map(run_session, specs, label="paper001 sessions")))
