@@ -1,7 +1,7 @@
 """The subcommands of ``cnc-contour``, listed explicitly (one module per subcommand)."""
 from __future__ import annotations
 
-from cnc_tools.cli import bench, check, identify_friction, params, replay, run, score
+from cnc_tools.cli import bench, check, circular, identify_friction, params, replay, run, score
 from cnc_tools.cli.common import Subcommand
 
 #: Subcommands by name, in the order ``--help`` lists them.
@@ -11,6 +11,8 @@ COMMANDS: dict[str, Subcommand] = {
     "params": Subcommand(params.configure, params.params, "write a scenario's node parameter files (for ros2 launch)"),
     "score": Subcommand(score.configure_score, score.score, "score recorded runs (exact contour error)"),
     "report": Subcommand(score.configure_report, score.report, "PNG plots of recorded runs, side by side"),
+    "circular": Subcommand(circular.configure, circular.circular,
+                           "ballbar diagnoses of a recorded circle (a cw and a ccw run)"),
     "replay": Subcommand(replay.configure, replay.replay, "republish a bag with its recorded timing"),
     "identify-friction": Subcommand(identify_friction.configure, identify_friction.identify_friction,
                                     "identify an axis's friction-velocity curve (paper 000)"),

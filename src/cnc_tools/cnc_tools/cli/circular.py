@@ -1,0 +1,208 @@
+"""``cnc-contour circular BAG [BAG] [--json FILE]``: ballbar diagnoses of a recorded circle (and its reverse).
+
+Each bag's program must be one circle (:func:`cnc_tools.analysis.circular.circle_of`);
+its direction is the arcs' (``clockwise`` flag), its feed the arcs' programmed feed
+(length-weighted). The trace is the measured position in the arc plane at the
+stamps that both ``joint_states`` and ``reference`` hold, where the reference is
+on one of the circle's arcs and not yet ``done`` (the settle after the end of
+the program is left out). Two bags must be a cw and a ccw run of the same
+circle; one bag gives the diagnoses that need one direction, the rest are
+listed as skipped. See ``docs/circular_test.md``.
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cnc_contour_control.errors import BagError, CncError
+from cnc_contour_control.geometry import ArcSegment
+from cnc_tools.analysis.ballbar import (
+    CYCLIC_HARMONICS,
+    SAME_CIRCLE_TOLERANCE_M,
+    BallbarDiagnosis,
+    CircleTrace,
+    diagnose_circles,
+)
+from cnc_tools.analysis.circular import Circle, circle_of
+from cnc_tools.run_record import RunRecord
+
+#: How the samples of a trace are chosen (printed and written to the JSON).
+SAMPLE_RULE = ("measured positions at the stamps joint_states and reference share, while the reference "
+               "is on the circle's arc and not done (settle after the program left out)")
+
+
+@dataclass(frozen=True)
+class Row:
+    """One line of the table: a field of :class:`BallbarDiagnosis`, its unit and how it is computed."""
+
+    field: str
+    unit: str
+    how: str
+
+
+#: The table's rows, in order (a registry: add a diagnosis here and it is printed and documented).
+ROWS: tuple[Row, ...] = (
+    Row("circularity_ls_um", "µm", "max - min radius about the least-squares circle (largest over the traces)"),
+    Row("circularity_mz_um", "µm", "width of the thinnest annulus holding every point (minimum zone)"),
+    Row("radial_deviation_max_um", "µm", "largest |p - c| - R about the programmed centre"),
+    Row("radial_deviation_min_um", "µm", "smallest |p - c| - R about the programmed centre"),
+    Row("center_offset_x_um", "µm", "least-squares centre - programmed centre, x (mean of the traces)"),
+    Row("center_offset_y_um", "µm", "least-squares centre - programmed centre, y (mean of the traces)"),
+    Row("servo_mismatch_um", "µm", "(B2_ccw - B2_cw)/2: the ±45° ellipse that flips with direction"),
+    Row("gain_difference_s", "s", "1/k_x - 1/k_y = 2 servo_mismatch / mean feed (Eq. 8, first order)"),
+    Row("squareness_urad", "µrad", "(B2_ccw + B2_cw)/R: the ±45° ellipse common to both directions"),
+    Row("scale_mismatch_um", "µm", "mean A2: the 0°/90° ellipse common to the traces"),
+    Row("scale_mismatch_ppm", "ppm", "sx - sy = 2 mean A2 / R"),
+)
+#: Rows of each trace: a field of :class:`cnc_tools.analysis.ballbar.TraceDiagnosis`.
+TRACE_ROWS: tuple[Row, ...] = (
+    Row("circularity_ls_um", "µm", "max - min radius about this trace's least-squares circle"),
+    Row("ellipse_45_um", "µm", "B2, the sin 2θ term of the radius deviation (±45° ellipse)"),
+    Row("ellipse_0_um", "µm", "A2, the cos 2θ term of the radius deviation (0°/90° ellipse)"),
+)
+CYCLIC_HOW = "amplitude of harmonic {k} of the traces' mean radius deviation"
+
+
+@dataclass(frozen=True, eq=False)
+class BagTrace:
+    """One bag's circle trace and where it came from."""
+
+    bag: Path
+    circle: Circle
+    trace: CircleTrace
+    n_samples: int
+
+
+def configure(parser: argparse.ArgumentParser) -> None:
+    """Options of ``cnc-contour circular``."""
+    parser.add_argument("bags", nargs="+", type=Path, help="one or two bags: a cw and a ccw run of one circle")
+    parser.add_argument("--json", type=Path, help="also write the diagnosis to this JSON file")
+
+
+def _direction(bag: Path, arcs: Sequence[ArcSegment]) -> str:
+    directions = {"cw" if arc.clockwise else "ccw" for arc in arcs}
+    if len(directions) != 1:
+        raise CncError(f"{bag}: the program's arcs must all run one way, got {sorted(directions)}")
+    return directions.pop()
+
+
+def arc_samples(record: RunRecord, circle: Circle) -> np.ndarray:
+    """Measured plane positions (M, 2), m, on the circle's arc (see :data:`SAMPLE_RULE`)."""
+    reference = record.reference
+    if reference is None:
+        raise CncError("the bag holds no reference, so the samples on the circle cannot be told apart")
+    _, js_rows, ref_rows = np.intersect1d(record.joint_states.stamp_ns, reference.stamp_ns, return_indices=True)
+    on_arc = ~reference.done[ref_rows] & (reference.segment_index[ref_rows] < len(record.program.segments))
+    points = record.joint_states.position_m[js_rows[on_arc]][:, list(circle.plane)]
+    return points[np.isfinite(points).all(axis=1)]
+
+
+def trace_of(bag: Path, record: RunRecord) -> BagTrace:
+    """The circle trace of one recorded run; CncError names the bag and the problem."""
+    if not record.integrity.complete:
+        raise CncError(f"{bag}: bag is damaged: {record.integrity.describe()}")
+    circle = circle_of(record.program)
+    if circle is None:
+        raise CncError(f"{bag}: the program is not one circle (every segment must be an arc of one centre, "
+                       f"radius and plane), got {len(record.program.segments)} segments")
+    arcs = [seg for seg in record.program.segments if isinstance(seg, ArcSegment)]
+    length_m = sum(arc.length_m for arc in arcs)
+    feed_m_s = sum(arc.feed_m_s * arc.length_m for arc in arcs) / length_m
+    try:
+        points = arc_samples(record, circle)
+        trace = CircleTrace(points, circle.center_m, circle.radius_m, _direction(bag, arcs), feed_m_s)
+    except CncError as err:
+        raise CncError(f"{bag}: {err}") from err
+    return BagTrace(bag, circle, trace, int(points.shape[0]))
+
+
+def check_pair(traces: Sequence[BagTrace]) -> None:
+    """Raise CncError naming the bags unless one trace, or two of one circle in opposite directions."""
+    if len(traces) != 2:
+        return
+    first, second = traces
+    if first.trace.direction == second.trace.direction:
+        raise CncError(f"{first.bag}, {second.bag}: both run {first.trace.direction}; "
+                       "give a cw and a ccw run of the same circle")
+    gap_m = math.dist(first.circle.center_m, second.circle.center_m)
+    if gap_m > SAME_CIRCLE_TOLERANCE_M or abs(first.circle.radius_m - second.circle.radius_m) > SAME_CIRCLE_TOLERANCE_M \
+            or first.circle.plane != second.circle.plane:
+        raise CncError(f"{second.bag}: programs a different circle than {first.bag}: centre "
+                       f"{second.circle.center_m} m, radius {second.circle.radius_m} m, plane {second.circle.plane} "
+                       f"vs centre {first.circle.center_m} m, radius {first.circle.radius_m} m, plane {first.circle.plane}")
+
+
+def read_traces(bags: Sequence[Path]) -> list[BagTrace]:
+    """Read and check the bags' circle traces; CncError names the bag and the problem."""
+    from cnc_tools.bagio.bag import read_bag  # rosbags: loaded only when a bag is read
+
+    if not 1 <= len(bags) <= 2:
+        raise CncError(f"circular takes 1 or 2 bags (a cw and a ccw run), got {len(bags)}")
+    traces = []
+    for bag in bags:
+        try:
+            record = read_bag(bag, commands=False)
+        except BagError as err:
+            message = str(err)
+            raise CncError(message if message.startswith(str(bag)) else f"{bag}: {message}") from err
+        traces.append(trace_of(bag, record))
+    check_pair(traces)
+    return traces
+
+
+def table_rows(diagnosis: BallbarDiagnosis) -> list[tuple[str, float | None, str, str]]:
+    """``(quantity, value, unit, how)`` for every row; ``None`` where a diagnosis was skipped."""
+    rows: list[tuple[str, float | None, str, str]] = [
+        (row.field, getattr(diagnosis, row.field), row.unit, row.how) for row in ROWS]
+    rows += [(f"cyclic_error_h{k}_um", value, "µm", CYCLIC_HOW.format(k=k))
+             for k, value in zip(CYCLIC_HARMONICS, diagnosis.cyclic_error_um)]
+    for trace in diagnosis.traces:
+        rows += [(f"{trace.direction}.{row.field}", getattr(trace, row.field), row.unit, row.how) for row in TRACE_ROWS]
+    return rows
+
+
+def to_table(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis) -> str:
+    """The printed report: the traces used, the diagnosis table, the skipped diagnoses."""
+    lines = [f"trace {t.trace.direction}: {t.bag} ({t.n_samples} samples, feed {t.trace.feed_m_s * 60e3:.1f} mm/min)"
+             for t in traces]
+    lines += [f"samples: {SAMPLE_RULE}", f"{'quantity':<28} {'value':>12} {'unit':<5} how"]
+    for name, value, unit, how in table_rows(diagnosis):
+        shown = "skipped" if value is None else f"{value:.6g}"
+        lines.append(f"{name:<28} {shown:>12} {unit:<5} {how}")
+    lines += [f"skipped: {reason}" for reason in diagnosis.skipped]
+    return "\n".join(lines)
+
+
+def to_json(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis) -> dict[str, Any]:
+    """The diagnosis as JSON: every field of :class:`BallbarDiagnosis`, the traces and the sample rule."""
+    return {"samples": SAMPLE_RULE,
+            "traces": [{"bag": str(t.bag), "direction": t.trace.direction, "n_samples": t.n_samples,
+                        "feed_m_s": t.trace.feed_m_s, "center_m": list(t.circle.center_m),
+                        "radius_m": t.circle.radius_m} for t in traces],
+            "diagnosis": dataclasses.asdict(diagnosis),
+            "rows": [{"quantity": n, "value": v, "unit": u, "how": h} for n, v, u, h in table_rows(diagnosis)]}
+
+
+def circular(args: argparse.Namespace) -> int:
+    """Diagnose the recorded circle(s); a bad bag is one ``error:`` line and exit code 1."""
+    try:
+        traces = read_traces(args.bags)
+        diagnosis = diagnose_circles([t.trace for t in traces])
+    except CncError as err:
+        print(f"cnc-contour circular: error: {err}", file=sys.stderr)
+        return 1
+    print(to_table(traces, diagnosis))
+    if args.json:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(to_json(traces, diagnosis), indent=2, ensure_ascii=False) + "\n")
+        print(f"json: {args.json}")
+    return 0
