@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from cnc_tools.analysis.ballbar import BallbarDiagnosis, CircleTrace, diagnose_circles
+from cnc_tools.analysis.ballbar_reversals import diagnose_reversals
 from cnc_tools.bagio.record_bag import write_record_bag
 from cnc_tools.bagio.synthetic import circle_program, circle_trajectory, corner_program, write_run_bag
 from cnc_tools.cli.main import main
@@ -104,6 +105,22 @@ def test_pair_table_and_json_hold_the_direct_diagnosis(pair: Pair, tmp_path: Pat
     _assert_json_matches(written["diagnosis"], dataclasses.asdict(expected))
     assert [t["direction"] for t in written["traces"]] == list(order)
     assert all(t["n_samples"] == int((~records[t["direction"]].reference.done).sum()) for t in written["traces"])
+
+
+def test_reversal_rows_and_plot(pair: Pair, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    expected = diagnose_reversals([_direct_trace(pair.ccw, "ccw"), _direct_trace(pair.cw, "cw")])
+    plot, out_json = tmp_path / "plots" / "circle.png", tmp_path / "diag.json"
+    assert main(["circular", str(pair.ccw_bag), str(pair.cw_bag), "--plot", str(plot), "--json", str(out_json)]) == 0
+    values = _table_values(capsys.readouterr().out)
+    for name in ("spike_x_um", "spike_y_um", "backlash_x_um", "backlash_y_um"):
+        assert float(values[name]) == pytest.approx(getattr(expected, name), rel=1e-5, abs=1e-9), name
+    assert len(expected.reversals) == 8
+    for r in expected.reversals:
+        assert float(values[f"{r.direction}.{r.axis}{r.angle_deg:g}.step_um"]) == pytest.approx(r.step_um, rel=1e-5,
+                                                                                                 abs=1e-9)
+    _assert_json_matches(json.loads(out_json.read_text())["reversals"], dataclasses.asdict(expected))
+    data = plot.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 20_000
 
 
 def test_one_bag_skips_the_diagnoses_that_need_both_directions(pair: Pair,

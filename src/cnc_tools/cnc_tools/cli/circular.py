@@ -1,4 +1,5 @@
-"""``cnc-contour circular BAG [BAG] [--json FILE]``: ballbar diagnoses of a recorded circle (and its reverse).
+"""``cnc-contour circular BAG [BAG] [--json FILE] [--plot FILE.png]``: ballbar diagnoses of a recorded circle
+(and its reverse).
 
 Each bag's program must be one circle (:func:`cnc_tools.analysis.circular.circle_of`);
 its direction is the arcs' (``clockwise`` flag), its feed the arcs' programmed feed
@@ -32,6 +33,8 @@ from cnc_tools.analysis.ballbar import (
     CircleTrace,
     diagnose_circles,
 )
+from cnc_tools.analysis.ballbar_reversals import (WINDOW_DEG, ReversalDiagnosis, diagnose_reversals,
+                                                  write_polar_plot)
 from cnc_tools.analysis.circular import Circle, circle_of
 from cnc_tools.run_record import RunRecord
 
@@ -70,6 +73,15 @@ TRACE_ROWS: tuple[Row, ...] = (
     Row("ellipse_0_um", "µm", "A2, the cos 2θ term of the radius deviation (0°/90° ellipse)"),
 )
 CYCLIC_HOW = "amplitude of harmonic {k} of the traces' mean radius deviation"
+#: Rows of the reversals: a field of :class:`cnc_tools.analysis.ballbar_reversals.ReversalDiagnosis`.
+REVERSAL_ROWS: tuple[Row, ...] = (
+    Row("spike_x_um", "µm", "largest reversal spike of x (0°/180°) over the traces, signed"),
+    Row("spike_y_um", "µm", "largest reversal spike of y (90°/270°) over the traces, signed"),
+    Row("backlash_x_um", "µm", "mean step (after - before in time) of the radius across the x reversals"),
+    Row("backlash_y_um", "µm", "mean step (after - before in time) of the radius across the y reversals"),
+)
+REVERSAL_HOW = ("{what} at the {axis} reversal at {angle:g}° ({motion}), window ±{w:g}°, "
+                "flank lines {w:g}..{w2:g}° each side")
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +98,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     """Options of ``cnc-contour circular``."""
     parser.add_argument("bags", nargs="+", type=Path, help="one or two bags: a cw and a ccw run of one circle")
     parser.add_argument("--json", type=Path, help="also write the diagnosis to this JSON file")
+    parser.add_argument("--plot", type=Path, help="also write the annotated polar plot to this PNG file")
 
 
 def _direction(bag: Path, arcs: Sequence[ArcSegment]) -> str:
@@ -159,7 +172,20 @@ def read_traces(bags: Sequence[Path]) -> list[BagTrace]:
     return traces
 
 
-def table_rows(diagnosis: BallbarDiagnosis) -> list[tuple[str, float | None, str, str]]:
+def reversal_rows(reversals: ReversalDiagnosis) -> list[tuple[str, float | None, str, str]]:
+    """``(quantity, value, unit, how)`` of the per-axis summary and of every reversal."""
+    rows: list[tuple[str, float | None, str, str]] = [
+        (row.field, getattr(reversals, row.field), row.unit, row.how) for row in REVERSAL_ROWS]
+    w = reversals.window_deg
+    for r in reversals.reversals:
+        for what, value in (("spike", r.spike_um), ("step", r.step_um)):
+            how = REVERSAL_HOW.format(what=what, axis=r.axis, angle=r.angle_deg, motion=r.motion, w=w, w2=2 * w)
+            rows.append((f"{r.direction}.{r.axis}{r.angle_deg:g}.{what}_um", value, "µm", how))
+    return rows
+
+
+def table_rows(diagnosis: BallbarDiagnosis,
+               reversals: ReversalDiagnosis | None = None) -> list[tuple[str, float | None, str, str]]:
     """``(quantity, value, unit, how)`` for every row; ``None`` where a diagnosis was skipped."""
     rows: list[tuple[str, float | None, str, str]] = [
         (row.field, getattr(diagnosis, row.field), row.unit, row.how) for row in ROWS]
@@ -167,29 +193,34 @@ def table_rows(diagnosis: BallbarDiagnosis) -> list[tuple[str, float | None, str
              for k, value in zip(CYCLIC_HARMONICS, diagnosis.cyclic_error_um)]
     for trace in diagnosis.traces:
         rows += [(f"{trace.direction}.{row.field}", getattr(trace, row.field), row.unit, row.how) for row in TRACE_ROWS]
-    return rows
+    return rows + (reversal_rows(reversals) if reversals is not None else [])
 
 
-def to_table(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis) -> str:
+def to_table(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
+             reversals: ReversalDiagnosis | None = None) -> str:
     """The printed report: the traces used, the diagnosis table, the skipped diagnoses."""
     lines = [f"trace {t.trace.direction}: {t.bag} ({t.n_samples} samples, feed {t.trace.feed_m_s * 60e3:.1f} mm/min)"
              for t in traces]
     lines += [f"samples: {SAMPLE_RULE}", f"{'quantity':<28} {'value':>12} {'unit':<5} how"]
-    for name, value, unit, how in table_rows(diagnosis):
+    for name, value, unit, how in table_rows(diagnosis, reversals):
         shown = "skipped" if value is None else f"{value:.6g}"
         lines.append(f"{name:<28} {shown:>12} {unit:<5} {how}")
     lines += [f"skipped: {reason}" for reason in diagnosis.skipped]
     return "\n".join(lines)
 
 
-def to_json(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis) -> dict[str, Any]:
-    """The diagnosis as JSON: every field of :class:`BallbarDiagnosis`, the traces and the sample rule."""
-    return {"samples": SAMPLE_RULE,
+def to_json(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
+            reversals: ReversalDiagnosis | None = None) -> dict[str, Any]:
+    """The diagnosis as JSON: every field of :class:`BallbarDiagnosis` (and of the reversals), the traces
+    and the sample rule."""
+    extra = {} if reversals is None else {"reversals": dataclasses.asdict(reversals)}
+    return {**extra, "samples": SAMPLE_RULE,
             "traces": [{"bag": str(t.bag), "direction": t.trace.direction, "n_samples": t.n_samples,
                         "feed_m_s": t.trace.feed_m_s, "center_m": list(t.circle.center_m),
                         "radius_m": t.circle.radius_m} for t in traces],
             "diagnosis": dataclasses.asdict(diagnosis),
-            "rows": [{"quantity": n, "value": v, "unit": u, "how": h} for n, v, u, h in table_rows(diagnosis)]}
+            "rows": [{"quantity": n, "value": v, "unit": u, "how": h}
+                     for n, v, u, h in table_rows(diagnosis, reversals)]}
 
 
 def circular(args: argparse.Namespace) -> int:
@@ -197,12 +228,16 @@ def circular(args: argparse.Namespace) -> int:
     try:
         traces = read_traces(args.bags)
         diagnosis = diagnose_circles([t.trace for t in traces])
+        reversals = diagnose_reversals([t.trace for t in traces], WINDOW_DEG)
     except CncError as err:
         print(f"cnc-contour circular: error: {err}", file=sys.stderr)
         return 1
-    print(to_table(traces, diagnosis))
+    print(to_table(traces, diagnosis, reversals))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(to_json(traces, diagnosis), indent=2, ensure_ascii=False) + "\n")
+        written = to_json(traces, diagnosis, reversals)
+        args.json.write_text(json.dumps(written, indent=2, ensure_ascii=False) + "\n")
         print(f"json: {args.json}")
+    if args.plot:  # matplotlib is imported by write_polar_plot, on use
+        print(f"plot: {write_polar_plot([t.trace for t in traces], diagnosis, reversals, args.plot)}")
     return 0
