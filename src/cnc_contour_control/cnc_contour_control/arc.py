@@ -200,16 +200,7 @@ class ArcSegment:
         Exact for a planar arc (in any number of axes). For a helix: a grid
         search refined by Newton steps (golden sections where Newton is not
         conclusive); the error is far below 1 nm for machine-sized arcs.
-
-        Parameters
-        ----------
-        points : array_like, shape (N, n_axes)
-            Positions, m.
-
-        Returns
-        -------
-        distance_m, s_m : ndarray, shape (N,)
-            Distance to the nearest point of the arc (m) and its arc length (m).
+        Arguments and results as :meth:`~cnc_contour_control.geometry.LineSegment.nearest`.
         """
         p = as_points(points, self.n_axes)
         a, b = self.plane

@@ -34,12 +34,13 @@ from typing import Protocol, runtime_checkable
 from cnc_contour_control.compensators.state_file import load_state, save_state
 from cnc_contour_control.config import require_finite
 from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.params import check_ranges
+from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.slots import SlotsRecord
 
 _AXIS_FIELDS = ("ref_position_m", "position_m", "tracking_error_m")
 
 
-class CompensatorSample:
+class CompensatorSample(SlotsRecord):
     """One tick as a compensator sees it (SI; axis order of the compensator's ``axis_names``).
 
     Attributes
@@ -72,9 +73,6 @@ class CompensatorSample:
         self.angle_rad = 0.0
         self.tracking_error_m = [0.0] * axis_count
 
-    def __repr__(self) -> str:
-        values = ", ".join(f"{name}={getattr(self, name)!r}" for name in self.__slots__)
-        return f"CompensatorSample({values})"
 
 
 def check_sample(who: str, sample: CompensatorSample, axis_names: Sequence[str]) -> None:
@@ -201,3 +199,28 @@ class ZeroCompensator:
     def load(self, path: str | Path) -> None:
         """Check ``path`` is a numeric ``.npz`` without arrays."""
         load_state(path, {}, "none compensator state")
+
+
+#: Largest gain or limit a compensator config accepts.
+MAX_GAIN = 1.0e12
+
+
+@dataclass(frozen=True)
+class AxisCorrection:
+    """The fields of a compensator whose one correction is spread over the axes (CCC, ILC).
+
+    Parameters
+    ----------
+    axis_gains : tuple of float
+        Factor on each axis's correction, finite; empty: 1 on every axis.
+    output_limit : float
+        Clip of each correction [drive units], in [1e-9, 1e12].
+    """
+
+    axis_gains: tuple[float, ...] = param((), description="factor on each axis's correction (empty: all 1)")
+    output_limit: float = param(100.0, unit="drive", low=1.0e-9, high=MAX_GAIN, description="clip of each correction")
+
+    def check(self, context: str) -> None:
+        """Validate every declared range and the axis factors (call from the subclass's ``__post_init__``)."""
+        check_ranges(self, context)
+        object.__setattr__(self, "axis_gains", checked_factors("axis_gains", self.axis_gains, context))

@@ -25,17 +25,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from cnc_contour_control.compensators.base import CompensatorSample, check_sample, checked_factors, factors_for
+from cnc_contour_control.compensators.base import MAX_GAIN, AxisCorrection, CompensatorSample, check_sample, factors_for
 from cnc_contour_control.compensators.state_file import load_state, save_state
-from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.params import param
 
 _WHO = "ccc compensator"
 #: Largest gain a config accepts (any unit).
-MAX_GAIN = 1.0e12
 
 
 @dataclass(frozen=True)
-class CrossCoupledConfig:
+class CrossCoupledConfig(AxisCorrection):
     """Gains of the cross-coupled controller (defaults sized for paper 000's DAC drives: 1 BLU = 10 µm).
 
     Parameters
@@ -48,10 +47,8 @@ class CrossCoupledConfig:
         Derivative gain [drive units · s per m], in [0, 1e12].
     integral_limit : float
         Clamp of the integral term [drive units], in [0, 1e12].
-    axis_gains : tuple of float
-        Factor on each axis's correction, finite; empty: 1 on every axis.
-    output_limit : float
-        Clip of each correction [drive units], in [1e-9, 1e12].
+    axis_gains, output_limit
+        As :class:`~cnc_contour_control.compensators.base.AxisCorrection`.
     """
 
     kp: float = param(2.0e5, unit="drive/m", low=0.0, high=MAX_GAIN,
@@ -61,12 +58,9 @@ class CrossCoupledConfig:
     kd: float = param(0.0, unit="drive*s/m", low=0.0, high=MAX_GAIN, description="derivative gain on the contour error")
     integral_limit: float = param(50.0, unit="drive", low=0.0, high=MAX_GAIN,
                                   description="clamp of the integral term (anti-windup)")
-    axis_gains: tuple[float, ...] = param((), description="factor on each axis's correction (empty: all 1)")
-    output_limit: float = param(100.0, unit="drive", low=1.0e-9, high=MAX_GAIN, description="clip of each correction")
 
     def __post_init__(self) -> None:
-        check_ranges(self, "ccc")
-        object.__setattr__(self, "axis_gains", checked_factors("axis_gains", self.axis_gains, "ccc"))
+        self.check("ccc")
 
 
 class CrossCoupledCompensator:

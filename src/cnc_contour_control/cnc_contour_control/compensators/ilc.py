@@ -32,18 +32,17 @@ from pathlib import Path
 import numpy as np
 from scipy import signal
 
-from cnc_contour_control.compensators.base import CompensatorSample, check_sample, checked_factors, factors_for
-from cnc_contour_control.compensators.cross_coupled import MAX_GAIN
+from cnc_contour_control.compensators.base import MAX_GAIN, AxisCorrection, CompensatorSample, check_sample, factors_for
 from cnc_contour_control.compensators.state_file import FloatArray, load_state, save_state
 from cnc_contour_control.config import require_positive
 from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.params import param
 
 _WHO = "ilc compensator"
 
 
 @dataclass(frozen=True)
-class IlcConfig:
+class IlcConfig(AxisCorrection):
     """Configuration of the contour-space ILC.
 
     Parameters
@@ -56,10 +55,8 @@ class IlcConfig:
         Cut-off of the zero-phase Butterworth Q [Hz], in [1e-3, 1e6]; below the Nyquist frequency.
     filter_order : int
         Order of the Butterworth Q (doubled by filtfilt), in [1, 8].
-    axis_gains : tuple of float
-        Factor on each axis's correction, finite; empty: 1 on every axis.
-    output_limit : float
-        Clip of each correction [drive units], in [1e-9, 1e12].
+    axis_gains, output_limit
+        As :class:`~cnc_contour_control.compensators.base.AxisCorrection`.
     """
 
     learning_gain: float = param(1.0e5, unit="drive/m", low=0.0, high=MAX_GAIN,
@@ -67,16 +64,13 @@ class IlcConfig:
     advance_samples: int = param(5, unit="samples", low=0, high=10000, description="time advance d of the error")
     cutoff_hz: float = param(20.0, unit="Hz", low=1.0e-3, high=1.0e6, description="cut-off of the zero-phase Q filter")
     filter_order: int = param(2, low=1, high=8, description="order of the Butterworth Q filter")
-    axis_gains: tuple[float, ...] = param((), description="factor on each axis's correction (empty: all 1)")
-    output_limit: float = param(100.0, unit="drive", low=1.0e-9, high=MAX_GAIN, description="clip of each correction")
 
     def __post_init__(self) -> None:
         for name in ("advance_samples", "filter_order"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
                 raise ConfigError(f"ilc.{name} must be an integer, got {value!r}")
-        check_ranges(self, "ilc")
-        object.__setattr__(self, "axis_gains", checked_factors("axis_gains", self.axis_gains, "ilc"))
+        self.check("ilc")
 
 
 class IterativeLearningCompensator:

@@ -38,11 +38,12 @@ from collections.abc import Sequence
 from typing import Protocol
 
 from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.slots import SlotsRecord
 
 __all__ = ["ContourEstimate", "ContourEstimator", "check_plane", "check_sample"]
 
 
-class ContourEstimate:
+class ContourEstimate(SlotsRecord):
     """One tick's estimate; built every tick, so a plain slots class (read-only by convention).
 
     Attributes
@@ -81,10 +82,6 @@ class ContourEstimate:
         self.point_b_m = point_b_m
         self.window_size = window_size
         self.steps = steps
-
-    def __repr__(self) -> str:
-        fields = ", ".join(f"{name}={getattr(self, name)!r}" for name in self.__slots__)
-        return f"ContourEstimate({fields})"
 
 
 class ContourEstimator(Protocol):

@@ -23,9 +23,10 @@ from __future__ import annotations
 from typing import Any, Protocol, runtime_checkable
 
 from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.slots import SlotsRecord
 
 
-class LawSample:
+class LawSample(SlotsRecord):
     """One sample as a feedback law sees it (law units; see the module docstring).
 
     Attributes
@@ -59,10 +60,6 @@ class LawSample:
         self.ref_velocity_counts_s = ref_velocity_counts_s
         self.ref_acceleration_counts_s2 = ref_acceleration_counts_s2
         self.applied_command = applied_command
-
-    def __repr__(self) -> str:
-        values = ", ".join(f"{name}={getattr(self, name)!r}" for name in self.__slots__)
-        return f"LawSample({values})"
 
 
 class LawOutput:

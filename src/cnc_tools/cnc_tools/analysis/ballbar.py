@@ -101,7 +101,19 @@ class CircleTrace:
 
 
 @dataclass(frozen=True)
-class TraceDiagnosis:
+class CircleFigures:
+    """What a trace's and a test's diagnosis both give, µm (see :class:`TraceDiagnosis` for how)."""
+
+    circularity_ls_um: float
+    circularity_mz_um: float
+    radial_deviation_max_um: float
+    radial_deviation_min_um: float
+    center_offset_x_um: float
+    center_offset_y_um: float
+
+
+@dataclass(frozen=True)
+class TraceDiagnosis(CircleFigures):
     """Diagnoses of one trace; lengths in µm.
 
     ``circularity_ls_um``: max − min radius about the LS circle (Kåsa fit refined by
@@ -115,12 +127,6 @@ class TraceDiagnosis:
     """
 
     direction: str
-    circularity_ls_um: float
-    circularity_mz_um: float
-    radial_deviation_max_um: float
-    radial_deviation_min_um: float
-    center_offset_x_um: float
-    center_offset_y_um: float
     ellipse_45_um: float
     ellipse_0_um: float
     harmonic_cos_um: tuple[float, ...]
@@ -128,7 +134,7 @@ class TraceDiagnosis:
 
 
 @dataclass(frozen=True)
-class BallbarDiagnosis:
+class BallbarDiagnosis(CircleFigures):
     """Diagnoses of one or two traces (see the module docstring for the model).
 
     Attributes
@@ -149,12 +155,6 @@ class BallbarDiagnosis:
     """
 
     traces: tuple[TraceDiagnosis, ...]
-    circularity_ls_um: float
-    circularity_mz_um: float
-    radial_deviation_max_um: float
-    radial_deviation_min_um: float
-    center_offset_x_um: float
-    center_offset_y_um: float
     servo_mismatch_um: float | None
     gain_difference_s: float | None
     squareness_urad: float | None
