@@ -24,7 +24,8 @@ _cnc_fix_cmake_paths() {
   local pyinc npinc
   pyinc="$("$CNC_VENV/bin/python" -c 'import sysconfig; print(sysconfig.get_paths()["include"])')"
   npinc="$("$CNC_VENV/bin/python" -c 'import numpy; print(numpy.get_include())')"
-  grep -rlZ --include='*.cmake' '/opt/python/cp311-cp311' "$CNC_VENV/share" 2>/dev/null \
+  # (grep finds nothing once the paths are fixed: a re-install after a requirements change)
+  { grep -rlZ --include='*.cmake' '/opt/python/cp311-cp311' "$CNC_VENV/share" 2>/dev/null || true; } \
     | xargs -0 -r sed -i \
         -e "s#/opt/python/cp311-cp311/lib/python3.11/site-packages/numpy/_core/include#$npinc#g" \
         -e "s#/opt/python/cp311-cp311/include/python3.11#$pyinc#g"
