@@ -1,0 +1,97 @@
+"""The on-line feed override: ramps within the axis limits, feed hold stops on the path, resume, ratios > 1."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from cnc_contour_control.errors import CncError
+from cnc_contour_control.feed_override import (
+    OverrideConfig,
+    OverrideFollower,
+    hold_distance_m,
+    planning_limits,
+)
+from cnc_contour_control.geometry import LineSegment, Program
+from cnc_contour_control.interpolation import AxisLimits, Interpolator
+from cnc_contour_control.program import load_program
+
+LIMITS = AxisLimits((0.05, 0.05), (0.5, 0.5))
+DT_S = 1e-3
+
+
+def follower(program: Program, config: OverrideConfig | None = None, limits: AxisLimits = LIMITS) -> OverrideFollower:
+    config = config or OverrideConfig()
+    return OverrideFollower(Interpolator(program, planning_limits(limits, config)), limits, config)
+
+
+def run(f: OverrideFollower, requests: list[float]) -> tuple[np.ndarray, np.ndarray, list]:
+    samples = [f.advance(0.0, requests[0])] + [f.advance(DT_S, r) for r in requests[1:]]
+    positions = np.array([s.position_m for s in samples])
+    ratios = np.array([s.feed_override_ratio for s in samples])
+    return positions, ratios, samples
+
+
+def assert_within_limits(positions: np.ndarray, samples: list, limits: AxisLimits = LIMITS) -> None:
+    v_max, a_max = np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2)
+    assert np.all(np.abs([s.velocity_m_s for s in samples]) <= v_max * (1 + 1e-9))
+    assert np.all(np.abs([s.acceleration_m_s2 for s in samples]) <= a_max * (1 + 1e-9))
+    assert np.all(np.abs(np.diff(positions, axis=0) / DT_S) <= v_max * (1 + 1e-9))
+    assert np.all(np.abs(np.diff(positions, 2, axis=0) / DT_S**2) <= a_max * (1 + 1e-9))
+
+
+def line(length_m: float = 0.05, feed_m_s: float = 0.02) -> Program:
+    return Program("line", ("x", "y"), (LineSegment([0.0, 0.0], [length_m, 0.0], feed_m_s),))
+
+
+def test_a_step_in_the_request_ramps_within_the_limits() -> None:
+    requests = [1.0] * 400 + [0.3] * 400 + [1.0] * 3000
+    positions, ratios, samples = run(follower(line()), requests)
+    assert_within_limits(positions, samples)
+    assert ratios[399] == 1.0 and ratios[401] > 0.3            # no jump: the ratio ramps down
+    assert ratios[700] == pytest.approx(0.3)                     # and gets there
+    assert samples[-1].done and positions[-1][0] == pytest.approx(0.05)
+
+
+def test_feed_hold_stops_on_the_path_and_resumes() -> None:
+    feed = 0.02
+    requests = [1.0] * 600 + [0.0] * 500 + [1.0] * 4000
+    positions, ratios, samples = run(follower(line(feed_m_s=feed)), requests)
+    assert_within_limits(positions, samples)
+    assert np.allclose(positions[:, 1], 0.0)                    # on the path throughout
+    held = positions[1099]
+    assert ratios[1099] == 0.0 and np.allclose(positions[1050:1100], held)
+    travelled_m = held[0] - positions[599][0]
+    assert travelled_m <= hold_distance_m(feed, 0.98 * 0.5) * 1.05 + feed * DT_S
+    assert samples[-1].done
+
+
+def test_ratios_above_one_keep_the_limits_when_planned_for() -> None:
+    config = OverrideConfig(max_ratio=1.5)
+    circle = load_program({"shape": "circle", "radius_mm": 5, "feed_mm_min": 1500})
+    requests = [1.5] * 1500 + [0.5] * 500 + [1.5] * 3000
+    positions, ratios, samples = run(follower(circle, config), requests)
+    assert_within_limits(positions, samples)
+    assert ratios.max() == pytest.approx(1.5)
+    radius_m = np.hypot(positions[:, 0] - 0.0, positions[:, 1] - 0.005)
+    assert np.allclose(radius_m, 0.005, atol=1e-12)             # the circle's points only
+
+
+def test_requests_beyond_the_range_are_clipped_and_nan_refused() -> None:
+    f = follower(line())
+    assert f.advance(0.0, 3.0).feed_override_ratio == 1.0
+    with pytest.raises(CncError, match="override ratio"):
+        f.advance(DT_S, math.nan)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.tuples(st.integers(1, 300), st.floats(0.0, 1.5)), min_size=1, max_size=8))
+def test_random_request_schedules_never_exceed_the_limits(schedule: list) -> None:
+    config = OverrideConfig(max_ratio=1.5)
+    program = load_program({"shape": "corner", "leg_mm": 5, "feed_mm_min": 1200})
+    requests = [r for ticks, r in schedule for _ in range(ticks)] + [1.0] * 3000
+    positions, _, samples = run(follower(program, config), requests)
+    assert_within_limits(positions, samples)
