@@ -39,6 +39,8 @@ class ArcSegment:
         The two axis indices spanning the arc plane, ``(0, 1)`` = XY.
     feed_m_s : float
         Programmed feed (path speed), m/s, > 0.
+    source_line : int, optional
+        Line of the source text (G-code) the arc comes from, for messages.
 
     Notes
     -----
@@ -53,6 +55,8 @@ class ArcSegment:
     clockwise: bool
     plane: tuple[int, int] = (0, 1)
     feed_m_s: float = math.nan
+    #: Line of the source text (G-code) the arc comes from, 1-based; None if none.
+    source_line: int | None = None
     radius_m: float = field(init=False)
     sweep_rad: float = field(init=False)
     start_angle_rad: float = field(init=False)

@@ -12,6 +12,7 @@ Everything is importable from here as before.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Union
 
@@ -30,8 +31,8 @@ from cnc_contour_control.points import (
     require_feed,
 )
 
-__all__ = ["ArcSegment", "FloatArray", "IntArray", "LineSegment", "MIN_LENGTH_M", "POSITION_TOLERANCE_M", "Program",
-           "Segment", "as_point", "as_points"]
+__all__ = ["ArcSegment", "Dwell", "FloatArray", "IntArray", "LineSegment", "MIN_LENGTH_M", "POSITION_TOLERANCE_M",
+           "Program", "Segment", "as_point", "as_points", "segment_label"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -44,11 +45,15 @@ class LineSegment:
         End points, m.
     feed_m_s : float
         Programmed feed (path speed), m/s, > 0.
+    source_line : int, optional
+        Line of the source text (G-code) the segment comes from, for messages.
     """
 
     start_m: FloatArray
     end_m: FloatArray
     feed_m_s: float
+    #: Line of the source text (G-code) the segment comes from, 1-based; None if none.
+    source_line: int | None = None
     length_m: float = field(init=False)
     #: Unit direction of travel, shape ``(n_axes,)``.
     unit_vector: FloatArray = field(init=False, repr=False)
@@ -134,6 +139,25 @@ class LineSegment:
 Segment = Union[LineSegment, ArcSegment]
 
 
+def segment_label(index: int, segment: Segment) -> str:
+    """How messages name a segment: ``"line 7 (segment 3)"`` when its source line is known, else ``"segment 3"``."""
+    line = getattr(segment, "source_line", None)
+    return f"segment {index}" if line is None else f"line {line} (segment {index})"
+
+
+@dataclass(frozen=True)
+class Dwell:
+    """A stop of ``duration_s`` (s, >= 0) at the junction before segment ``before_segment``.
+
+    ``before_segment`` is in ``[0, n_segments]``; ``n_segments`` is the
+    program's end. ``source_line`` is the G-code line (G4) it comes from.
+    """
+
+    before_segment: int
+    duration_s: float
+    source_line: int | None = None
+
+
 @dataclass(frozen=True, eq=False)
 class Program:
     """A contiguous contour: segments in program order over named axes.
@@ -146,13 +170,23 @@ class Program:
         Axis order of every segment's arrays, e.g. ``("x", "y")``.
     segments : sequence of LineSegment or ArcSegment
         Non-empty; each starts where the previous one ends (within ``POSITION_TOLERANCE_M``).
+    dwells : sequence of Dwell, optional
+        Stops held at junctions (G4); the interpolator halts there for their time.
+    path_tolerance_m : float, optional
+        Largest deviation from the programmed path a blending interpolator may
+        take at junctions, m, >= 0 (``G64 P``); 0 is exact stop (``G61``);
+        None leaves it to the interpolator's configuration.
     """
 
     name: str
     axis_names: tuple[str, ...]
     segments: tuple[Segment, ...]
+    dwells: tuple[Dwell, ...] = ()
+    path_tolerance_m: float | None = None
     segment_start_m: FloatArray = field(init=False, repr=False)
     total_length_m: float = field(init=False)
+    #: Dwell time summed per junction, s, shape ``(n_segments + 1,)`` (index k: before segment k).
+    junction_dwell_s: FloatArray = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         axes = tuple(self.axis_names)
@@ -170,6 +204,11 @@ class Program:
         object.__setattr__(self, "segments", segments)
         object.__setattr__(self, "segment_start_m", starts)
         object.__setattr__(self, "total_length_m", float(np.sum(lengths)))
+        object.__setattr__(self, "dwells", tuple(self.dwells))
+        object.__setattr__(self, "junction_dwell_s", _junction_dwells(self.dwells, len(segments)))
+        if self.path_tolerance_m is not None and not (math.isfinite(self.path_tolerance_m)
+                                                      and self.path_tolerance_m >= 0.0):
+            raise ProgramError(f"path_tolerance_m must be finite and >= 0, got {self.path_tolerance_m}")
 
     @property
     def n_axes(self) -> int:
@@ -218,6 +257,19 @@ class Program:
             best[candidates[better]] = distance[better]
             index[candidates[better]] = i
         return best, index
+
+
+def _junction_dwells(dwells: tuple[Dwell, ...], n_segments: int) -> FloatArray:
+    """Dwell time per junction, s, shape ``(n_segments + 1,)``; refuses a dwell off the program."""
+    times = np.zeros(n_segments + 1)
+    for dwell in dwells:
+        if not isinstance(dwell, Dwell) or not 0 <= dwell.before_segment <= n_segments:
+            raise ProgramError(f"dwells must be Dwell with before_segment in [0, {n_segments}], got {dwell!r}")
+        if not (math.isfinite(dwell.duration_s) and dwell.duration_s >= 0.0):
+            raise ProgramError(f"dwell duration_s must be finite and >= 0, got {dwell.duration_s}")
+        times[dwell.before_segment] += dwell.duration_s
+    times.setflags(write=False)
+    return times
 
 
 def _check_segment(index: int, segment: Segment, axes: tuple[str, ...], previous: Segment | None) -> None:

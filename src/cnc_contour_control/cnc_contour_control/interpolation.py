@@ -12,7 +12,8 @@ Per-axis limits hold because each segment's speed keeps ``v |T_j| <= vmax_j``
 and, on arcs, ``v**2 |K_j| <= f amax_j`` while ``|a_t T_j| <= (1 - f) amax_j``
 (``f`` = ``arc_centripetal_fraction``). Speed is zero at the program's start
 and end and at sharp corners; across tangent-continuous junctions it is
-continuous. A junction whose tangents differ by less than
+continuous. A program's dwells (G4, ``Program.dwells``) are phases at rest
+at their junction, which is then a stop. A junction whose tangents differ by less than
 ``corner_angle_tolerance_deg`` but not exactly gets a step in the axis
 velocities of at most ``v * angle``; that step is the one place where the
 finite-difference acceleration can exceed the limits. The default tolerance
@@ -22,6 +23,7 @@ it for G-code with few decimals, knowing the step it allows.
 from __future__ import annotations
 
 import bisect
+import dataclasses
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -29,9 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from cnc_contour_control.config import require_non_negative, require_positive
+from cnc_contour_control.accel_decel import AccelDecelConfig, ReferenceFilter
+from cnc_contour_control.config import build_config, require_non_negative, require_positive
 from cnc_contour_control.errors import ConfigError, ProgramError
-from cnc_contour_control.geometry import Program, Segment
+from cnc_contour_control.geometry import Program, Segment, segment_label
 from cnc_contour_control.params import check_ranges, param
 from cnc_contour_control.units import m_s_to_mm_min
 
@@ -97,6 +100,9 @@ class InterpolatorConfig:
     clamp_feed : bool
         If True, slow a segment whose programmed feed exceeds the axis velocity
         limits; if False, refuse the program.
+    accel_decel : AccelDecelConfig or Mapping
+        Acceleration/deceleration after interpolation (paper 003's T_ip), applied by
+        :meth:`Interpolator.reference` (:mod:`cnc_contour_control.accel_decel`).
     """
 
     corner_angle_tolerance_deg: float = param(
@@ -107,8 +113,12 @@ class InterpolatorConfig:
         description="share of each axis's acceleration for centripetal use on arcs (the rest changes speed)")
     clamp_feed: bool = param(
         False, read_only=True, description="slow down a segment whose feed exceeds the axis limits instead of refusing it")
+    accel_decel: AccelDecelConfig = param(default_factory=AccelDecelConfig, read_only=True,
+                                          description="acceleration/deceleration after interpolation (T_ip)")
 
     def __post_init__(self) -> None:
+        if not isinstance(self.accel_decel, AccelDecelConfig):
+            object.__setattr__(self, "accel_decel", build_config(AccelDecelConfig, self.accel_decel, "accel_decel"))
         check_ranges(self)
         if not isinstance(self.clamp_feed, (bool, np.bool_)):
             raise ConfigError(f"clamp_feed must be true or false, got {self.clamp_feed!r}")
@@ -178,7 +188,7 @@ def segment_limits(index: int, segment: Segment, limits: AxisLimits, config: Int
     axis_speed = _min_ratio(velocity, tangent)
     if segment.feed_m_s > axis_speed * (1.0 + 1e-12) and not config.clamp_feed:
         raise ProgramError(
-            f"segment {index}: feed_mm_min must be <= {m_s_to_mm_min(axis_speed):.6g} (axis velocity "
+            f"{segment_label(index, segment)}: feed_mm_min must be <= {m_s_to_mm_min(axis_speed):.6g} (axis velocity "
             f"limits along the segment), got {m_s_to_mm_min(segment.feed_m_s):.6g}")
     fraction = config.arc_centripetal_fraction if np.any(curvature > 0.0) else 0.0
     centripetal_speed = math.sqrt(_min_ratio(fraction * acceleration, curvature))
@@ -197,7 +207,7 @@ def junction_speeds(program: Program, plans: list[SegmentLimits], tolerance_rad:
     segments = program.segments
     speeds = np.zeros(len(segments) + 1)
     for k in range(1, len(segments)):
-        if _junction_angle_rad(segments[k - 1], segments[k]) <= tolerance_rad:
+        if _junction_angle_rad(segments[k - 1], segments[k]) <= tolerance_rad and not program.junction_dwell_s[k]:
             speeds[k] = min(plans[k - 1].speed_m_s, plans[k].speed_m_s)
     for k in range(len(segments) - 1, -1, -1):
         reach = speeds[k + 1] ** 2 + 2.0 * plans[k].acceleration_m_s2 * segments[k].length_m
@@ -227,6 +237,16 @@ def segment_phases(length_m: float, entry_m_s: float, exit_m_s: float,
               (accel_len, peak, 0.0, cruise_len / peak),
               (accel_len + cruise_len, peak, -accel, (peak - exit_m_s) / accel)]
     return [phase for phase in phases if phase[3] > 0.0]
+
+
+def _with_dwells(program: Program, k: int, phases: list[tuple[float, float, float, float]]
+                 ) -> list[tuple[float, float, float, float]]:
+    """Segment ``k``'s phases with its dwells (G4) as phases at rest: the one before it and, last, the program's end."""
+    dwell_s = program.junction_dwell_s
+    before = [(0.0, 0.0, 0.0, float(dwell_s[k]))] if dwell_s[k] > 0.0 else []
+    at_end = k == len(program.segments) - 1 and dwell_s[k + 1] > 0.0
+    after = [(program.segments[k].length_m, 0.0, 0.0, float(dwell_s[k + 1]))] if at_end else []
+    return before + phases + after
 
 
 class Interpolator:
@@ -264,13 +284,14 @@ class Interpolator:
         self._build_phases()
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
         self._profile_time_s = 0.0
+        self._accel_decel = ReferenceFilter(self.config.accel_decel)
 
     def _build_phases(self) -> None:
         starts, s0, v0, accel, index = [0.0], [], [], [], []
         for k, segment in enumerate(self.program.segments):
             entry, exit_ = float(self.junction_speeds_m_s[k]), float(self.junction_speeds_m_s[k + 1])
-            for start_s, speed, acceleration, duration in segment_phases(
-                    segment.length_m, entry, exit_, self.segment_limits[k]):
+            for start_s, speed, acceleration, duration in _with_dwells(self.program, k, segment_phases(
+                    segment.length_m, entry, exit_, self.segment_limits[k])):
                 s0.append(start_s)
                 v0.append(speed)
                 accel.append(acceleration)
@@ -363,9 +384,38 @@ class Interpolator:
         position[done] = self._end_point_m
         return position, velocity, acceleration
 
+    def reference(self, t_s: float) -> ReferenceSample:
+        """:meth:`sample` through the acceleration/deceleration (``config.accel_decel``): the servos' reference.
+
+        Call at successive tick times (the filter keeps its state; an earlier
+        time restarts it). Path length, segment, feed and ``done`` stay the
+        unfiltered profile's. ``accel_decel.kind`` ``none``: :meth:`sample` itself.
+        """
+        sample = self.sample(t_s)
+        if self.config.accel_decel.kind == "none":
+            return sample
+        n = self.program.n_axes
+        flat = self._accel_decel.step(t_s, sample.position_m.tolist() + sample.velocity_m_s.tolist()
+                                      + sample.acceleration_m_s2.tolist())
+        return dataclasses.replace(sample, position_m=np.array(flat[:n]), velocity_m_s=np.array(flat[n:2 * n]),
+                                   acceleration_m_s2=np.array(flat[2 * n:]))
+
+    def reference_array(self, times_s: ArrayLike) -> ReferenceTrajectory:
+        """:meth:`sample_array` through a fresh acceleration/deceleration filter, row by row as :meth:`reference` does."""
+        trajectory = self.sample_array(times_s)
+        if self.config.accel_decel.kind == "none":
+            return trajectory
+        n, accel_decel = self.program.n_axes, ReferenceFilter(self.config.accel_decel)
+        rows = np.hstack([trajectory.position_m, trajectory.velocity_m_s, trajectory.acceleration_m_s2]).tolist()
+        out = np.array([accel_decel.step(t, row) for t, row in zip(trajectory.time_s.tolist(), rows)], float)
+        out = out.reshape(len(rows), 3 * n)
+        return dataclasses.replace(trajectory, position_m=out[:, :n], velocity_m_s=out[:, n:2 * n],
+                                   acceleration_m_s2=out[:, 2 * n:])
+
     def reset(self) -> None:
-        """Return the profile time τ of :meth:`advance` to the program start."""
+        """Return the profile time τ of :meth:`advance` and the acceleration/deceleration to the program start."""
         self._profile_time_s = 0.0
+        self._accel_decel = ReferenceFilter(self.config.accel_decel)
 
     @property
     def profile_time_s(self) -> float:

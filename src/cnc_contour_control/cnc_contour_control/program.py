@@ -6,13 +6,16 @@ Exactly one source key chooses the form (registry :data:`SOURCES`):
     explicit contour: ``{axes: [x, y], start_mm: [0, 0], feed_mm_min: 400,
     segments: [{line: {to_mm: [..], feed_mm_min: ..}}, {arc: {to_mm: [..],
     center_mm: [..], direction: cw|ccw, plane: xy}}]}``; a segment's
-    ``feed_mm_min`` defaults to the program's.
+    ``feed_mm_min`` defaults to the program's. A plane of two of x, y, z
+    is oriented as G17/G18/G19 whatever the order (``plane: xz`` + ``ccw``
+    turns as G18 G3; see ``docs/gcode.md``).
 ``shape``
     a generated contour from :data:`SHAPES`: ``line``, ``circle``, ``corner``
     (see their option classes). Shapes lie in the first two axes.
 ``gcode`` / ``gcode_file``
     G-code text or a file (relative to ``base_dir``), read by
-    :func:`~cnc_contour_control.gcode.parse_gcode`.
+    :func:`~cnc_contour_control.gcode.parse_gcode`; options ``axes``,
+    ``rapid_feed_mm_min``, ``start_mm``, ``work_offsets_mm`` (``{G54: [..], ..}``).
 
 A ``name`` key overrides the program name. Unknown keys are a
 :class:`~cnc_contour_control.errors.ConfigError` listing the valid ones.
@@ -186,10 +189,20 @@ class GcodeOptions:
     axes: Any = ("x", "y", "z")
     rapid_feed_mm_min: float = 1000.0
     start_mm: Any = None
+    work_offsets_mm: Any = None
+
+
+#: Planes of the axes x, y, z in G-code's orientation (G17 XY, G19 YZ, G18 ZX: ccw seen from the third axis).
+RIGHT_HANDED_PLANES = frozenset({("x", "y"), ("y", "z"), ("z", "x")})
 
 
 def _plane(value: Any, axes: tuple[str, ...], context: str) -> tuple[int, int]:
-    """Axis indices of a plane given as two axis names (``"xy"`` or ``[x, y]``); default the first two."""
+    """Axis indices of a plane given as two axis names (``"xy"`` or ``[x, y]``); default the first two.
+
+    Two of x, y, z name a plane in either order and are oriented as in
+    G-code (:data:`RIGHT_HANDED_PLANES`: ``xz`` is G18's ZX, so ``ccw`` turns
+    as G18 G3); other names keep the order given (ccw from the first toward the second).
+    """
     if value is None:
         return (0, 1)
     names = list(value) if isinstance(value, str) and len(value) == 2 and value not in axes else value
@@ -199,6 +212,8 @@ def _plane(value: Any, axes: tuple[str, ...], context: str) -> tuple[int, int]:
         raise ConfigError(f"{context}.plane must name two of the axes {list(axes)}, got {value!r}") from err
     if a == b:
         raise ConfigError(f"{context}.plane must name two different axes, got {value!r}")
+    if (str(names[1]).lower(), str(names[0]).lower()) in RIGHT_HANDED_PLANES:
+        return b, a
     return a, b
 
 
@@ -257,7 +272,7 @@ def _from_shape(body: dict[str, Any], name: str, base_dir: Path | None) -> Progr
 def _gcode(text: str, body: dict[str, Any], name: str) -> Program:
     options = build_config(GcodeOptions, body, "program")
     return parse_gcode(text, _axes(options.axes, "program"), rapid_feed_mm_min=options.rapid_feed_mm_min,
-                       start_mm=options.start_mm, name=name)
+                       start_mm=options.start_mm, name=name, work_offsets_mm=options.work_offsets_mm)
 
 
 def _from_gcode(body: dict[str, Any], name: str, base_dir: Path | None) -> Program:

@@ -11,8 +11,10 @@ drawn, plain types, for the run record).
 validated :class:`PlantConfig` and a check of the model's own keys).
 Today's entries are the feed drives of :mod:`cnc_plant_sim.feed_drives`:
 ``paper000`` (Table 2's axes, Eq. 15's friction) and ``custom`` (axes given
-in ``axis_overrides``), and ``paper001``, the mass-friction axes of
-:mod:`cnc_plant_sim.mass_friction` (options in the ``mass_friction`` section).
+in ``axis_overrides``), ``paper001``, the mass-friction axes of
+:mod:`cnc_plant_sim.mass_friction` (options in the ``mass_friction`` section),
+and ``paper002``/``paper003``, the velocity-commanded axes of
+:mod:`cnc_plant_sim.velocity_loop` (options in the ``velocity_loop`` section).
 A new plant (a cutting process, an inner velocity
 loop) is a module with a class keeping :class:`Plant` and one line in
 :data:`PLANTS`. :func:`make_plant` builds any entry.
@@ -37,7 +39,10 @@ from cnc_plant_sim.feed_drives import (
     FeedDrivePlant,
     VariationConfig,
 )
+from cnc_plant_sim.machine_faults import FaultedPlant, MachineFaults
 from cnc_plant_sim.mass_friction import MassFrictionAxisConfig, MassFrictionOptions, MassFrictionPlant, paper001_axes
+from cnc_plant_sim.velocity_loop import (VelocityLoopAxisConfig, VelocityLoopOptions, VelocityLoopPlant,
+                                         velocity_loop_axes)
 
 __all__ = ["MAX_VARIATION_PCT", "PLANTS", "FeedDrivePlant", "Plant", "PlantConfig", "PlantEntry",
            "VariationConfig", "make_plant"]
@@ -101,6 +106,11 @@ class PlantConfig:
         :class:`AxisConfig` for feed drives) replacing the model's nominal values.
     mass_friction : MassFrictionOptions or Mapping
         Length unit and cutting load of the mass-friction models (``paper001``); other models ignore it.
+    velocity_loop : VelocityLoopOptions or Mapping
+        Spindle, flutes, spindle schedule and encoder of the velocity-loop models (``paper002``,
+        ``paper003``; :mod:`cnc_plant_sim.velocity_loop`); other models ignore it.
+    faults : MachineFaults or Mapping
+        Machine faults between motor and tool (any model; :mod:`cnc_plant_sim.machine_faults`).
     """
 
     model: str = param("paper000", description="plant model (registry name)", read_only=True)
@@ -113,6 +123,10 @@ class PlantConfig:
                                                             description="per-axis model keys replacing the nominal")
     mass_friction: MassFrictionOptions = param(default_factory=MassFrictionOptions, read_only=True,
                                                description="options of the mass-friction plant (paper001)")
+    velocity_loop: VelocityLoopOptions = param(default_factory=VelocityLoopOptions, read_only=True,
+                                               description="options of the velocity-loop plants (paper002, paper003)")
+    faults: MachineFaults = param(default_factory=MachineFaults, read_only=True,
+                                  description="machine faults between motor and tool (backlash, squareness, ...)")
 
     def __post_init__(self) -> None:
         require_choice("model", self.model, PLANTS)
@@ -127,6 +141,14 @@ class PlantConfig:
             object.__setattr__(self, "mass_friction", options)
         elif not isinstance(self.mass_friction, MassFrictionOptions):
             raise ConfigError(f"mass_friction must be a mapping, got {self.mass_friction!r}")
+        if isinstance(self.velocity_loop, Mapping):
+            loop_options = build_config(VelocityLoopOptions, self.velocity_loop, context="velocity_loop")
+            object.__setattr__(self, "velocity_loop", loop_options)
+        elif not isinstance(self.velocity_loop, VelocityLoopOptions):
+            raise ConfigError(f"velocity_loop must be a mapping, got {self.velocity_loop!r}")
+        if not isinstance(self.faults, MachineFaults):
+            object.__setattr__(self, "faults", MachineFaults.from_mapping(self.faults, "faults"))
+        self.faults.check_axes(self.axes)
         _require_int_at_least("seed", self.seed, 0)
         _require_int_at_least("substeps", self.substeps, 1)
         object.__setattr__(self, "axis_overrides", _checked_overrides(self.axis_overrides, self.axes))
@@ -216,11 +238,23 @@ def _mass_friction(config: PlantConfig) -> MassFrictionPlant:
     return MassFrictionPlant(config.model, _paper001_axes(config), config.mass_friction, config.substeps)
 
 
+def _velocity_loop_axes(config: PlantConfig) -> tuple[VelocityLoopAxisConfig, ...]:
+    """The velocity-loop axes of ``config.model`` with its overrides."""
+    return velocity_loop_axes(config.model, config.axes, config.axis_overrides)
+
+
+def _velocity_loop(config: PlantConfig) -> VelocityLoopPlant:
+    """Velocity-commanded axes (papers 002, 003; no random variation)."""
+    return VelocityLoopPlant(config.model, _velocity_loop_axes(config), config.velocity_loop, config.substeps)
+
+
 #: Plant models by name.
 PLANTS: dict[str, PlantEntry] = {
     "paper000": PlantEntry(_feed_drives, PlantConfig.nominal_axes),
     "custom": PlantEntry(_feed_drives, PlantConfig.nominal_axes),
     "paper001": PlantEntry(_mass_friction, _paper001_axes, MassFrictionAxisConfig),
+    "paper002": PlantEntry(_velocity_loop, _velocity_loop_axes, VelocityLoopAxisConfig),
+    "paper003": PlantEntry(_velocity_loop, _velocity_loop_axes, VelocityLoopAxisConfig),
 }
 
 
@@ -228,4 +262,5 @@ def make_plant(config: PlantConfig | Mapping[str, Any]) -> Plant:
     """Build the plant of ``config`` (a config or a mapping, validated) from :data:`PLANTS`."""
     if not isinstance(config, PlantConfig):
         config = PlantConfig.from_mapping(config)
-    return PLANTS[config.model].build(config)
+    plant = PLANTS[config.model].build(config)
+    return FaultedPlant(plant, config.faults) if config.faults.active else plant

@@ -65,7 +65,7 @@ class InterpolatorNode(SuiteNode):
     def on_tick(self, msg: JointState) -> None:
         """One tick: the reference at the joint state's stamp."""
         stamp_ns = stamp_to_ns(msg.header.stamp)
-        sample = self.interpolator.sample(ns_to_s(stamp_ns))
+        sample = self.interpolator.reference(ns_to_s(stamp_ns))
         self.reference_pub.publish(reference_to_msg(sample, self.axes, stamp_ns, self.frame_id))
 
 
