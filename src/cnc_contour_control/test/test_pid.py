@@ -121,7 +121,7 @@ def test_laws_satisfy_the_protocol_and_answer_with_an_output() -> None:
     for name in LAWS:
         law = make_law(name, {})
         assert isinstance(law, FeedbackLaw)
-        out = law.step(LawSample(error_counts=1.0))
+        out = law.step(LawSample(dt_s=getattr(law, "sample_time_s", 0.01), error_counts=1.0))  # a designed law's period
         assert out.disturbance_estimate == 0.0 and out.feedback > 0.0
 
 

@@ -17,6 +17,18 @@ from typing import Any
 
 from cnc_contour_control.config import build_config, require_choice
 from cnc_contour_control.laws.base import FeedbackLaw
+from cnc_contour_control.laws.disturbance import (
+    DobConfig,
+    DobLaw,
+    DobPdcConfig,
+    DobPdcLaw,
+    MbdaConfig,
+    MbdaLaw,
+    MbdaPdcConfig,
+    MbdaPdcLaw,
+    PdcConfig,
+    PdcLaw,
+)
 from cnc_contour_control.laws.fuzzy import FuzzyConfig, FuzzyLaw
 from cnc_contour_control.laws.pid import PConfig, PidConfig, PidLaw, PLaw
 
@@ -43,6 +55,11 @@ LAWS: dict[str, LawEntry] = {
     "pid": LawEntry(PidConfig, PidLaw),
     "p": LawEntry(PConfig, PLaw),
     "fuzzy": LawEntry(FuzzyConfig, FuzzyLaw),
+    "dob": LawEntry(DobConfig, DobLaw),
+    "mbda": LawEntry(MbdaConfig, MbdaLaw),
+    "pdc": LawEntry(PdcConfig, PdcLaw),
+    "dob_pdc": LawEntry(DobPdcConfig, DobPdcLaw),
+    "mbda_pdc": LawEntry(MbdaPdcConfig, MbdaPdcLaw),
 }
 
 

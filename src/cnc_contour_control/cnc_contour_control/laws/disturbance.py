@@ -1,0 +1,327 @@
+"""Paper 002's laws: a P position loop over the velocity-command plant plus disturbance paths.
+
+One sample (counts and counts/s; the command is a velocity command)::
+
+    u_nom(k−1) = v(k−1) + T_E(k−1) + d̂(k−1) − c(k−1)   the command without this law's corrections
+    T_E(k) = H [y − P_n v](k)                            PDC (inner path), v = the applied command
+    d̂(k)  = [Q P_n⁻¹] y(k) − [Q/z⁻¹] (u_nom − d̂)(k−1)   DOB (outer path)
+    c(k)   = M [P_n u_nom − y](k)                        MBDA (outer path)
+    feedback = k_p e(k) − d̂(k) − T_E(k) + c(k)
+
+``y`` is the measured velocity, ``v`` the applied command (``LawSample.
+applied_command``, after saturation and quantisation), P_n the nominal
+closed velocity loop of :data:`~cnc_contour_control.velocity_models.
+PAPER002_MODELS` (its one sample of delay makes every path causal). The
+design (``cnc_contour_control.disturbance.design``) runs when the config is
+built, so a config that cannot be designed (f_d at Nyquist, a bad L, an
+RLS that does not converge, a Q of too low a relative degree) is refused
+with the parameter, the bound and the value; :meth:`DisturbanceLaw.retune`
+redesigns (a spindle override changes ``spindle_rpm``) and a refused config
+never reaches it, so the running law keeps its last valid design.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from cnc_contour_control.config import require_choice, require_finite
+from cnc_contour_control.disturbance.design import (
+    SPARE_DOF_CHOICES,
+    PdcDesign,
+    design_pdc,
+    disturbance_frequency_hz,
+    dob_filters,
+    mbda_pi,
+    q_filter,
+    strip_delay,
+)
+from cnc_contour_control.disturbance.filters import FirFilter, IirFilter
+from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.laws.base import LawOutput, LawSample, require_config
+from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.velocity_models import PAPER002_MODELS, DiscreteVelocityModel
+
+#: Relative tolerance on a sample period against the model's.
+PERIOD_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True)
+class PositionLoopConfig:
+    """The P position loop and the nominal model shared by every paper-002 law.
+
+    Parameters
+    ----------
+    kp : float
+        Position gain K_pp [1/s] (velocity command per count of error), in [0, 1e4].
+    model : str
+        Nominal closed velocity loop P_n, a key of ``PAPER002_MODELS`` (Eqs. 35-36).
+    """
+
+    kp: float = param(30.0, unit="1/s", low=0.0, high=1.0e4, description="position gain K_pp")
+    model: str = param("x", description=f"nominal velocity loop P_n, one of {sorted(PAPER002_MODELS)}")
+
+    def nominal(self) -> DiscreteVelocityModel:
+        """P_n."""
+        return PAPER002_MODELS[self.model]
+
+    def _validate(self, context: str) -> None:
+        check_ranges(self, context)
+        require_choice("model", self.model, PAPER002_MODELS, context)
+
+
+@dataclass(frozen=True)
+class DobConfig(PositionLoopConfig):
+    """P loop + disturbance observer with the Umeno-Hori Q filter (Eq. 32, binomial coefficients).
+
+    Parameters
+    ----------
+    q_order : int
+        Order K of Q, in [1, 8].
+    q_relative_degree : int
+        Relative degree r of Q, in [1, 3]; must be >= the model's (1) and <= K.
+    q_time_constant_s : float
+        Time constant τ [s], in [1e-5, 10].
+    """
+
+    q_order: int = param(3, low=1, high=8, description="order K of the Q filter")
+    q_relative_degree: int = param(1, low=1, high=3, description="relative degree r of Q (>= the model's, <= q_order)")
+    q_time_constant_s: float = param(0.005, unit="s", low=1.0e-5, high=10.0, description="time constant of Q")
+
+    def __post_init__(self) -> None:
+        self._validate("dob")
+        self.q_design()
+
+    def q_design(self) -> tuple[tuple[float, ...], tuple[float, ...]]:
+        """Q(z⁻¹) (refuses a relative degree below the model's)."""
+        return q_filter(int(self.q_order), int(self.q_relative_degree), self.q_time_constant_s, self.nominal())
+
+
+@dataclass(frozen=True)
+class MbdaConfig(PositionLoopConfig):
+    """P loop + model-based disturbance attenuator: PI M on model-minus-plant velocity.
+
+    Parameters
+    ----------
+    mbda_kp : float
+        Proportional gain of M [1] (velocity command per velocity), in [0, 1e3].
+    mbda_ki : float
+        Integral gain of M [1/s], in [0, 1e6].
+    """
+
+    mbda_kp: float = param(1.0, low=0.0, high=1.0e3, description="proportional gain of the MBDA's PI")
+    mbda_ki: float = param(100.0, unit="1/s", low=0.0, high=1.0e6, description="integral gain of the MBDA's PI")
+
+    def __post_init__(self) -> None:
+        self._validate("mbda")
+
+
+@dataclass(frozen=True)
+class PdcConfig(PositionLoopConfig):
+    """P loop + periodic disturbance canceller H = L·W designed for f_d = spindle_rpm·flutes/60.
+
+    Parameters
+    ----------
+    spindle_rpm : float
+        Spindle speed [rpm], in [1, 9000] (and f_d below Nyquist: the default 2 flutes give 300 Hz at most).
+    flutes : int
+        Cutting edges of the tool, in [1, 12].
+    filter_order : int
+        Order M of L; even and 4 × the number of zeros.
+    zero_radii, zero_angles_pi : tuple of float
+        L's zeros r_k e^{jπ a_k} (defaults: paper 002's, negated: angles 0.3, 0.57, 0.86).
+    w_taps : int
+        Taps N of W, in [2, 16].
+    spare_dof : str
+        ``"zero_dc"`` (W(1) = 0) or ``"rls"`` (the paper's RLS start decides).
+    include_ml : bool
+        Fit W against P_m = M_L z^−D_L P_n (True) or z^−D_L P_n (the reading that gives the paper's W).
+    rls_delta : float
+        R(0) = I/δ, in [1e-12, 1e-2].
+    rls_samples : int
+        Samples of s(n) for the RLS, in [100, 1e5].
+    """
+
+    spindle_rpm: float = param(1500.0, unit="rpm", low=1.0, high=9000.0, description="spindle speed")
+    flutes: int = param(2, low=1, high=12, description="cutting edges of the tool")
+    filter_order: int = param(12, description="order M of the linear-phase low-pass L (even, 4 x the zeros)")
+    zero_radii: tuple[float, ...] = param((0.9, 0.8, 0.85), description="radii r_k of L's zeros, each in (0, 1)")
+    zero_angles_pi: tuple[float, ...] = param((0.3, 0.57, 0.86), unit="pi rad",
+                                              description="angles of L's zeros (paper's printed ones negated)")
+    w_taps: int = param(3, low=2, high=16, description="taps N of W")
+    spare_dof: str = param("zero_dc", description=f"how W's spare degree of freedom is spent, {SPARE_DOF_CHOICES}")
+    include_ml: bool = param(True, description="fit W against M_L z^-D_L P_n (False: z^-D_L P_n, the paper's W)")
+    rls_delta: float = param(1.0e-5, low=1.0e-12, high=1.0e-2, description="RLS start R(0) = I/delta")
+    rls_samples: int = param(2000, low=100, high=100000, description="samples of the RLS fit")
+
+    def __post_init__(self) -> None:
+        self._validate("pdc")
+        for name in ("zero_radii", "zero_angles_pi"):
+            values = getattr(self, name)
+            if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__"):
+                raise ConfigError(f"pdc.{name} must be a list of numbers, got {values!r}")
+            checked = tuple(require_finite(f"{name}[{i}]", v, "pdc") for i, v in enumerate(values))
+            object.__setattr__(self, name, checked)
+        self.pdc_design()
+
+    def f_d_hz(self) -> float:
+        """The disturbance frequency f_d [Hz] (Eq. 2)."""
+        return disturbance_frequency_hz(self.spindle_rpm, int(self.flutes))
+
+    def pdc_design(self) -> PdcDesign:
+        """The design (cached), or a :class:`ConfigError` naming what refuses it."""
+        if int(self.filter_order) % 2:
+            raise ConfigError(f"pdc.filter_order must be even, got {self.filter_order}")
+        angles = tuple(math.pi * a for a in self.zero_angles_pi)
+        return design_pdc(self.nominal(), self.f_d_hz(), self.zero_radii, angles, int(self.filter_order),
+                          int(self.w_taps), self.spare_dof, bool(self.include_ml), self.rls_delta,
+                          int(self.rls_samples))
+
+
+@dataclass(frozen=True)
+class DobPdcConfig(PdcConfig, DobConfig):
+    """P loop + PDC inside + DOB outside (paper 002 Fig. 4).
+
+    W's spare degree of freedom defaults to the RLS's: with the DOB outside, W(1) = 0 raises the
+    disturbance peak from 1.56 to 1.75 (2.03 at +20 % inertia; ``docs/paper002_design.md``).
+    """
+
+    spare_dof: str = param("rls", description=f"how W's spare degree of freedom is spent, {SPARE_DOF_CHOICES}")
+
+    def __post_init__(self) -> None:
+        self._validate("dob_pdc")
+        DobConfig.__post_init__(self)
+        PdcConfig.__post_init__(self)
+
+
+@dataclass(frozen=True)
+class MbdaPdcConfig(PdcConfig, MbdaConfig):
+    """P loop + PDC inside + MBDA outside (paper 002 Fig. 6).
+
+    W's spare degree of freedom defaults to the RLS's (disturbance peak 1.39 against 1.56 with W(1) = 0).
+    """
+
+    spare_dof: str = param("rls", description=f"how W's spare degree of freedom is spent, {SPARE_DOF_CHOICES}")
+
+    def __post_init__(self) -> None:
+        self._validate("mbda_pdc")
+        PdcConfig.__post_init__(self)
+
+
+def _delayed_model(model: DiscreteVelocityModel) -> IirFilter:
+    """P_n/z⁻¹ as a filter: fed u(k−1), it gives [P_n u](k)."""
+    return IirFilter(strip_delay(model.numerator, 1), model.denominator)
+
+
+class DisturbanceLaw:
+    """The P position loop with the disturbance paths its config selects (see the module docstring).
+
+    Subclasses name the law and its config class; the config's type decides
+    the paths (a :class:`DobPdcConfig` is both a :class:`DobConfig` and a
+    :class:`PdcConfig`).
+    """
+
+    NAME = "disturbance"
+    CONFIG: type = PositionLoopConfig
+
+    def __init__(self, config: PositionLoopConfig) -> None:
+        self.output = LawOutput()
+        self._key: dict[str, object] = {}
+        self._h: FirFilter | None = None
+        self.retune(config)
+        self.reset()
+
+    def retune(self, config: PositionLoopConfig) -> None:
+        """New gains; a changed design swaps filters (H keeps its input history: a spindle change is bumpless).
+
+        The config was designed when it was built, so a design that fails never gets here and the law keeps
+        its last valid one.
+        """
+        self.config = require_config(self.NAME, config, self.CONFIG)
+        self._kp = config.kp
+        model = config.nominal()
+        self._dt_s = self.sample_time_s = model.sample_time_s  # the design's period: the law runs at no other
+        self._retune_pdc(config, model)
+        self._retune_dob(config, model)
+        self._retune_mbda(config, model)
+
+    def _changed(self, path: str, key: object) -> bool:
+        if self._key.get(path) == key:
+            return False
+        self._key[path] = key
+        return True
+
+    def _retune_pdc(self, config: PositionLoopConfig, model: DiscreteVelocityModel) -> None:
+        if not isinstance(config, PdcConfig):
+            return
+        self.design = config.pdc_design()
+        if self._changed("pdc_model", model):
+            self._pdc_model = _delayed_model(model)
+        if self._h is None:
+            self._h = FirFilter(self.design.h)
+        else:
+            self._h.set_taps(self.design.h)
+
+    def _retune_dob(self, config: PositionLoopConfig, model: DiscreteVelocityModel) -> None:
+        self._dob = isinstance(config, DobConfig)
+        if self._dob and self._changed("dob", (model, config.q_design())):
+            inverse, shifted = dob_filters(config.q_design(), model)
+            self._q_inverse, self._q_command = IirFilter(*inverse), IirFilter(*shifted)
+
+    def _retune_mbda(self, config: PositionLoopConfig, model: DiscreteVelocityModel) -> None:
+        self._mbda = isinstance(config, MbdaConfig)
+        if self._mbda and self._changed("mbda", (model, config.mbda_kp, config.mbda_ki)):
+            self._mbda_model = _delayed_model(model)
+            self._m = IirFilter(*mbda_pi(config.mbda_kp, config.mbda_ki, self._dt_s))
+
+    def reset(self) -> None:
+        """Zero every filter and the previous corrections."""
+        for name in ("_pdc_model", "_h", "_q_inverse", "_q_command", "_mbda_model", "_m"):
+            flt = getattr(self, name, None)
+            if flt is not None:
+                flt.reset()
+        self._te = self._dh = self._c = 0.0
+
+    def step(self, sample: LawSample) -> LawOutput:
+        """One sample (see the module docstring); a period other than the model's is a :class:`FaultError`."""
+        if abs(sample.dt_s - self._dt_s) > PERIOD_TOLERANCE * self._dt_s:
+            raise FaultError(f"{self.NAME}: dt_s must be the model's sample time {self._dt_s:g} s, got {sample.dt_s!r}")
+        y, v = sample.velocity_counts_s, sample.applied_command
+        u_nom = v + self._te + self._dh - self._c
+        te = self._h.step(y - self._pdc_model.step(v)) if self._h is not None else 0.0
+        dh = self._q_inverse.step(y) - self._q_command.step(v + self._te) if self._dob else 0.0
+        c = self._m.step(self._mbda_model.step(u_nom) - y) if self._mbda else 0.0
+        self._te, self._dh, self._c = te, dh, c
+        out = self.output
+        out.feedback = self._kp * sample.error_counts - dh - te + c
+        out.disturbance_estimate = dh + te - c
+        return out
+
+
+class DobLaw(DisturbanceLaw):
+    """P loop + DOB."""
+
+    NAME, CONFIG = "dob", DobConfig
+
+
+class MbdaLaw(DisturbanceLaw):
+    """P loop + MBDA."""
+
+    NAME, CONFIG = "mbda", MbdaConfig
+
+
+class PdcLaw(DisturbanceLaw):
+    """P loop + PDC."""
+
+    NAME, CONFIG = "pdc", PdcConfig
+
+
+class DobPdcLaw(DisturbanceLaw):
+    """P loop + PDC inside, DOB outside."""
+
+    NAME, CONFIG = "dob_pdc", DobPdcConfig
+
+
+class MbdaPdcLaw(DisturbanceLaw):
+    """P loop + PDC inside, MBDA outside."""
+
+    NAME, CONFIG = "mbda_pdc", MbdaPdcConfig
