@@ -4,6 +4,7 @@ One tick k, in order::
 
     stage          node (package executable)              inputs                         outputs
     plant          cnc_plant_sim plant                    servo/{axis}/command           joint_states, /clock
+                                                                                         [tool_position]
     interpolator   cnc_contour_control interpolator       joint_states [feed_override]   reference, path
     estimator      cnc_contour_control estimator          joint_states, reference        contour_error
     compensator    cnc_contour_control compensator        joint_states, reference,       compensation
@@ -16,7 +17,9 @@ The plant closes the tick: it integrates once it holds every axis's command
 for the tick. The estimator reads the part program from its file, as the
 interpolator does (the path estimator measures against its geometry). A stage whose ``optional`` flag is set runs only when the
 scenario asks for it; an optional *input* (in brackets) is taken only when
-the stage that produces it runs. The engine steps the same list in the same
+the stage that produces it runs; an optional *output* (in brackets) is
+published only when the run switches it on (``tool_position``: a plant with
+machine faults). The engine steps the same list in the same
 order; the runner starts one node per stage (one per axis for the servo);
 the recorder and the bag reader take the per-tick topics from it.
 """
@@ -45,6 +48,8 @@ class Stage:
         Topic patterns it publishes.
     optional_inputs : tuple of str
         Inputs taken only when their producing stage is part of the run.
+    optional_outputs : tuple of str
+        Outputs published only when the run switches them on (:attr:`Pipeline.outputs_on`).
     per_axis : bool
         One node per axis.
     optional : bool
@@ -58,6 +63,7 @@ class Stage:
     outputs: tuple[str, ...]
     optional_inputs: tuple[str, ...] = ()
     per_axis: bool = False
+    optional_outputs: tuple[str, ...] = ()
     optional: bool = False
 
     def node_names(self, axes: Iterable[str]) -> tuple[str, ...]:
@@ -65,7 +71,8 @@ class Stage:
         return tuple(f"{self.name}_{a}" for a in axes) if self.per_axis else (self.name,)
 
 
-PLANT = Stage("plant", "cnc_plant_sim", "plant", (t.COMMAND.name,), (t.JOINT_STATES.name, t.CLOCK.name))
+PLANT = Stage("plant", "cnc_plant_sim", "plant", (t.COMMAND.name,), (t.JOINT_STATES.name, t.CLOCK.name),
+              optional_outputs=(t.TOOL_POSITION.name,))
 INTERPOLATOR = Stage("interpolator", "cnc_contour_control", "interpolator", (t.JOINT_STATES.name,),
                      (t.REFERENCE.name, t.PATH.name), optional_inputs=(t.FEED_OVERRIDE.name,))
 ESTIMATOR = Stage("estimator", "cnc_contour_control", "estimator",
@@ -85,10 +92,11 @@ STAGES: dict[str, Stage] = {s.name: s for s in PIPELINE}
 
 @dataclass(frozen=True)
 class Pipeline:
-    """The stages of one run, in tick order, with the run's axes."""
+    """The stages of one run, in tick order, with the run's axes and the optional outputs it switches on."""
 
     stages: tuple[Stage, ...]
     axes: tuple[str, ...]
+    outputs_on: frozenset[str] = frozenset()
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -101,11 +109,16 @@ class Pipeline:
 
     def produced(self) -> tuple[str, ...]:
         """Relative names of every topic some stage of the run publishes (per-axis topics expanded)."""
-        return tuple(n for s in self.stages for pattern in s.outputs for n in t.topic(pattern).names(self.axes))
+        return tuple(n for s in self.stages for pattern in self.outputs_of(s)
+                     for n in t.topic(pattern).names(self.axes))
+
+    def outputs_of(self, stage: Stage) -> tuple[str, ...]:
+        """The topic patterns ``stage`` publishes in this run (optional outputs only when switched on)."""
+        return stage.outputs + tuple(p for p in stage.optional_outputs if p in self.outputs_on)
 
     def inputs_of(self, stage: Stage) -> tuple[str, ...]:
         """The topic patterns ``stage`` waits for each tick in this run (optional inputs only if produced)."""
-        outputs = {pattern for s in self.stages for pattern in s.outputs}
+        outputs = {pattern for s in self.stages for pattern in self.outputs_of(s)}
         return stage.inputs + tuple(p for p in stage.optional_inputs if p in outputs)
 
     def per_tick_topics(self) -> tuple[str, ...]:
@@ -138,13 +151,17 @@ def _per_tick(name: str, axes: Sequence[str]) -> bool:
     return False
 
 
-def pipeline(axes: Sequence[str], optional: Collection[str] = ()) -> Pipeline:
-    """The pipeline of a run on ``axes`` with the ``optional`` stages asked for (by name)."""
+def pipeline(axes: Sequence[str], optional: Collection[str] = (), outputs: Collection[str] = ()) -> Pipeline:
+    """The pipeline of a run on ``axes`` with the ``optional`` stages and optional ``outputs`` asked for (by name)."""
     known = {s.name for s in PIPELINE if s.optional}
     unknown = sorted(set(optional) - known)
     if unknown:
         raise ConfigError(f"stage must be one of {sorted(known)}, got {unknown[0]!r}")
+    known_outputs = {p for s in PIPELINE for p in s.optional_outputs}
+    unknown = sorted(set(outputs) - known_outputs)
+    if unknown:
+        raise ConfigError(f"optional output must be one of {sorted(known_outputs)}, got {unknown[0]!r}")
     if not axes:
         raise ConfigError("a pipeline needs at least one axis")
     chosen = tuple(s for s in PIPELINE if not s.optional or s.name in optional)
-    return Pipeline(chosen, tuple(axes))
+    return Pipeline(chosen, tuple(axes), frozenset(outputs))

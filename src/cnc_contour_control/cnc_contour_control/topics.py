@@ -72,12 +72,14 @@ CONTOUR_ERROR = Topic("contour_error", "cnc_contour_interfaces/msg/ContourError"
 COMPENSATION = Topic("compensation", "cnc_contour_interfaces/msg/Compensation", "lockstep", per_tick=True)
 FEED_OVERRIDE = Topic("feed_override", "cnc_contour_interfaces/msg/FeedOverride", "lockstep", per_tick=True)
 CUTTING_FORCE = Topic("cutting_force", "geometry_msgs/msg/WrenchStamped", "lockstep", per_tick=True)
+#: The tool position of a plant with machine faults (``name``: axes, ``position`` [m]; what a ballbar measures).
+TOOL_POSITION = Topic("tool_position", "sensor_msgs/msg/JointState", "lockstep", per_tick=True)
 CLOCK = Topic("/clock", "rosgraph_msgs/msg/Clock", "lockstep")
 DIAGNOSTICS = Topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", "status")
 
 #: Every topic of the suite by its (relative) name pattern.
 TOPICS: dict[str, Topic] = {t.name: t for t in (JOINT_STATES, REFERENCE, PATH, COMMAND, CONTOUR_ERROR, COMPENSATION,
-                                                 FEED_OVERRIDE, CUTTING_FORCE, CLOCK, DIAGNOSTICS)}
+                                                 FEED_OVERRIDE, CUTTING_FORCE, TOOL_POSITION, CLOCK, DIAGNOSTICS)}
 
 
 def topic(name: str) -> Topic:

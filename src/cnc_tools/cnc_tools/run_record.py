@@ -171,6 +171,17 @@ class ForceSeries:
     torque_n_m: FloatArray
 
 
+@dataclass(frozen=True, eq=False)
+class ToolPositionSeries:
+    """The tool position (``tool_position`` topic) of a plant with machine faults: (N, n_axes) [m], axis order.
+
+    What a ballbar measures; ``joint_states`` keep the motor side the servo feeds back on.
+    """
+
+    stamp_ns: IntArray
+    position_m: FloatArray
+
+
 #: Where a record came from.
 BACKENDS = ("graph", "engine", "bag")
 
@@ -191,9 +202,9 @@ class RunRecord:
         The per-tick series every run has (``reference`` None only in a bag without it).
     integrity : BagIntegrity
         How completely the series were read.
-    contour_error, compensation, feed_override, cutting_force
-        Series of the optional stages and of a plant that knows its process
-        force; None when the run had none.
+    contour_error, compensation, feed_override, cutting_force, tool_position
+        Series of the optional stages, of a plant that knows its process
+        force and of a plant with machine faults; None when the run had none.
     summary : Mapping
         The run's own account: ``ticks``, ``status``, ``faults``, ``wall_time_s``,
         ``real_time_factor``, the plant as drawn (what the plant node writes to
@@ -213,6 +224,7 @@ class RunRecord:
     compensation: CompensationSeries | None = None
     feed_override: FeedOverrideSeries | None = None
     cutting_force: ForceSeries | None = None
+    tool_position: ToolPositionSeries | None = None
     summary: Mapping[str, Any] = field(default_factory=dict)
     backend: str = "bag"
 

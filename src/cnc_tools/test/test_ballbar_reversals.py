@@ -113,3 +113,26 @@ def test_bad_window_and_sparse_flanks_are_errors() -> None:
         diagnose_reversals([_trace("ccw")], window_deg=30)
     with pytest.raises(ConfigError, match="flank"):
         diagnose_reversals([_trace("ccw")], window_deg=0.05)
+
+
+def _lateral_play_trace(direction: str, play_m: float, axis: str) -> CircleTrace:
+    """The ``axis`` carriage shifted by ±play/2 along the other axis, with the sign of −(its velocity)."""
+    sign = 1.0 if direction == "ccw" else -1.0
+    theta = sign * (np.linspace(0.0, 2.0 * math.pi, N, endpoint=False) + math.pi / N)
+    x, y = R_M * np.cos(theta), R_M * np.sin(theta)
+    if axis == "x":
+        y = y + 0.5 * play_m * np.sign(sign * np.sin(theta))  # ẋ = −R ω sin θ: shift +play/2 while ẋ < 0
+    else:
+        x = x + 0.5 * play_m * np.sign(-sign * np.cos(theta))  # ẏ = R ω cos θ: shift +play/2 while ẏ < 0
+    return CircleTrace(np.column_stack((x + CENTRE_M[0], y + CENTRE_M[1])), CENTRE_M, R_M, direction)
+
+
+@pytest.mark.parametrize("axis", ["x", "y"])
+def test_lateral_play_is_the_perpendicular_shift_at_the_axis_reversals(axis: str) -> None:
+    play_um = 8.0
+    d = diagnose_reversals([_lateral_play_trace(direction, play_um * 1e-6, axis) for direction in ("ccw", "cw")])
+    other = "y" if axis == "x" else "x"
+    _within(getattr(d, f"lateral_{axis}_um"), play_um)
+    assert abs(getattr(d, f"lateral_{other}_um")) <= 0.5
+    # a perpendicular shift is no radial step: no backlash read on either axis
+    assert abs(d.backlash_x_um) <= 0.5 and abs(d.backlash_y_um) <= 0.5

@@ -1,4 +1,5 @@
-"""Plant node: simulated feed drives. Owns /clock, publishes joint_states, applies commands."""
+"""Plant node: simulated feed drives. Owns /clock, publishes joint_states (and tool_position with machine
+faults), applies commands."""
 from __future__ import annotations
 
 import json
@@ -16,14 +17,18 @@ from cnc_contour_control.lockstep import NS_PER_S, StampMatcher
 from cnc_contour_control.topics import RUN_FINISHED, TICKS_KEY
 from cnc_contour_control.nodes.common import (
     LOCKSTEP_QOS,
+    ReaderGate,
     SuiteNode,
+    describe,
     spin_node,
     stamp_to_ns,
+    type_name_of,
     wall_time_s,
 )
 from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config, nested
 from cnc_plant_sim.axis import AxisConfig
 from cnc_plant_sim.friction import friction_config_class
+from cnc_plant_sim.machine_faults import AxisFaults, FaultedPlant, MachineFaults, tool_positions_m
 from cnc_plant_sim.nodes.conversions import clock_msg, command_value, joint_state_msg
 from cnc_plant_sim.plant import PLANTS, PlantConfig, make_plant
 from cnc_plant_sim.run_clock import RunClock
@@ -33,18 +38,24 @@ from cnc_plant_sim.run_params import PlantRunParams
 #: ``PLANTS[model].axis_config``, :class:`AxisConfig` for feed drives) and
 #: ``axis_overrides.<axis>.friction_params.<key>`` (the keys of the axis's friction model).
 OVERRIDES = "axis_overrides"
+#: Machine faults are the parameters ``faults.*`` (:class:`MachineFaults` but its axes) and
+#: ``faults.axes.<axis>.<key>`` (the keys of :class:`AxisFaults`), unset unless given.
+FAULTS = "faults"
 
 
 def plant_parameters(node: SuiteNode) -> ConfigParameters[PlantConfig]:
     """PlantConfig's fields as parameters (``variation.*`` nested) and each axis's overrides, unset unless given."""
     parameters = ConfigParameters(node, lambda mapping: PlantConfig.from_mapping(mapping))
-    values = parameters.add(Section(PlantConfig, skip=(OVERRIDES,)))
+    values = parameters.add(Section(PlantConfig, skip=(OVERRIDES, FAULTS)))
     axes = values["axes"]
     axes = [a for a in axes if isinstance(a, str)] if isinstance(axes, list) else []
     entry = PLANTS.get(values["model"])  # an unknown model: declare() reports it with the config's error
     axis_config = entry.axis_config if entry is not None else AxisConfig
     for axis in axes:
         parameters.add(Section(axis_config, f"{OVERRIDES}.{axis}", skip=("name", "friction_params"), unset=True))
+    parameters.add(Section(MachineFaults, FAULTS, skip=("axes",)))
+    for axis in axes:
+        parameters.add(Section(AxisFaults, f"{FAULTS}.axes.{axis}", unset=True))
     for axis, friction in _frictions(parameters, axes).items():
         parameters.add(Section(friction_config_class(friction), f"{OVERRIDES}.{axis}.friction_params", unset=True,
                                read_only=True))
@@ -83,6 +94,7 @@ class PlantNode(SuiteNode):
         self.started = False
         self.joint_pub = self.create_publisher(JointState, "joint_states", LOCKSTEP_QOS)
         self.joint_gate = self.reader_gate(self.joint_pub, JointState, "expected_subscribers", 1)
+        self.tool_pub, self.tool_gate = self._tool_position_publisher()
         self.clock_pub = self.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
         for axis in self.axes:
             self.subscribe_checked(AxisCommand, f"servo/{axis}/command", self._command_callback(axis))
@@ -90,14 +102,24 @@ class PlantNode(SuiteNode):
         self.create_timer(0.1, self.guarded(self._watchdog))
         self.create_timer(1.0, self._write_progress)
 
+    def _tool_position_publisher(self) -> tuple[Any, ReaderGate | None]:
+        """``tool_position`` and its gate (``tool_position_subscribers`` readers) when the plant has faults."""
+        count = self.declare("tool_position_subscribers", 0, describe(
+            "readers of tool_position (recorders) to wait for before publishing", 0, 1000, True, True))
+        if not isinstance(self.plant, FaultedPlant):
+            return None, None
+        publisher = self.create_publisher(JointState, "tool_position", LOCKSTEP_QOS)
+        return publisher, ReaderGate(self, publisher, type_name_of(JointState), (), count)
+
     def _wait_for_graph(self) -> None:
         if self.started:
             return
         ready = all(self.count_publishers(self.resolve_topic_name(f"servo/{a}/command")) >= 1 for a in self.axes)
-        stalled = self.joint_gate.overdue(self.matcher.startup_timeout_s)
+        gates = [g for g in (self.joint_gate, self.tool_gate) if g is not None]
+        stalled = next((m for m in (g.overdue(self.matcher.startup_timeout_s) for g in gates) if m), None)
         if stalled:
             self.fault(f"plant: {stalled}")
-        elif ready and self.joint_gate.ready():
+        elif ready and all(g.ready() for g in gates):
             self.started = True
             self.clock.started_wall_s = wall_time_s()
             self.get_logger().info(f"graph ready, running {self.mode} for {self.clock.duration_s} s")
@@ -111,6 +133,8 @@ class PlantNode(SuiteNode):
         # joint_states first: it starts the next stages; /clock is off the critical path.
         positions_m, velocities_m_s = self.plant.state()
         self.joint_pub.publish(joint_state_msg(self.axes, positions_m, velocities_m_s, stamp_ns))
+        if self.tool_pub is not None:
+            self.tool_pub.publish(joint_state_msg(self.axes, tool_positions_m(self.plant), (), stamp_ns))
         self.clock_pub.publish(clock_msg(stamp_ns))
         if self.mode == "lockstep":
             self.matcher.expect(stamp_ns, wall_time_s())

@@ -14,10 +14,21 @@ out), the angle about its centre. Around each reversal angle ``θr``, with
 - ``step_um`` = after-line at ``θr`` − before-line at ``θr``: the backlash step,
   positive when the radius jumps outwards as the axis reverses;
 - ``spike_um`` = the deviation inside ``±w`` minus the flank line of its side
-  (before/after), the value of largest magnitude, signed (positive outwards).
+  (before/after), the value of largest magnitude, signed (positive outwards);
+- ``lateral_um`` = the lateral step: a shift ``t`` of the trace perpendicular to
+  the reversing axis (along the other axis) appearing at ``θr`` adds
+  ``t·sin(θ − θr)`` to the radius after it, a change of slope ``t`` per radian
+  and no step (the radius alone cannot show a perpendicular shift as a step);
+  ``t`` is the kink of one least-squares fit to both flanks,
+  ``a + b u + c u² + s H + t u H`` (``u`` the angle after ``θr`` in time, rad,
+  ``H`` 1 after it; the shared ``c u²`` takes a smooth trend's curvature),
+  signed along the *other* axis's + direction.
 
 Per axis: ``spike_*_um`` is the signed spike of largest magnitude over that
-axis's reversals (all traces), ``backlash_*_um`` the mean of its steps.
+axis's reversals (all traces), ``backlash_*_um`` the mean of its steps,
+``lateral_*_um`` the mean of its lateral steps times the motion's sign (+1 at
+"+ to -", −1 at "- to +": a play that follows the reversing axis's direction
+of force has one sign).
 """
 from __future__ import annotations
 
@@ -52,6 +63,7 @@ class Reversal:
     motion: str
     spike_um: float
     step_um: float
+    lateral_um: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -64,6 +76,8 @@ class ReversalDiagnosis:
     spike_y_um: float
     backlash_x_um: float
     backlash_y_um: float
+    lateral_x_um: float = 0.0
+    lateral_y_um: float = 0.0
 
 
 def radial_deviation(trace: CircleTrace) -> tuple[FloatArray, FloatArray]:
@@ -103,8 +117,29 @@ def reversal_at(trace: CircleTrace, axis: str, angle_deg: float, window_deg: flo
     baseline = np.where(after_deg[inside] >= 0.0, after(offset[inside]), before(offset[inside]))
     excess = deviation[inside] - baseline
     spike_m = float(excess[np.argmax(np.abs(excess))]) if excess.size else 0.0
-    return Reversal(trace.direction, axis, angle_deg, _motion(axis, angle_deg),
-                    spike_m * UM_PER_M, float(after(0.0) - before(0.0)) * UM_PER_M)
+    flanks = (np.abs(after_deg) >= window_deg) & (np.abs(after_deg) <= 2 * window_deg)
+    shift_m = lateral_shift(np.radians(after_deg[flanks]), deviation[flanks]) * sign
+    return Reversal(trace.direction, axis, angle_deg, _motion(axis, angle_deg), spike_m * UM_PER_M,
+                    float(after(0.0) - before(0.0)) * UM_PER_M,
+                    shift_m * _tangent_along_other(axis, angle_deg) * UM_PER_M)
+
+
+def lateral_shift(after_rad: FloatArray, deviation_m: FloatArray) -> float:
+    """The kink ``t`` of the flanks' deviation (m): least squares of ``a + b u + c u² + s H + t u H``.
+
+    ``u`` (rad) is the angle from the reversal in time order (> 0 after it), ``H`` 1 after it; the shared
+    ``c u²`` takes the curvature any smooth trend has, ``s`` the step, so ``t`` is the change of slope alone.
+    """
+    after = (after_rad > 0.0).astype(float)
+    design = np.column_stack((np.ones_like(after_rad), after_rad, after_rad**2, after, after_rad * after))
+    coef, *_ = np.linalg.lstsq(design, deviation_m, rcond=None)
+    return float(coef[4])
+
+
+def _tangent_along_other(axis: str, angle_deg: float) -> float:
+    """The component along the other axis's + direction of the ccw tangent ``(−sin θ, cos θ)`` at ``angle_deg``."""
+    theta = math.radians(angle_deg)
+    return round(math.cos(theta)) if axis == "x" else round(-math.sin(theta))
 
 
 def _signed_largest(values: Sequence[float]) -> float:
@@ -138,7 +173,13 @@ def diagnose_reversals(traces: Sequence[CircleTrace], window_deg: float = WINDOW
         spike_x_um=_signed_largest([r.spike_um for r in by_axis["x"]]),
         spike_y_um=_signed_largest([r.spike_um for r in by_axis["y"]]),
         backlash_x_um=float(np.mean([r.step_um for r in by_axis["x"]])),
-        backlash_y_um=float(np.mean([r.step_um for r in by_axis["y"]])))
+        backlash_y_um=float(np.mean([r.step_um for r in by_axis["y"]])),
+        lateral_x_um=_lateral(by_axis["x"]), lateral_y_um=_lateral(by_axis["y"]))
+
+
+def _lateral(reversals: Sequence[Reversal]) -> float:
+    """Mean lateral step times the motion's sign (+1 at "+ to -", −1 at "- to +")."""
+    return float(np.mean([r.lateral_um * (1.0 if r.motion == "+ to -" else -1.0) for r in reversals]))
 
 
 #: Colour of each direction's trace in the polar plot (a registry).
@@ -156,7 +197,8 @@ def report_lines(diagnosis: BallbarDiagnosis, reversals: ReversalDiagnosis) -> l
              f"servo mismatch {_fmt(diagnosis.servo_mismatch_um, 'µm')}",
              f"squareness {_fmt(diagnosis.squareness_urad, 'µrad')}",
              f"scale mismatch {_fmt(diagnosis.scale_mismatch_ppm, 'ppm')}",
-             f"backlash x {_fmt(reversals.backlash_x_um, 'µm')}, y {_fmt(reversals.backlash_y_um, 'µm')}"]
+             f"backlash x {_fmt(reversals.backlash_x_um, 'µm')}, y {_fmt(reversals.backlash_y_um, 'µm')}",
+             f"lateral x {_fmt(reversals.lateral_x_um, 'µm')}, y {_fmt(reversals.lateral_y_um, 'µm')}"]
     lines += [f"spike {r.direction} {r.axis} {r.angle_deg:g}°: {r.spike_um:.3g} µm" for r in reversals.reversals]
     return lines
 

@@ -43,6 +43,7 @@ from cnc_tools.run_record import (
     JointStateSeries,
     RecordedRun,
     ReferenceSeries,
+    ToolPositionSeries,
 )
 from cnc_tools.bagio.typestore import ColumnBlock, decode_columns, project_typestore
 from cnc_contour_control.lockstep import NS_PER_S
@@ -175,7 +176,8 @@ class BagWriter:
 # =========================================================================== topics read
 #: Topics a run record is decoded from (relative names; ``servo/<axis>/command`` besides).
 _DECODED = (topics.JOINT_STATES.name, topics.REFERENCE.name, topics.PATH.name, topics.CONTOUR_ERROR.name,
-            topics.COMPENSATION.name, topics.FEED_OVERRIDE.name, topics.CUTTING_FORCE.name)
+            topics.COMPENSATION.name, topics.FEED_OVERRIDE.name, topics.CUTTING_FORCE.name,
+            topics.TOOL_POSITION.name)
 
 
 @dataclass(frozen=True)
@@ -318,7 +320,7 @@ _WRENCH = _Fields(scalars=tuple(f"wrench.{part}.{c}" for part in ("force", "torq
 
 
 def _stage_series(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict[str, object]:
-    """The optional stages' series (estimator, compensator, feed override, cutting force) where the bag has them."""
+    """The optional series (estimator, compensator, feed override, cutting force, tool position) the bag has."""
     out: dict[str, object] = {}
     topic = names.topic(topics.CONTOUR_ERROR.name)
     if raw.data.get(topic):
@@ -341,6 +343,10 @@ def _stage_series(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict
         c = _columns(raw, topic, _WRENCH, axes, names)
         force, torque = (np.column_stack([c[f"wrench.{part}.{x}"] for x in _XYZ]) for part in ("force", "torque"))
         out["cutting_force"] = ForceSeries(c["stamp_ns"], force, torque)  # type: ignore[arg-type]
+    topic = names.topic(topics.TOOL_POSITION.name)
+    if raw.data.get(topic):
+        c = _columns(raw, topic, _Fields("name", {"position": True}), axes, names)
+        out["tool_position"] = ToolPositionSeries(c["stamp_ns"], c["position"])  # type: ignore[arg-type]
     return out
 
 

@@ -97,8 +97,17 @@ def _wrenches(record: RunRecord) -> Iterator[tuple[int, Any]]:
                                                          torque=vector(*map(float, w.torque_n_m[k]))))
 
 
+def _tool_positions(record: RunRecord) -> Iterator[tuple[int, Any]]:
+    make, p = project_typestore().types[topics.TOOL_POSITION.type_name], record.tool_position
+    names = list(record.axis_names)
+    for k, stamp in enumerate([] if p is None else p.stamp_ns.tolist()):
+        yield stamp, make(header=_header(stamp), name=names, position=p.position_m[k].copy(),
+                          velocity=np.zeros(0), effort=np.zeros(0))
+
+
 #: Optional series: record field -> (topic, its messages).
-_OPTIONAL = {"contour_error": (topics.CONTOUR_ERROR, _estimates), "compensation": (topics.COMPENSATION, _compensations),
+_OPTIONAL = {"tool_position": (topics.TOOL_POSITION, _tool_positions),
+             "contour_error": (topics.CONTOUR_ERROR, _estimates), "compensation": (topics.COMPENSATION, _compensations),
              "feed_override": (topics.FEED_OVERRIDE, _overrides), "cutting_force": (topics.CUTTING_FORCE, _wrenches)}
 
 

@@ -21,15 +21,18 @@ from cnc_contour_control.lockstep import join_ns
 from cnc_contour_control.stages import pipeline
 
 
-def run_topics(namespace: str, axes: Sequence[str], optional_stages: Collection[str] = ()) -> dict[str, str]:
+def run_topics(namespace: str, axes: Sequence[str], optional_stages: Collection[str] = (),
+               optional_outputs: Collection[str] = ()) -> dict[str, str]:
     """Fully qualified topics a recorder of the run records, with their types (absolute ones stay absolute)."""
-    recorded = pipeline(axes, optional_stages).recorded_topics()
+    recorded = pipeline(axes, optional_stages, optional_outputs).recorded_topics()
     return {t.qualify(namespace, name): type_name for name, type_name in recorded.items()}
 
 
-def per_tick_topics(namespace: str, axes: Sequence[str], optional_stages: Collection[str] = ()) -> tuple[str, ...]:
+def per_tick_topics(namespace: str, axes: Sequence[str], optional_stages: Collection[str] = (),
+                    optional_outputs: Collection[str] = ()) -> tuple[str, ...]:
     """Fully qualified topics that carry one message per tick in the run."""
-    return tuple(t.qualify(namespace, name) for name in pipeline(axes, optional_stages).per_tick_topics())
+    per_tick = pipeline(axes, optional_stages, optional_outputs).per_tick_topics()
+    return tuple(t.qualify(namespace, name) for name in per_tick)
 
 
 def is_latched(type_name: str) -> bool:

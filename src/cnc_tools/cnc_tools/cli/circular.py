@@ -1,5 +1,5 @@
-"""``cnc-contour circular BAG [BAG] [--json FILE] [--plot FILE.png]``: ballbar diagnoses of a recorded circle
-(and its reverse).
+"""``cnc-contour circular BAG [BAG] [--json FILE] [--plot FILE.png] [--pitch-mm AXIS=MM]``: ballbar diagnoses
+of a recorded circle (and its reverse).
 
 Each bag's program must be one circle (:func:`cnc_tools.analysis.circular.circle_of`);
 its direction is the arcs' (``clockwise`` flag), its feed the arcs' programmed feed
@@ -33,14 +33,16 @@ from cnc_tools.analysis.ballbar import (
     CircleTrace,
     diagnose_circles,
 )
+from cnc_tools.analysis.ballbar_cyclic import PLANE_AXES, CyclicFit, fit_cyclic_error
 from cnc_tools.analysis.ballbar_reversals import (WINDOW_DEG, ReversalDiagnosis, diagnose_reversals,
                                                   write_polar_plot)
 from cnc_tools.analysis.circular import Circle, circle_of
 from cnc_tools.run_record import RunRecord
 
 #: How the samples of a trace are chosen (printed and written to the JSON).
-SAMPLE_RULE = ("measured positions at the stamps joint_states and reference share, while the reference "
-               "is on the circle's arc and not done (settle after the program left out)")
+SAMPLE_RULE = ("measured positions (tool_position when recorded, else joint_states) at the stamps they and "
+               "reference share, while the reference is on the circle's arc and not done (settle after the "
+               "program left out)")
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,8 @@ REVERSAL_ROWS: tuple[Row, ...] = (
     Row("spike_y_um", "µm", "largest reversal spike of y (90°/270°) over the traces, signed"),
     Row("backlash_x_um", "µm", "mean step (after - before in time) of the radius across the x reversals"),
     Row("backlash_y_um", "µm", "mean step (after - before in time) of the radius across the y reversals"),
+    Row("lateral_x_um", "µm", "mean shift along y at the x reversals (flank slope change per rad) x motion sign"),
+    Row("lateral_y_um", "µm", "mean shift along x at the y reversals (flank slope change per rad) x motion sign"),
 )
 REVERSAL_HOW = ("{what} at the {axis} reversal at {angle:g}° ({motion}), window ±{w:g}°, "
                 "flank lines {w:g}..{w2:g}° each side")
@@ -99,6 +103,28 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("bags", nargs="+", type=Path, help="one or two bags: a cw and a ccw run of one circle")
     parser.add_argument("--json", type=Path, help="also write the diagnosis to this JSON file")
     parser.add_argument("--plot", type=Path, help="also write the annotated polar plot to this PNG file")
+    parser.add_argument("--pitch-mm", action="append", default=[], metavar="AXIS=MM",
+                        help="fit the cyclic (lead-screw pitch) error of a plane axis (x: the plane's first, "
+                             "y: its second) of this pitch, mm; repeat for the other axis")
+
+
+def pitches(words: Sequence[str]) -> dict[str, float]:
+    """``["x=5", "y=4"]`` -> ``{"x": 5.0, "y": 4.0}``; CncError names a bad word."""
+    out: dict[str, float] = {}
+    for word in words:
+        axis, _, value = word.partition("=")
+        try:
+            out[axis.strip()] = float(value)
+        except ValueError as err:
+            raise CncError(f"--pitch-mm must be AXIS=MM with AXIS one of {sorted(PLANE_AXES)}, got {word!r}") from err
+    return out
+
+
+def cyclic_rows(fit: CyclicFit) -> list[tuple[str, float | None, str, str]]:
+    """``(quantity, value, unit, how)`` of the pitch-error fit, one row per axis."""
+    return [(f"cyclic_pitch_{axis}_um", amplitude, "µm",
+             f"amplitude of A sin(2π q_{axis}/P) fitted with P = {fit.pitch_mm[axis]:g} mm (least squares, "
+             f"harmonics 0..2 per trace beside it)") for axis, amplitude in fit.amplitude_um.items()]
 
 
 def _direction(bag: Path, arcs: Sequence[ArcSegment]) -> str:
@@ -108,14 +134,22 @@ def _direction(bag: Path, arcs: Sequence[ArcSegment]) -> str:
     return directions.pop()
 
 
+def measured_positions(record: RunRecord) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps (N,) [ns] and positions (N, n_axes) [m] a ballbar would measure: the tool position when the run
+    recorded one (a plant with machine faults), else the joint states (motor side)."""
+    series = record.tool_position if record.tool_position is not None else record.joint_states
+    return series.stamp_ns, series.position_m
+
+
 def arc_samples(record: RunRecord, circle: Circle) -> np.ndarray:
     """Measured plane positions (M, 2), m, on the circle's arc (see :data:`SAMPLE_RULE`)."""
     reference = record.reference
     if reference is None:
         raise CncError("the bag holds no reference, so the samples on the circle cannot be told apart")
-    _, js_rows, ref_rows = np.intersect1d(record.joint_states.stamp_ns, reference.stamp_ns, return_indices=True)
+    stamp_ns, position_m = measured_positions(record)
+    _, js_rows, ref_rows = np.intersect1d(stamp_ns, reference.stamp_ns, return_indices=True)
     on_arc = ~reference.done[ref_rows] & (reference.segment_index[ref_rows] < len(record.program.segments))
-    points = record.joint_states.position_m[js_rows[on_arc]][:, list(circle.plane)]
+    points = position_m[js_rows[on_arc]][:, list(circle.plane)]
     return points[np.isfinite(points).all(axis=1)]
 
 
@@ -184,8 +218,8 @@ def reversal_rows(reversals: ReversalDiagnosis) -> list[tuple[str, float | None,
     return rows
 
 
-def table_rows(diagnosis: BallbarDiagnosis,
-               reversals: ReversalDiagnosis | None = None) -> list[tuple[str, float | None, str, str]]:
+def table_rows(diagnosis: BallbarDiagnosis, reversals: ReversalDiagnosis | None = None,
+               cyclic: CyclicFit | None = None) -> list[tuple[str, float | None, str, str]]:
     """``(quantity, value, unit, how)`` for every row; ``None`` where a diagnosis was skipped."""
     rows: list[tuple[str, float | None, str, str]] = [
         (row.field, getattr(diagnosis, row.field), row.unit, row.how) for row in ROWS]
@@ -193,16 +227,17 @@ def table_rows(diagnosis: BallbarDiagnosis,
              for k, value in zip(CYCLIC_HARMONICS, diagnosis.cyclic_error_um)]
     for trace in diagnosis.traces:
         rows += [(f"{trace.direction}.{row.field}", getattr(trace, row.field), row.unit, row.how) for row in TRACE_ROWS]
+    rows += cyclic_rows(cyclic) if cyclic is not None else []
     return rows + (reversal_rows(reversals) if reversals is not None else [])
 
 
 def to_table(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
-             reversals: ReversalDiagnosis | None = None) -> str:
+             reversals: ReversalDiagnosis | None = None, cyclic: CyclicFit | None = None) -> str:
     """The printed report: the traces used, the diagnosis table, the skipped diagnoses."""
     lines = [f"trace {t.trace.direction}: {t.bag} ({t.n_samples} samples, feed {t.trace.feed_m_s * 60e3:.1f} mm/min)"
              for t in traces]
     lines += [f"samples: {SAMPLE_RULE}", f"{'quantity':<28} {'value':>12} {'unit':<5} how"]
-    for name, value, unit, how in table_rows(diagnosis, reversals):
+    for name, value, unit, how in table_rows(diagnosis, reversals, cyclic):
         shown = "skipped" if value is None else f"{value:.6g}"
         lines.append(f"{name:<28} {shown:>12} {unit:<5} {how}")
     lines += [f"skipped: {reason}" for reason in diagnosis.skipped]
@@ -210,17 +245,19 @@ def to_table(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
 
 
 def to_json(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
-            reversals: ReversalDiagnosis | None = None) -> dict[str, Any]:
-    """The diagnosis as JSON: every field of :class:`BallbarDiagnosis` (and of the reversals), the traces
-    and the sample rule."""
+            reversals: ReversalDiagnosis | None = None, cyclic: CyclicFit | None = None) -> dict[str, Any]:
+    """The diagnosis as JSON: every field of :class:`BallbarDiagnosis` (and of the reversals and the pitch-error
+    fit), the traces and the sample rule."""
     extra = {} if reversals is None else {"reversals": dataclasses.asdict(reversals)}
+    if cyclic is not None:
+        extra["cyclic_pitch"] = dataclasses.asdict(cyclic)
     return {**extra, "samples": SAMPLE_RULE,
             "traces": [{"bag": str(t.bag), "direction": t.trace.direction, "n_samples": t.n_samples,
                         "feed_m_s": t.trace.feed_m_s, "center_m": list(t.circle.center_m),
                         "radius_m": t.circle.radius_m} for t in traces],
             "diagnosis": dataclasses.asdict(diagnosis),
             "rows": [{"quantity": n, "value": v, "unit": u, "how": h}
-                     for n, v, u, h in table_rows(diagnosis, reversals)]}
+                     for n, v, u, h in table_rows(diagnosis, reversals, cyclic)]}
 
 
 def circular(args: argparse.Namespace) -> int:
@@ -229,13 +266,15 @@ def circular(args: argparse.Namespace) -> int:
         traces = read_traces(args.bags)
         diagnosis = diagnose_circles([t.trace for t in traces])
         reversals = diagnose_reversals([t.trace for t in traces], WINDOW_DEG)
+        pitch_mm = pitches(args.pitch_mm)
+        cyclic = fit_cyclic_error([t.trace for t in traces], pitch_mm) if pitch_mm else None
     except CncError as err:
         print(f"cnc-contour circular: error: {err}", file=sys.stderr)
         return 1
-    print(to_table(traces, diagnosis, reversals))
+    print(to_table(traces, diagnosis, reversals, cyclic))
     if args.json:
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        written = to_json(traces, diagnosis, reversals)
+        written = to_json(traces, diagnosis, reversals, cyclic)
         args.json.write_text(json.dumps(written, indent=2, ensure_ascii=False) + "\n")
         print(f"json: {args.json}")
     if args.plot:  # matplotlib is imported by write_polar_plot, on use

@@ -33,14 +33,19 @@ class RecorderNode(SuiteNode):
         optional = self.declare("optional_stages", Parameter.Type.STRING_ARRAY, describe(
             f"optional stages of the run whose topics are recorded too: {sorted(s for s in STAGES if STAGES[s].optional)}",
             read_only=True)) or []
+        outputs = self.declare("optional_outputs", Parameter.Type.STRING_ARRAY, describe(
+            "optional outputs the run switches on (the plant's tool_position with machine faults), recorded too",
+            read_only=True)) or []
         self.drain_timeout_s = self.declare("drain_timeout_s", 10.0, describe("wait for late messages after the run ends, s", 0.1, 600.0, True))
         if not output:
             raise BagError("recorder: parameter output (the bag folder) is required")
         namespace = self.get_namespace()
         # Resolved names: the runner's remaps (/clock, /diagnostics into the run's namespace) apply.
-        topics = {self.resolve_topic_name(name): ty for name, ty in run_topics(namespace, axes, optional).items()}
+        recorded = run_topics(namespace, axes, optional, outputs)
+        topics = {self.resolve_topic_name(name): ty for name, ty in recorded.items()}
         self.writer = BagWriter(output, topics)
-        self.completion = Completion(tuple(self.resolve_topic_name(n) for n in per_tick_topics(namespace, axes, optional)))
+        per_tick = per_tick_topics(namespace, axes, optional, outputs)
+        self.completion = Completion(tuple(self.resolve_topic_name(n) for n in per_tick))
         self.ended_at_s: float | None = None
         self.latest_sim_ns = 0
         for topic, type_name in topics.items():

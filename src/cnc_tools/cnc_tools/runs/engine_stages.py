@@ -18,8 +18,10 @@ import numpy as np
 from cnc_contour_control.interpolation import Interpolator, ReferenceSample
 from cnc_contour_control.servo import ServoController, ServoOutput
 from cnc_contour_control.stages import Pipeline
+from cnc_plant_sim.machine_faults import tool_positions_m
 from cnc_plant_sim.plant import make_plant
-from cnc_tools.run_record import CommandSeries, FloatArray, IntArray, JointStateSeries, ReferenceSeries
+from cnc_tools.run_record import (CommandSeries, FloatArray, IntArray, JointStateSeries, ReferenceSeries,
+                                  ToolPositionSeries)
 from cnc_tools.runs.scenario import Scenario
 
 
@@ -88,12 +90,18 @@ class PlantStage:
         self._velocities: list[float] = []
         self._plant_step = self.plant.step  # bound once: advance runs every tick
         self._keep_positions, self._keep_velocities = self._positions.extend, self._velocities.extend
+        self._tool: list[float] | None = None
+        if scenario.plant.faults.active:  # the tool position (``tool_position``) only with machine faults
+            self._tool = []
+            self.advance = self._advance_with_tool  # type: ignore[method-assign]
 
     def observe(self, board: Board) -> None:
-        """The state at the tick's stamp (what ``joint_states(k)`` carries)."""
+        """The state at the tick's stamp (what ``joint_states(k)`` carries, and ``tool_position`` if faulted)."""
         board.position_m, board.velocity_m_s = positions, velocities = self._state()
         self._positions.extend(positions)  # flat lists of floats: nothing for the garbage collector to track
         self._velocities.extend(velocities)
+        if self._tool is not None:
+            self._tool.extend(tool_positions_m(self.plant).tolist())
 
     def step(self, board: Board) -> None:
         """The plant answers no one within a tick (it opens and closes it)."""
@@ -109,18 +117,30 @@ class PlantStage:
         self._keep_positions(positions)
         self._keep_velocities(velocities)
 
+    def _advance_with_tool(self, board: Board) -> None:
+        """:meth:`advance` keeping the tool position of the new tick too (a plant with machine faults)."""
+        self._plant_step(board.commands, self.sample_time_s)
+        board.position_m, board.velocity_m_s = positions, velocities = self._state()
+        self._keep_positions(positions)
+        self._keep_velocities(velocities)
+        self._tool.extend(tool_positions_m(self.plant).tolist())  # type: ignore[union-attr]
+
     def finish(self) -> None:
         """Nothing to do after the run."""
 
     def series(self) -> dict[str, Any]:
-        """``joint_states`` and the plant as drawn (into the summary)."""
+        """``joint_states`` (and ``tool_position`` with machine faults) and the plant as drawn (into the summary)."""
         n_axes = len(self.plant.axis_names)
         shape = (min(len(self._positions) // n_axes, len(self._stamps_ns)), n_axes)
         del self._positions[shape[0] * n_axes:], self._velocities[shape[0] * n_axes:]
-        return {"joint_states": JointStateSeries(self._stamps_ns[:shape[0]],
-                                                 np.array(self._positions, float).reshape(shape),
-                                                 np.array(self._velocities, float).reshape(shape)),
-                "summary": {"plant": self.plant.describe()}}
+        out: dict[str, Any] = {"joint_states": JointStateSeries(self._stamps_ns[:shape[0]],
+                                                                np.array(self._positions, float).reshape(shape),
+                                                                np.array(self._velocities, float).reshape(shape)),
+                               "summary": {"plant": self.plant.describe()}}
+        if self._tool is not None:
+            out["tool_position"] = ToolPositionSeries(self._stamps_ns[:shape[0]],
+                                                      np.array(self._tool[:shape[0] * n_axes], float).reshape(shape))
+        return out
 
 
 class SampledInterpolatorStage:
@@ -133,7 +153,7 @@ class SampledInterpolatorStage:
 
     def step(self, board: Board) -> None:
         """Put the reference of the tick on the board."""
-        sample = self.interpolator.sample(board.stamp_ns * 1e-9)
+        sample = self.interpolator.reference(board.stamp_ns * 1e-9)
         self._samples.append(sample)
         board.ref_position_m = sample.position_m.tolist()
         board.ref_velocity_m_s = sample.velocity_m_s.tolist()
@@ -162,7 +182,7 @@ class VectorisedInterpolatorStage:
     def __init__(self, scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> None:
         self.interpolator: Interpolator = scenario.make_interpolator()
         self._stamps_ns = stamps_ns
-        self._trajectory = t = self.interpolator.sample_array(stamps_ns * 1e-9)
+        self._trajectory = t = self.interpolator.reference_array(stamps_ns * 1e-9)
         self._rows = iter(list(zip(t.position_m.tolist(), t.velocity_m_s.tolist(), t.acceleration_m_s2.tolist())))
 
     def step(self, board: Board) -> None:

@@ -99,6 +99,9 @@ def graph_specs(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0, i
             raise ConfigError(f"stage {stage.name!r} has no node yet; stages with nodes: {sorted(STAGE_PARAMETERS)}")
         for axis, node in _nodes(stage, run.stages.axes):
             gate = {_READER_COUNT.get(stage.name, "min_subscribers"): len(readers[node]) + extra_subscribers}
+            # an optional output switched on (the plant's tool_position) is read by the extra subscribers alone
+            gate.update({f"{pattern}_subscribers": extra_subscribers for pattern in stage.optional_outputs
+                         if pattern in run.stages.outputs_on})
             required = sorted({*readers[node], *extra_readers})
             if required:
                 gate["required_readers"] = required
@@ -145,7 +148,10 @@ def _plant_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
         summary_file=str(run.run_dir / "summary.json"),
         command_timeout_s=PLANT_TIMEOUT_FACTOR * run.input_timeout_s,
         startup_timeout_s=max(PlantRunParams.startup_timeout_s, PLANT_TIMEOUT_FACTOR * run.input_timeout_s))
-    return _merge(config_values(scenario.plant), config_values(plant_run))
+    plant = config_values(scenario.plant)
+    if not scenario.plant.faults.active:  # the node's defaults: no faults (an empty mapping is no parameter)
+        del plant["faults"]
+    return _merge(plant, config_values(plant_run))
 
 
 def _interpolator_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
@@ -221,6 +227,9 @@ def recorder_spec(scenario: Scenario, bag_path: Path) -> NodeSpec:
     parameters: dict[str, Any] = {"output": str(bag_path), "axes": list(scenario.axes)}
     if scenario.optional_stages:
         parameters["optional_stages"] = list(scenario.optional_stages)
+    outputs_on = sorted(scenario.pipeline().outputs_on)
+    if outputs_on:
+        parameters["optional_outputs"] = outputs_on
     return NodeSpec("cnc_tools", "recorder", "recorder", parameters)
 
 

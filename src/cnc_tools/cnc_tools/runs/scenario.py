@@ -67,8 +67,9 @@ class Scenario:
         return tuple(name for name in OPTIONAL_STAGE_KEYS if self.raw.get(name) is not None)
 
     def pipeline(self) -> Pipeline:
-        """The run's stage pipeline: the core stages plus the optional ones the scenario asks for."""
-        return pipeline(self.axes, self.optional_stages)
+        """The run's stage pipeline: the core stages plus the optional ones the scenario asks for
+        (and the plant's ``tool_position`` when it has machine faults)."""
+        return pipeline(self.axes, self.optional_stages, ("tool_position",) if self.plant.faults.active else ())
 
     def variant(self, overrides: Mapping[str, Any] | None = None, **changes: Any) -> Scenario:
         """A validated copy: ``overrides`` deep-merged (as ``--set`` merges), then top-level ``changes`` replacing keys.
