@@ -17,7 +17,10 @@ and ``paper002``/``paper003``, the velocity-commanded axes of
 :mod:`cnc_plant_sim.velocity_loop` (options in the ``velocity_loop`` section).
 A new plant (a cutting process, an inner velocity
 loop) is a module with a class keeping :class:`Plant` and one line in
-:data:`PLANTS`. :func:`make_plant` builds any entry.
+:data:`PLANTS`. :func:`make_plant` builds any entry; with machine faults
+(``faults``) it wraps it in a :class:`~cnc_plant_sim.machine_faults.FaultedPlant`,
+which also offers ``tool_positions_m()`` (any plant's tool position:
+:func:`~cnc_plant_sim.machine_faults.tool_positions_m`, the positions without faults).
 """
 from __future__ import annotations
 
