@@ -151,6 +151,9 @@ def _plant_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
     plant = config_values(scenario.plant)
     if not scenario.plant.faults.active:  # the node's defaults: no faults (an empty mapping is no parameter)
         del plant["faults"]
+    loop = plant["velocity_loop"]
+    for key in [k for k, v in loop.items() if isinstance(v, (list, tuple)) and not v]:
+        del loop[key]  # an empty list is the node's default, and no typed parameter (rcl cannot type it)
     return _merge(plant, config_values(plant_run))
 
 
