@@ -14,6 +14,7 @@ from cnc_tools.bench.laws import laws
 from cnc_tools.bench.lockstep import lockstep_bench
 from cnc_tools.bench.scoring import scoring
 from cnc_tools.bench.sweep import sweep_bench
+from cnc_tools.bench.tune import tune_bench
 from cnc_tools.reproductions.paper000.assumptions import paper000_assumptions_bench
 from cnc_tools.reproductions.paper000.bench import paper000_bench, paper000_pid_bench
 from cnc_tools.reproductions.paper001.bench import paper001_bench
@@ -29,6 +30,7 @@ BENCHES: dict[str, Bench] = {
     "cross-axis": cross_axis_bench,
     "scoring": scoring,
     "sweep": sweep_bench,
+    "tune": tune_bench,
     "laws": laws,
     "compensator": compensator_bench,
     "estimator": estimator_bench,

@@ -1,7 +1,7 @@
 """The subcommands of ``cnc-contour``, listed explicitly (one module per subcommand)."""
 from __future__ import annotations
 
-from cnc_tools.cli import bench, check, circular, identify_friction, params, replay, run, score
+from cnc_tools.cli import bench, check, circular, identify_friction, params, replay, run, score, tune
 from cnc_tools.cli.common import Subcommand
 
 #: Subcommands by name, in the order ``--help`` lists them.
@@ -17,4 +17,5 @@ COMMANDS: dict[str, Subcommand] = {
     "identify-friction": Subcommand(identify_friction.configure, identify_friction.identify_friction,
                                     "identify an axis's friction-velocity curve (paper 000)"),
     "bench": Subcommand(bench.configure, bench.bench, "speed benchmarks and paper reproductions"),
+    "tune": Subcommand(tune.configure, tune.tune, "tune scenario parameters by differential evolution (paper 003)"),
 }

@@ -1,0 +1,1 @@
+"""Tuning: scenario parameters chosen by differential evolution (``cnc-contour tune``, ``docs/tuning.md``)."""
