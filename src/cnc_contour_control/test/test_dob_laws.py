@@ -31,8 +31,8 @@ def _simulate(law, ticks: int, f_d_hz: float = 50.0, inertia_error: float = 0.0,
             f_d_hz = spindle_step[1].f_d_hz()
         sample.error_counts, sample.velocity_counts_s, sample.position_counts, sample.applied_command = -x, y, x, v
         v = law.step(sample).feedback
-        y = plant.step(v + friction + amplitude * math.sin(2.0 * math.pi * f_d_hz * (k + 1) * T_S))
-        x += T_S * y
+        y_last, y = y, plant.step(v + friction + amplitude * math.sin(2.0 * math.pi * f_d_hz * (k + 1) * T_S))
+        x += 0.5 * T_S * (y_last + y)  # the trapezoid rule, as the paper002 plant
         xs.append(x)
     return np.array(xs)
 

@@ -3,7 +3,8 @@
 Signals (velocities and commands in counts/s, position in counts)::
 
     y  = P (v + d)                 plant: velocity command v plus input disturbance d -> velocity
-    x  = T/(1 − z⁻¹) y             position (the plant's z⁻¹ is the one-sample command delay)
+    x  = T(1 + z⁻¹)/(2(1 − z⁻¹)) y position by the trapezoid rule, as the ``paper002`` plant integrates it
+                                   (P's own z⁻¹ is the one-sample command delay)
     e  = r − x,  u = k_p e         P position loop (the paper's cascade)
     T_E = H (y − P_n v)            PDC (inner), when used
     d̂  = [Q P_n⁻¹] y − Q (v + T_E) DOB (outer), when used
@@ -94,7 +95,7 @@ def closed_loop(blocks: LoopBlocks) -> control.InputOutputSystem:
     systems, terms = _paths(blocks)
     systems += [control.summing_junction(["v", "d"], "pin", name="plant_input"),
                 _system(blocks.plant, dt, "pin", "y", "plant"),
-                _system(tf([dt], [1.0, -1.0]), dt, "y", "x", "integrator"),
+                _system(tf([0.5 * dt, 0.5 * dt], [1.0, -1.0]), dt, "y", "x", "integrator"),
                 control.summing_junction(["r", "-x"], "e", name="error"),
                 control.tf([blocks.kp_per_s], [1.0], dt, inputs="e", outputs="u", name="kp"),
                 control.summing_junction(["u", *terms], "v", name="command")]

@@ -18,6 +18,7 @@ from cnc_tools.bench.tune import tune_bench
 from cnc_tools.reproductions.paper000.assumptions import paper000_assumptions_bench
 from cnc_tools.reproductions.paper000.bench import paper000_bench, paper000_pid_bench
 from cnc_tools.reproductions.paper001.bench import paper001_bench
+from cnc_tools.reproductions.paper002.bench import paper002_bench
 from cnc_tools.reproductions.paper004.bench import paper004_bench
 
 #: A bench: parsed options in, exit code out.
@@ -39,6 +40,7 @@ BENCHES: dict[str, Bench] = {
     "paper000": paper000_bench,
     "paper000-assumptions": paper000_assumptions_bench,
     "paper001": paper001_bench,
+    "paper002": paper002_bench,
     "paper004": paper004_bench,
 }
 
