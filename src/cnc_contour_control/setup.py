@@ -25,6 +25,7 @@ setup(
             "servo = cnc_contour_control.nodes.servo_node:main",
             "estimator = cnc_contour_control.nodes.estimator_node:main",
             "compensator = cnc_contour_control.nodes.compensator_node:main",
+            "force_regulator = cnc_contour_control.nodes.force_regulator_node:main",
         ],
     },
 )

@@ -19,7 +19,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from cnc_contour_control.config import require_choice
 from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.feed_override import FEED_OVERRIDE_SOURCES
 from cnc_contour_control.lockstep import MAX_SAMPLE_TIME_NS, NS_PER_S
 from cnc_contour_control.params import check_ranges, config_values, param
 from cnc_contour_control.servo import ServoConfig
@@ -114,12 +116,22 @@ class InterpolatorRunParams:
     program_file: str = param("", read_only=True, description="the part program: a YAML program or scenario, "
                                                                "or a G-code file")
     frame_id: str = param("machine", read_only=True, description="frame of the references and the path")
+    feed_override_source: str = param("none", read_only=True,
+                                      description="where the requested feed override comes from: none, schedule "
+                                                  "(feed_override.schedule_*), topic (the latest feed_override), "
+                                                  "previous_tick (lockstep: feed_override of tick k-1, waited for)")
+    feed_override_timeout_s: float = param(2.5, unit="s", low=TIMEOUT_RANGE_S[0], high=TIMEOUT_RANGE_S[1],
+                                           read_only=True,
+                                           description="wall time a tick may wait for the previous tick's "
+                                                       "feed_override (previous_tick) before it is a fault")
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "axes", require_names("axes", self.axes))
         if not isinstance(self.program_file, str):
             raise ConfigError(f"program_file must be a path, got {self.program_file!r}")
         require_name("frame_id", self.frame_id)
+        require_choice("feed_override_source", self.feed_override_source, FEED_OVERRIDE_SOURCES)
+        check_ranges(self)
 
 
 @dataclass(frozen=True)

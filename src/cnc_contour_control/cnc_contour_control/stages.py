@@ -4,7 +4,7 @@ One tick k, in order::
 
     stage          node (package executable)              inputs                         outputs
     plant          cnc_plant_sim plant                    servo/{axis}/command           joint_states, /clock
-                                                                                         [tool_position]
+                                                                                         [tool_position, cutting_force]
     interpolator   cnc_contour_control interpolator       joint_states [feed_override]   reference, path
     estimator      cnc_contour_control estimator          joint_states, reference        contour_error
     compensator    cnc_contour_control compensator        joint_states, reference,       compensation
@@ -19,7 +19,7 @@ interpolator does (the path estimator measures against its geometry). A stage wh
 scenario asks for it; an optional *input* (in brackets) is taken only when
 the stage that produces it runs; an optional *output* (in brackets) is
 published only when the run switches it on (``tool_position``: a plant with
-machine faults). The engine steps the same list in the same
+machine faults; ``cutting_force``: a plant with a cutting process). The engine steps the same list in the same
 order; the runner starts one node per stage (one per axis for the servo);
 the recorder and the bag reader take the per-tick topics from it.
 """
@@ -72,7 +72,7 @@ class Stage:
 
 
 PLANT = Stage("plant", "cnc_plant_sim", "plant", (t.COMMAND.name,), (t.JOINT_STATES.name, t.CLOCK.name),
-              optional_outputs=(t.TOOL_POSITION.name,))
+              optional_outputs=(t.TOOL_POSITION.name, t.CUTTING_FORCE.name))
 INTERPOLATOR = Stage("interpolator", "cnc_contour_control", "interpolator", (t.JOINT_STATES.name,),
                      (t.REFERENCE.name, t.PATH.name), optional_inputs=(t.FEED_OVERRIDE.name,))
 ESTIMATOR = Stage("estimator", "cnc_contour_control", "estimator",

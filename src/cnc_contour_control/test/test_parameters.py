@@ -56,8 +56,8 @@ def make_node(context: Context, overrides: dict[str, Any] | None = None) -> Node
 
 
 def _free(cls: type) -> tuple[str, ...]:
-    """Fields that are free mappings (a node fills them itself, not as parameters)."""
-    return tuple(s.name for s in flat_specs(cls) if s.kind is dict and s.nested is None)
+    """Top-level fields holding a free mapping (a node fills them itself, not as parameters)."""
+    return tuple(dict.fromkeys(s.name.split(".")[0] for s in flat_specs(cls) if s.kind is dict and s.nested is None))
 
 
 def declare(node: Node, cls: type, base: dict[str, Any]) -> Any:

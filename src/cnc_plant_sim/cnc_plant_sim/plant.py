@@ -21,6 +21,9 @@ loop) is a module with a class keeping :class:`Plant` and one line in
 (``faults``) it wraps it in a :class:`~cnc_plant_sim.machine_faults.FaultedPlant`,
 which also offers ``tool_positions_m()`` (any plant's tool position:
 :func:`~cnc_plant_sim.machine_faults.tool_positions_m`, the positions without faults).
+With a cutting process (``cutting``) the model is first wrapped in a
+:class:`~cnc_plant_sim.cutting.CuttingPlant` (the process behind the feed axis;
+:func:`~cnc_plant_sim.cutting.cutting_force_n` reads its force).
 """
 from __future__ import annotations
 
@@ -36,6 +39,7 @@ from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.params import param
 
 from cnc_plant_sim.axis import AxisConfig, _require_int_at_least
+from cnc_plant_sim.cutting import CuttingConfig, CuttingPlant
 from cnc_plant_sim.feed_drives import (
     FEED_DRIVE_MODELS,
     MAX_VARIATION_PCT,
@@ -114,6 +118,8 @@ class PlantConfig:
         ``paper003``; :mod:`cnc_plant_sim.velocity_loop`); other models ignore it.
     faults : MachineFaults or Mapping
         Machine faults between motor and tool (any model; :mod:`cnc_plant_sim.machine_faults`).
+    cutting : CuttingConfig or Mapping
+        A cutting process behind one axis (any model; :mod:`cnc_plant_sim.cutting`).
     """
 
     model: str = param("paper000", description="plant model (registry name)", read_only=True)
@@ -130,6 +136,8 @@ class PlantConfig:
                                                description="options of the velocity-loop plants (paper002, paper003)")
     faults: MachineFaults = param(default_factory=MachineFaults, read_only=True,
                                   description="machine faults between motor and tool (backlash, squareness, ...)")
+    cutting: CuttingConfig = param(default_factory=CuttingConfig, read_only=True,
+                                   description="cutting process behind the feed axis (turning: paper 004)")
 
     def __post_init__(self) -> None:
         require_choice("model", self.model, PLANTS)
@@ -152,6 +160,11 @@ class PlantConfig:
         if not isinstance(self.faults, MachineFaults):
             object.__setattr__(self, "faults", MachineFaults.from_mapping(self.faults, "faults"))
         self.faults.check_axes(self.axes)
+        if not isinstance(self.cutting, CuttingConfig):
+            object.__setattr__(self, "cutting", CuttingConfig.from_mapping(self.cutting, "cutting"))
+        if self.cutting.active and self.cutting.feed_axis not in self.axes:
+            raise ConfigError(f"cutting.feed_axis must be one of the axes {list(self.axes)}, "
+                              f"got {self.cutting.feed_axis!r}")
         _require_int_at_least("seed", self.seed, 0)
         _require_int_at_least("substeps", self.substeps, 1)
         object.__setattr__(self, "axis_overrides", _checked_overrides(self.axis_overrides, self.axes))
@@ -266,4 +279,6 @@ def make_plant(config: PlantConfig | Mapping[str, Any]) -> Plant:
     if not isinstance(config, PlantConfig):
         config = PlantConfig.from_mapping(config)
     plant = PLANTS[config.model].build(config)
+    if config.cutting.active:
+        plant = CuttingPlant(plant, config.cutting)
     return FaultedPlant(plant, config.faults) if config.faults.active else plant

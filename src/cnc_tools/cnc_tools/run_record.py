@@ -92,7 +92,11 @@ class JointStateSeries:
 
 @dataclass(frozen=True, eq=False)
 class ReferenceSeries:
-    """Interpolated references: per-axis arrays (N, n_axes); scalars (N,)."""
+    """Interpolated references: per-axis arrays (N, n_axes); scalars (N,).
+
+    ``feed_override_ratio`` is the override the interpolator applied (1 at the
+    programmed feed); None only for a record built without it.
+    """
 
     stamp_ns: IntArray
     position_m: FloatArray
@@ -102,6 +106,7 @@ class ReferenceSeries:
     segment_index: IntArray
     feed_m_s: FloatArray
     done: NDArray[np.bool_]
+    feed_override_ratio: FloatArray | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -1,14 +1,23 @@
-"""Interpolator node: part program -> per-axis reference every tick, and the latched path."""
+"""Interpolator node: part program -> per-axis reference every tick, and the latched path.
+
+With ``feed_override_source`` other than ``none`` it follows the live feed
+override (:class:`~cnc_contour_control.feed_override.LiveReference`): the
+requests come from ``feed_override.schedule_*`` or the ``feed_override`` topic
+(:class:`~cnc_contour_control.feed_override.OverrideInbox`), the applied ratio
+is echoed in ``reference.feed_override_ratio``.
+"""
 from __future__ import annotations
 
 import math
+from collections import deque
 from typing import Any
 
-from cnc_contour_interfaces.msg import Path, Reference
+from cnc_contour_interfaces.msg import FeedOverride, Path, Reference
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.feed_override import LiveReference, OverrideConfig, OverrideInbox, check_source
+from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig, ReferenceSample
 from cnc_contour_control.lockstep import StampMatcher, ns_to_s, stamp_horizon_ns
 from cnc_contour_control.nodes.common import (
     LATCHED_QOS,
@@ -34,20 +43,34 @@ class InterpolatorNode(SuiteNode):
         super().__init__("interpolator", **kwargs)
         run = declare_config(self, InterpolatorRunParams)
         self.axes, self.frame_id = run.axes, run.frame_id
-        self.interpolator = self._make_interpolator(run.program_file)
+        self.interpolator = self._make_interpolator(run.program_file, run.feed_override_source)
         self.reference_pub = self.gated_publisher(Reference, "reference", 1)
         path_pub = self.create_publisher(Path, "path", LATCHED_QOS)
         path_pub.publish(
             program_to_path(self.interpolator.program, 0, self.frame_id, self.interpolator.duration_s)
         )
-        # No watchdog: every joint state is answered at once; the matcher checks stamps (from t = 0).
+        # A joint state is answered at once (previous_tick: once feed_override(k-1) is in, watched by a timer);
+        # the matcher checks stamps (from t = 0).
         self.matcher = StampMatcher(("joint_states",), math.inf, max_ahead_ns=stamp_horizon_ns())
         self.matcher.expect(0, wall_time_s())
-        self.subscribe_checked(JointState, "joint_states", self._accept, then=self.on_tick)
+        self.inbox = OverrideInbox(previous_tick=run.feed_override_source == "previous_tick")
+        self._waiting: deque[JointState] = deque()
+        self.subscribe_checked(JointState, "joint_states", self._accept, then=self._queue)
+        self._blocked_since_s: float | None = None
+        self._override_timeout_s = run.feed_override_timeout_s
+        if run.feed_override_source in ("topic", "previous_tick"):
+            self.subscribe_checked(FeedOverride, "feed_override", self._accept_override)
+        if run.feed_override_source == "previous_tick":
+            self.create_timer(min(0.1, run.feed_override_timeout_s / 4), self.guarded(self._watch_override))
 
-    def _make_interpolator(self, program_file: str) -> Interpolator:
-        """The program's interpolator with the declared limits (config units: m/s, m/s^2) and options."""
+    def _make_interpolator(self, program_file: str, source: str) -> Interpolator:
+        """The program's interpolator with the declared limits (config units: m/s, m/s^2) and options.
+
+        With an on-line override the profile is planned for its ``max_ratio`` (``self.live``).
+        """
         config = declare_config(self, InterpolatorConfig)
+        override = declare_config(self, OverrideConfig, "feed_override")
+        check_source(source, override)
         n_axes = len(self.axes)
         limits = declare_config(self, AxisLimits, defaults={
             "max_velocity_m_s": [DEFAULT_MAX_VELOCITY_M_S] * n_axes,
@@ -55,17 +78,54 @@ class InterpolatorNode(SuiteNode):
         program = read_program_file(program_file, self.axes)
         if tuple(program.axis_names) != self.axes:
             raise ConfigError(f"program axes {list(program.axis_names)} differ from parameter axes {list(self.axes)}")
-        return Interpolator(program, limits, config)
+        self.live = None if source == "none" else LiveReference(program, limits, config, override)
+        return Interpolator(program, limits, config) if self.live is None else self.live.interpolator
 
     def _accept(self, msg: JointState) -> JointState | None:
         """A joint state's values, then its stamp, checked; None for a stale one."""
         joint_positions(msg, self.axes)
         return None if self.matcher.add("joint_states", stamp_to_ns(msg.header.stamp), msg, wall_time_s()) is None else msg
 
+    def _accept_override(self, msg: FeedOverride) -> None:
+        """A feed override's applied ratio (a bad one refused, the last valid held); ticks it completes answered."""
+        refused = self.inbox.add(stamp_to_ns(msg.header.stamp), float(msg.applied_ratio))
+        if refused is not None:
+            self.get_logger().warning(refused, throttle_duration_sec=1.0)
+        self._release()
+
+    def _queue(self, msg: JointState) -> None:
+        """Hold a tick until its override request is in (at once unless ``previous_tick``)."""
+        self._waiting.append(msg)
+        self._release()
+
+    def _release(self) -> None:
+        """Answer every held tick whose request is known, in order; note since when one waits."""
+        while self._waiting and self.inbox.ready():
+            self._blocked_since_s = None
+            self.on_tick(self._waiting.popleft())
+        if self._waiting and self._blocked_since_s is None:
+            self._blocked_since_s = wall_time_s()
+
+    def _watch_override(self) -> None:
+        """Fault when a tick has waited longer than ``feed_override_timeout_s`` for the previous tick's override."""
+        if self._blocked_since_s is None or self.finished:
+            return
+        waited_s = wall_time_s() - self._blocked_since_s
+        if waited_s > self._override_timeout_s:
+            self.fault(f"no {self.resolve_topic_name('feed_override')} of the previous tick "
+                       f"(stamp {self.inbox.awaited_ns} ns) within feed_override_timeout_s = "
+                       f"{self._override_timeout_s} s")
+
+    def _sample(self, stamp_ns: int) -> ReferenceSample:
+        """The reference at the stamp: at the programmed feed, or following the override's request."""
+        if self.live is None:
+            return self.interpolator.reference(ns_to_s(stamp_ns))
+        return self.live.step(stamp_ns, self.live.request(stamp_ns, self.inbox.take(stamp_ns)))
+
     def on_tick(self, msg: JointState) -> None:
         """One tick: the reference at the joint state's stamp."""
         stamp_ns = stamp_to_ns(msg.header.stamp)
-        sample = self.interpolator.reference(ns_to_s(stamp_ns))
+        sample = self._sample(stamp_ns)
         self.reference_pub.publish(reference_to_msg(sample, self.axes, stamp_ns, self.frame_id))
 
 

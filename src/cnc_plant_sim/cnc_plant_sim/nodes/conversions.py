@@ -4,12 +4,14 @@ from __future__ import annotations
 from collections.abc import Sequence
 
 from cnc_contour_interfaces.msg import AxisCommand
+from geometry_msgs.msg import WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.errors import FaultError
 from cnc_contour_control.lockstep import require_finite_values
 from cnc_contour_control.nodes.common import ns_to_stamp
+from cnc_plant_sim.cutting import TOOL_FRAME
 
 
 def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float], velocities_m_s: Sequence[float], stamp_ns: int) -> JointState:
@@ -20,6 +22,15 @@ def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float], velocitie
     msg.name = list(axes)
     msg.position = list(map(float, positions_m))
     msg.velocity = list(map(float, velocities_m_s))
+    return msg
+
+
+def wrench_msg(force_n: float, stamp_ns: int) -> WrenchStamped:
+    """The main cutting force F_c [N] as a ``cutting_force`` wrench: ``force.x`` in frame ``tool``, the rest 0."""
+    msg = WrenchStamped()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = TOOL_FRAME
+    msg.wrench.force.x = float(force_n)
     return msg
 
 

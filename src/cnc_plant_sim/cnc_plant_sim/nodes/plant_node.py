@@ -1,5 +1,5 @@
 """Plant node: simulated feed drives. Owns /clock, publishes joint_states (and tool_position with machine
-faults), applies commands."""
+faults, cutting_force with a cutting process), applies commands."""
 from __future__ import annotations
 
 import json
@@ -9,6 +9,7 @@ from typing import Any
 
 from cnc_contour_interfaces.msg import AxisCommand
 from diagnostic_msgs.msg import DiagnosticStatus
+from geometry_msgs.msg import WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
@@ -27,12 +28,14 @@ from cnc_contour_control.nodes.common import (
 )
 from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config, nested
 from cnc_plant_sim.axis import AxisConfig
+from cnc_plant_sim.cutting import CuttingConfig, cutting_plant
 from cnc_plant_sim.friction import friction_config_class
 from cnc_plant_sim.machine_faults import AxisFaults, FaultedPlant, MachineFaults, tool_positions_m
-from cnc_plant_sim.nodes.conversions import clock_msg, command_value, joint_state_msg
+from cnc_plant_sim.nodes.conversions import clock_msg, command_value, joint_state_msg, wrench_msg
 from cnc_plant_sim.plant import PLANTS, PlantConfig, make_plant
 from cnc_plant_sim.run_clock import RunClock
 from cnc_plant_sim.run_params import PlantRunParams
+from cnc_plant_sim.turning import TurningConfig
 
 #: Per-axis overrides of the model are the parameters ``axis_overrides.<axis>.<key>`` (keys of the model's
 #: ``PLANTS[model].axis_config``, :class:`AxisConfig` for feed drives) and
@@ -41,12 +44,15 @@ OVERRIDES = "axis_overrides"
 #: Machine faults are the parameters ``faults.*`` (:class:`MachineFaults` but its axes) and
 #: ``faults.axes.<axis>.<key>`` (the keys of :class:`AxisFaults`), unset unless given.
 FAULTS = "faults"
+#: A cutting process is the parameters ``cutting.*`` (:class:`CuttingConfig`, schedules as two flat lists) and
+#: ``cutting.turning.*`` (:class:`TurningConfig` but its ``depth_schedule``, which the two lists give).
+CUTTING = "cutting"
 
 
 def plant_parameters(node: SuiteNode) -> ConfigParameters[PlantConfig]:
     """PlantConfig's fields as parameters (``variation.*`` nested) and each axis's overrides, unset unless given."""
     parameters = ConfigParameters(node, lambda mapping: PlantConfig.from_mapping(mapping))
-    values = parameters.add(Section(PlantConfig, skip=(OVERRIDES, FAULTS)))
+    values = parameters.add(Section(PlantConfig, skip=(OVERRIDES, FAULTS, CUTTING)))
     axes = values["axes"]
     axes = [a for a in axes if isinstance(a, str)] if isinstance(axes, list) else []
     entry = PLANTS.get(values["model"])  # an unknown model: declare() reports it with the config's error
@@ -56,6 +62,8 @@ def plant_parameters(node: SuiteNode) -> ConfigParameters[PlantConfig]:
     parameters.add(Section(MachineFaults, FAULTS, skip=("axes",)))
     for axis in axes:
         parameters.add(Section(AxisFaults, f"{FAULTS}.axes.{axis}", unset=True))
+    parameters.add(Section(CuttingConfig, CUTTING, skip=("turning",)))
+    parameters.add(Section(TurningConfig, f"{CUTTING}.turning", skip=("depth_schedule",)))
     for axis, friction in _frictions(parameters, axes).items():
         parameters.add(Section(friction_config_class(friction), f"{OVERRIDES}.{axis}.friction_params", unset=True,
                                read_only=True))
@@ -95,6 +103,8 @@ class PlantNode(SuiteNode):
         self.joint_pub = self.create_publisher(JointState, "joint_states", LOCKSTEP_QOS)
         self.joint_gate = self.reader_gate(self.joint_pub, JointState, "expected_subscribers", 1)
         self.tool_pub, self.tool_gate = self._tool_position_publisher()
+        self.cutting = cutting_plant(self.plant)
+        self.force_pub, self.force_gate = self._cutting_force_publisher()
         self.clock_pub = self.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
         for axis in self.axes:
             self.subscribe_checked(AxisCommand, f"servo/{axis}/command", self._command_callback(axis))
@@ -111,11 +121,21 @@ class PlantNode(SuiteNode):
         publisher = self.create_publisher(JointState, "tool_position", LOCKSTEP_QOS)
         return publisher, ReaderGate(self, publisher, type_name_of(JointState), (), count)
 
+    def _cutting_force_publisher(self) -> tuple[Any, ReaderGate | None]:
+        """``cutting_force`` and its gate (``cutting_force_subscribers`` readers) when the plant cuts."""
+        count = self.declare("cutting_force_subscribers", 0, describe(
+            "readers of cutting_force (force regulator, recorders) to wait for before publishing", 0, 1000, True,
+            True))
+        if self.cutting is None:
+            return None, None
+        publisher = self.create_publisher(WrenchStamped, "cutting_force", LOCKSTEP_QOS)
+        return publisher, ReaderGate(self, publisher, type_name_of(WrenchStamped), (), count)
+
     def _wait_for_graph(self) -> None:
         if self.started:
             return
         ready = all(self.count_publishers(self.resolve_topic_name(f"servo/{a}/command")) >= 1 for a in self.axes)
-        gates = [g for g in (self.joint_gate, self.tool_gate) if g is not None]
+        gates = [g for g in (self.joint_gate, self.tool_gate, self.force_gate) if g is not None]
         stalled = next((m for m in (g.overdue(self.matcher.startup_timeout_s) for g in gates) if m), None)
         if stalled:
             self.fault(f"plant: {stalled}")
@@ -135,6 +155,8 @@ class PlantNode(SuiteNode):
         self.joint_pub.publish(joint_state_msg(self.axes, positions_m, velocities_m_s, stamp_ns))
         if self.tool_pub is not None:
             self.tool_pub.publish(joint_state_msg(self.axes, tool_positions_m(self.plant), (), stamp_ns))
+        if self.force_pub is not None and self.cutting is not None:
+            self.force_pub.publish(wrench_msg(self.cutting.cutting_force_n(), stamp_ns))
         self.clock_pub.publish(clock_msg(stamp_ns))
         if self.mode == "lockstep":
             self.matcher.expect(stamp_ns, wall_time_s())

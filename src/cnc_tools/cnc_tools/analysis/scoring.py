@@ -26,6 +26,7 @@ from cnc_contour_control.geometry import ArcSegment, Program
 from cnc_contour_control.units import M_PER_BLU_PAPER000, M_PER_MM, M_PER_UM
 from cnc_tools.run_record import BagIntegrity, RecordedRun
 from cnc_tools.analysis.circular import CircularTest, analyse_circle, circle_of
+from cnc_tools.analysis.force import ForceFigures, force_figures
 from cnc_tools.analysis.metrics import Metric, evaluate, get_metrics, length_units, trapezoid_weights_s
 from cnc_tools.analysis.verdict import Verdict
 
@@ -186,6 +187,7 @@ class Score:
     integrity: BagIntegrity
     series: ContourErrorSeries = field(repr=False)
     verdict: Verdict | None = None
+    force: ForceFigures | None = None
 
     def to_dict(self) -> dict[str, object]:
         """Plain data: every length in µm and BLU, keys carry their unit."""
@@ -201,6 +203,7 @@ class Score:
             "tracking_error": {s.label: _stats_dict(s, tracking_metrics, units) for s in self.tracking},
             "tracking_error_note": self.tracking_note,
             "circular_test": None if self.circular is None else _circular_dict(self.circular, units),
+            "cutting_force": None if self.force is None else self.force.to_dict(),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -221,7 +224,8 @@ class Score:
 
 
 def score_run(run: RecordedRun, metrics: Sequence[str] | None = None, *, blu_m: float = M_PER_BLU_PAPER000,
-              window_deg: float = 10.0, verdict: Verdict | None = None) -> Score:
+              window_deg: float = 10.0, verdict: Verdict | None = None,
+              force_reference_n: float | None = None) -> Score:
     """Score one recorded run.
 
     Parameters
@@ -236,6 +240,9 @@ def score_run(run: RecordedRun, metrics: Sequence[str] | None = None, *, blu_m: 
         Half-width of the arc searched around each velocity reversal (circle programs), degrees.
     verdict
         The run's verdict (:func:`cnc_tools.analysis.verdict.judge`), shown in every output.
+    force_reference_n
+        The force regulator's reference [N]: a run that cut is scored against it
+        (:mod:`cnc_tools.analysis.force`; without it, peaks, means and ripple only).
     """
     chosen = get_metrics(metrics)
     length_units(blu_m)
@@ -249,7 +256,7 @@ def score_run(run: RecordedRun, metrics: Sequence[str] | None = None, *, blu_m: 
     return Score(run.name, run.program.name, chosen, blu_m, window,
                  ErrorStats("run", int(series.error_m.size), evaluate(chosen, series.error_m, series.weight_s)),
                  segments, tracking, tracking_note, _circular(run, series, window_deg), run.integrity, series,
-                 verdict)
+                 verdict, force_figures(run, force_reference_n))
 
 
 # =========================================================================== rendering
@@ -392,3 +399,5 @@ def _table_lines(score: Score) -> Iterator[str]:
                         for s in score.tracking])
     if score.circular is not None:
         yield from _circular_lines(score.circular, units)
+    if score.force is not None:
+        yield from score.force.lines()

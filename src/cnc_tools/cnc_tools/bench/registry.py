@@ -19,6 +19,7 @@ from cnc_tools.reproductions.paper000.assumptions import paper000_assumptions_be
 from cnc_tools.reproductions.paper000.bench import paper000_bench, paper000_pid_bench
 from cnc_tools.reproductions.paper001.bench import paper001_bench
 from cnc_tools.reproductions.paper002.bench import paper002_bench
+from cnc_tools.reproductions.paper003.bench import paper003_bench
 from cnc_tools.reproductions.paper004.bench import paper004_bench
 
 #: A bench: parsed options in, exit code out.
@@ -41,6 +42,7 @@ BENCHES: dict[str, Bench] = {
     "paper000-assumptions": paper000_assumptions_bench,
     "paper001": paper001_bench,
     "paper002": paper002_bench,
+    "paper003": paper003_bench,
     "paper004": paper004_bench,
 }
 

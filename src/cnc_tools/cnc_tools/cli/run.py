@@ -12,7 +12,7 @@ from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph
 from cnc_tools.runs.namespaces import run_namespace
 from cnc_tools.runs.outputs import ScoredRun, report_runs, score_bag, score_record
-from cnc_tools.runs.scenario import load_scenario
+from cnc_tools.runs.scenario import Scenario, load_scenario
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -37,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
               f"{scenario.duration_s:.2f} s simulated) into {run_dir}", flush=True)
         record = run_on_engine(scenario, run_dir)
         print_summary(scenario.name, "engine", record.summary)
-        return _outputs(score_record(record, run_dir), run_dir, run_dir / "bag")
+        return _outputs(score_record(record, run_dir, force_reference_n=_force_reference_n(scenario)), run_dir,
+                        run_dir / "bag")
     namespace = run_namespace(namespace=args.namespace)
     print(f"running {scenario.name} through the node graph ({scenario.mode}, T = {scenario.sample_time_s} s, "
           f"{scenario.duration_s:.2f} s simulated) in namespace {namespace}, recording to {run_dir / 'bag'}", flush=True)
@@ -46,7 +47,13 @@ def run(args: argparse.Namespace) -> int:
     print_summary(scenario.name, "node graph", result.summary)
     if result.faults or result.bag_path is None:
         return 1
-    return _outputs(score_bag(result.bag_path, run_dir), run_dir, result.bag_path)
+    return _outputs(score_bag(result.bag_path, run_dir, force_reference_n=_force_reference_n(scenario)), run_dir,
+                    result.bag_path)
+
+
+def _force_reference_n(scenario: Scenario) -> float | None:
+    """The force regulator's reference [N] the run is scored against (None without a regulator)."""
+    return None if scenario.force_regulator is None else scenario.force_regulator.setpoint.reference_n
 
 
 def _outputs(scored: ScoredRun, run_dir: Path, bag: Path | None) -> int:

@@ -48,12 +48,39 @@ class RecorderNode(SuiteNode):
         self.completion = Completion(tuple(self.resolve_topic_name(n) for n in per_tick))
         self.ended_at_s: float | None = None
         self.latest_sim_ns = 0
-        for topic, type_name in topics.items():
-            qos = LATCHED_QOS if is_latched(type_name) else LOCKSTEP_QOS
-            self.create_subscription(message_class(type_name, topic), topic, self._writer_for(topic, type_name), qos,
-                                     raw=True)
+        latched = {topic: ty for topic, ty in topics.items() if is_latched(ty)}
+        self._awaited = set(latched)
+        self._later = {topic: ty for topic, ty in topics.items() if topic not in latched}
+        for topic, type_name in latched.items():
+            self._subscribe(topic, type_name, LATCHED_QOS)
+        if not latched:
+            self._subscribe_per_tick()
+        else:
+            self.get_logger().info(f"waiting for the latched {sorted(latched)} before reading the run's topics")
         self.create_timer(0.05, self.guarded(self._check_done))
         self.create_timer(FLUSH_PERIOD_S, self.guarded(self.writer.flush))  # a killed recorder loses <= 1 s
+
+    def _subscribe(self, topic: str, type_name: str, qos: Any) -> None:
+        self.create_subscription(message_class(type_name, topic), topic, self._writer_for(topic, type_name), qos,
+                                 raw=True)
+
+    def _subscribe_per_tick(self) -> None:
+        """The run's other topics, subscribed only once the latched ones (the path) are in the bag.
+
+        The plant starts ticking only when every reader of ``joint_states``
+        has matched, so a run cannot begin, or die, before the recorder holds
+        the program's geometry: a bag of a run killed at its first tick can
+        still be scored.
+        """
+        for topic, type_name in self._later.items():
+            self._subscribe(topic, type_name, LOCKSTEP_QOS)
+        self._later = {}
+
+    def _latched_arrived(self, topic: str) -> None:
+        if topic in self._awaited:
+            self._awaited.discard(topic)
+            if not self._awaited:
+                self._subscribe_per_tick()
 
     def _writer_for(self, topic: str, type_name: str) -> Any:
         wall_stamped = is_wall_stamped(type_name)
@@ -66,6 +93,7 @@ class RecorderNode(SuiteNode):
             stamp_ns = header_stamp_ns(cdr)
             self.latest_sim_ns = max(self.latest_sim_ns, stamp_ns)
             self.writer.write(topic, stamp_ns, cdr)
+            self._latched_arrived(topic)
 
         return self.guarded(write)
 

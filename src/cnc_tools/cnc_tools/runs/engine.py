@@ -16,11 +16,12 @@ error naming it. Stages exchange one :class:`Board` per tick (the in-process
 stand-in for the tick's topics) and keep their own series, which become the
 :class:`~cnc_tools.run_record.RunRecord` a bag of the same run gives.
 
-Speed: while no stage upstream of the interpolator exists (no feed override),
-the reference depends on the stamp only and is computed for all ticks at once
+Speed: while no feed override can occur (no ``feed_override`` section, no
+force regulator), the reference depends on the stamp only and is computed for all ticks at once
 with :meth:`Interpolator.sample_array`, which agrees with the node's per-tick
 :meth:`Interpolator.sample` to 1e-12 m (``test_engine`` checks it); with a feed
-override it is stepped per tick. The node graph gives the same trajectories
+override it is stepped per tick (:class:`~cnc_contour_control.feed_override.LiveReference`,
+the request on ``Board.feed_override_request``). The node graph gives the same trajectories
 (``test_lockstep_graph_matches_engine_to_1e9``).
 """
 from __future__ import annotations
@@ -37,13 +38,15 @@ from cnc_contour_control.lockstep import NS_PER_S, duration_to_ns, seconds_to_ns
 from cnc_contour_control.stages import Pipeline
 from cnc_tools.run_record import BagIntegrity, FloatArray, IntArray, JointStateSeries, RunRecord
 from cnc_tools.runs.engine_cross_axis import CompensatorStage, EstimatorStage
+from cnc_tools.runs.engine_force import ForceRegulatorStage
 from cnc_tools.runs.engine_stages import CORE_STAGES, Board, EngineStage, PlantStage, StageFactory
 from cnc_tools.runs.scenario import Scenario
 
 __all__ = ["Board", "EngineStage", "ENGINE_STAGES", "run_engine", "tick_count", "tick_stamps_s"]
 
 #: Engine implementations of the pipeline's stages, by stage name.
-ENGINE_STAGES: dict[str, StageFactory] = {**CORE_STAGES, "estimator": EstimatorStage, "compensator": CompensatorStage}
+ENGINE_STAGES: dict[str, StageFactory] = {**CORE_STAGES, "estimator": EstimatorStage, "compensator": CompensatorStage,
+                                          "force_regulator": ForceRegulatorStage}
 
 
 class Clock(Protocol):

@@ -15,13 +15,15 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from cnc_contour_control.feed_override import LiveReference
 from cnc_contour_control.interpolation import Interpolator, ReferenceSample
 from cnc_contour_control.servo import ServoController, ServoOutput
 from cnc_contour_control.stages import Pipeline
+from cnc_plant_sim.cutting import cutting_plant
 from cnc_plant_sim.machine_faults import tool_positions_m
 from cnc_plant_sim.plant import make_plant
-from cnc_tools.run_record import (CommandSeries, FloatArray, IntArray, JointStateSeries, ReferenceSeries,
-                                  ToolPositionSeries)
+from cnc_tools.run_record import (CommandSeries, FloatArray, ForceSeries, IntArray, JointStateSeries,
+                                  ReferenceSeries, ToolPositionSeries)
 from cnc_tools.runs.scenario import Scenario
 
 
@@ -44,12 +46,19 @@ class Board:
         The compensator's corrections in drive units (zeros without a compensator).
     commands : list of float
         Every servo's command (``servo/<axis>/command``).
+    feed_override_request : float
+        The ratio the interpolator is asked for: the latest ``feed_override`` message's ``applied_ratio``
+        (a force regulator, stepped after the interpolator, writes it at tick k for tick k+1, as the
+        interpolator node takes the previous tick's message); 1 until one arrives.
     feed_override_ratio : float
-        The applied feed override (1 without a regulator).
+        The ratio the interpolator applied this tick (``reference.feed_override_ratio``; 1 without override).
+    cutting_force_n : float
+        The plant's measured cutting force at the stamp (``cutting_force``'s ``force.x``; 0 when it does not cut).
     """
 
     __slots__ = ("tick", "stamp_ns", "dt_s", "position_m", "velocity_m_s", "ref_position_m", "ref_velocity_m_s",
-                 "ref_acceleration_m_s2", "estimate", "compensation", "commands", "feed_override_ratio")
+                 "ref_acceleration_m_s2", "estimate", "compensation", "commands", "feed_override_request",
+                 "feed_override_ratio", "cutting_force_n")
 
     def __init__(self, dt_s: float) -> None:
         self.tick, self.stamp_ns, self.dt_s = 0, 0, dt_s
@@ -61,7 +70,9 @@ class Board:
         self.estimate: Any = None
         self.compensation: list[float] = []
         self.commands: list[float] = []
+        self.feed_override_request = 1.0
         self.feed_override_ratio = 1.0
+        self.cutting_force_n = 0.0
 
 
 class EngineStage(Protocol):
@@ -93,15 +104,25 @@ class PlantStage:
         self._tool: list[float] | None = None
         if scenario.plant.faults.active:  # the tool position (``tool_position``) only with machine faults
             self._tool = []
-            self.advance = self._advance_with_tool  # type: ignore[method-assign]
+        self._cutting = cutting_plant(self.plant)  # the cutting force (``cutting_force``) only when it cuts
+        self._force: list[float] = []
+        if self._tool is not None or self._cutting is not None:
+            self.advance = self._advance_with_extras  # type: ignore[method-assign]
 
     def observe(self, board: Board) -> None:
         """The state at the tick's stamp (what ``joint_states(k)`` carries, and ``tool_position`` if faulted)."""
         board.position_m, board.velocity_m_s = positions, velocities = self._state()
         self._positions.extend(positions)  # flat lists of floats: nothing for the garbage collector to track
         self._velocities.extend(velocities)
+        self._observe_extras(board)
+
+    def _observe_extras(self, board: Board) -> None:
+        """The tool position (machine faults) and the cutting force (a cutting process) at the tick's stamp."""
         if self._tool is not None:
             self._tool.extend(tool_positions_m(self.plant).tolist())
+        if self._cutting is not None:
+            board.cutting_force_n = force_n = self._cutting.cutting_force_n()
+            self._force.append(force_n)
 
     def step(self, board: Board) -> None:
         """The plant answers no one within a tick (it opens and closes it)."""
@@ -117,13 +138,13 @@ class PlantStage:
         self._keep_positions(positions)
         self._keep_velocities(velocities)
 
-    def _advance_with_tool(self, board: Board) -> None:
-        """:meth:`advance` keeping the tool position of the new tick too (a plant with machine faults)."""
+    def _advance_with_extras(self, board: Board) -> None:
+        """:meth:`advance` keeping the new tick's tool position and cutting force too (faults, a cut)."""
         self._plant_step(board.commands, self.sample_time_s)
         board.position_m, board.velocity_m_s = positions, velocities = self._state()
         self._keep_positions(positions)
         self._keep_velocities(velocities)
-        self._tool.extend(tool_positions_m(self.plant).tolist())  # type: ignore[union-attr]
+        self._observe_extras(board)
 
     def finish(self) -> None:
         """Nothing to do after the run."""
@@ -140,20 +161,43 @@ class PlantStage:
         if self._tool is not None:
             out["tool_position"] = ToolPositionSeries(self._stamps_ns[:shape[0]],
                                                       np.array(self._tool[:shape[0] * n_axes], float).reshape(shape))
+        if self._cutting is not None:
+            out["cutting_force"] = force_series(self._stamps_ns[:shape[0]], self._force[:shape[0]])
         return out
 
 
+def force_series(stamps_ns: IntArray, force_n: list[float]) -> ForceSeries:
+    """The ``cutting_force`` series of a plant that cuts: F_c in ``force.x`` (tool frame), the rest 0."""
+    force = np.zeros((len(force_n), 3))
+    force[:, 0] = force_n
+    return ForceSeries(stamps_ns, force, np.zeros((len(force_n), 3)))
+
+
 class SampledInterpolatorStage:
-    """The interpolator stepped per tick: one :meth:`Interpolator.sample` at the tick's stamp (as the node does)."""
+    """The interpolator stepped per tick at the tick's stamp, as the node does.
+
+    Without an on-line override: :meth:`Interpolator.reference` at the stamp.
+    With one (``scenario.override_active``): :meth:`LiveReference.step` towards
+    the requested ratio (the schedule's, else ``board.feed_override_request``).
+    """
 
     def __init__(self, scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> None:
         self.interpolator: Interpolator = scenario.make_interpolator()
+        self.live: LiveReference | None = scenario.make_live_reference() if scenario.override_active else None
         self._stamps_ns = stamps_ns
         self._samples: list[ReferenceSample] = []
 
+    def _sample(self, board: Board) -> ReferenceSample:
+        """The tick's reference (with the override's applied ratio on the board)."""
+        if self.live is None:
+            return self.interpolator.reference(board.stamp_ns * 1e-9)
+        sample = self.live.step(board.stamp_ns, self.live.request(board.stamp_ns, board.feed_override_request))
+        board.feed_override_ratio = sample.feed_override_ratio
+        return sample
+
     def step(self, board: Board) -> None:
         """Put the reference of the tick on the board."""
-        sample = self.interpolator.reference(board.stamp_ns * 1e-9)
+        sample = self._sample(board)
         self._samples.append(sample)
         board.ref_position_m = sample.position_m.tolist()
         board.ref_velocity_m_s = sample.velocity_m_s.tolist()
@@ -169,7 +213,7 @@ class SampledInterpolatorStage:
             self._stamps_ns[:len(s)], np.array([x.position_m for x in s]), np.array([x.velocity_m_s for x in s]),
             np.array([x.acceleration_m_s2 for x in s]), np.array([x.path_length_m for x in s]),
             np.array([x.segment_index for x in s], np.int64), np.array([x.feed_m_s for x in s]),
-            np.array([x.done for x in s], bool))}
+            np.array([x.done for x in s], bool), np.array([x.feed_override_ratio for x in s], float))}
 
 
 class VectorisedInterpolatorStage:
@@ -196,12 +240,13 @@ class VectorisedInterpolatorStage:
         """``reference`` as the ``reference`` topic carries it."""
         t = self._trajectory
         return {"reference": ReferenceSeries(self._stamps_ns, t.position_m, t.velocity_m_s, t.acceleration_m_s2,
-                                             t.path_length_m, t.segment_index.astype(np.int64), t.feed_m_s, t.done)}
+                                             t.path_length_m, t.segment_index.astype(np.int64), t.feed_m_s, t.done,
+                                             np.ones(self._stamps_ns.size))}
 
 
 def interpolator_stage(scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> EngineStage:
-    """The vectorised interpolator while nothing upstream of it exists (no feed override), else the sampled one."""
-    stage = SampledInterpolatorStage if pipeline.has("force_regulator") else VectorisedInterpolatorStage
+    """The vectorised interpolator while no feed override can occur, else the sampled one (with the follower)."""
+    stage = SampledInterpolatorStage if scenario.override_active else VectorisedInterpolatorStage
     return stage(scenario, pipeline, stamps_ns)
 
 

@@ -47,8 +47,8 @@ from typing import Any, Protocol, TextIO, TypeVar
 
 from cnc_contour_control.errors import CncError, ConfigError
 
-__all__ = ["DaskExecutor", "Executor", "ItemError", "LocalExecutor", "SCHEDULER_PATTERN", "check_scheduler",
-           "make_executor"]
+__all__ = ["DaskExecutor", "Executor", "ItemError", "LocalExecutor", "SCHEDULER_PATTERN", "SchedulerUnreachableError",
+           "check_scheduler", "make_executor"]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -67,6 +67,16 @@ class ItemError(CncError, RuntimeError):
         super().__init__(f"{where}item {index} failed: {type(cause).__name__}: {cause}")
         self.index = index
         self.cause = cause
+
+
+class SchedulerUnreachableError(CncError, ConnectionError):
+    """No Dask scheduler answered at ``address`` within ``timeout_s``; the connection error is ``__cause__``."""
+
+    def __init__(self, address: str, timeout_s: float, cause: BaseException) -> None:
+        super().__init__(f"Dask scheduler {address} is unreachable: no answer within timeout_s={timeout_s:g} s "
+                         f"({type(cause).__name__}: {cause}); check the address and that the scheduler runs")
+        self.address = address
+        self.timeout_s = timeout_s
 
 
 class Executor(Protocol):
@@ -224,17 +234,27 @@ class DaskExecutor(_Closing):
     scheduler : str
         The scheduler's address, ``tcp://host:port`` (e.g. ``tcp://10.0.0.5:8786``).
     timeout_s : float
-        How long to wait for the scheduler when connecting [s].
+        How long to wait for the scheduler when connecting [s], > 0.
     progress : bool or None
         As for :class:`LocalExecutor`.
+
+    Raises
+    ------
+    SchedulerUnreachableError
+        No scheduler answered at ``scheduler`` within ``timeout_s`` (names both).
     """
 
     def __init__(self, scheduler: str, *, timeout_s: float = 30.0, progress: bool | None = None) -> None:
         from distributed import Client  # loaded only when a cluster is used
 
         self.scheduler = check_scheduler(scheduler)
+        if isinstance(timeout_s, bool) or not isinstance(timeout_s, (int, float)) or not timeout_s > 0:
+            raise ConfigError(f"timeout_s must be a number > 0, got {timeout_s!r}")
         self.progress = progress
-        self._client: Any = Client(self.scheduler, timeout=timeout_s, set_as_default=False)
+        try:
+            self._client: Any = Client(self.scheduler, timeout=timeout_s, set_as_default=False)
+        except OSError as err:  # distributed raises OSError (TimeoutError among them) for a scheduler it cannot reach
+            raise SchedulerUnreachableError(self.scheduler, timeout_s, err) from err
 
     def map(self, fn: Callable[[T], R], items: Sequence[T], *, label: str = "") -> list[R]:
         """See :meth:`Executor.map`: ``client.map`` (each item its own task), then ``client.gather``."""
@@ -263,7 +283,7 @@ class DaskExecutor(_Closing):
 
 
 def make_executor(workers: int | None = None, scheduler: str | None = None, *,
-                  progress: bool | None = None) -> Executor:
+                  progress: bool | None = None, timeout_s: float = 30.0) -> Executor:
     """The sweep's executor: a :class:`DaskExecutor` when ``scheduler`` is given, else a :class:`LocalExecutor`.
 
     Parameters
@@ -274,10 +294,12 @@ def make_executor(workers: int | None = None, scheduler: str | None = None, *,
         A Dask scheduler address ``tcp://host:port``.
     progress : bool or None
         Progress on stderr for labelled maps (None: when stderr is a terminal).
+    timeout_s : float
+        How long to wait for the scheduler when connecting [s] (:class:`SchedulerUnreachableError` after it).
     """
     if scheduler is None:
         return LocalExecutor(workers, progress=progress)
     if workers is not None:
         raise ConfigError(f"workers must not be given with a scheduler (the cluster's workers run the items), "
                           f"got workers={workers} and scheduler={scheduler!r}")
-    return DaskExecutor(scheduler, progress=progress)
+    return DaskExecutor(scheduler, progress=progress, timeout_s=timeout_s)

@@ -34,6 +34,8 @@ from cnc_contour_control.stage_params import (
     CompensatorRunParams,
     EstimatorRunParams,
     InterpolatorRunParams,
+    LockstepInputs,
+    TIMEOUT_RANGE_S,
     ServoRunParams,
     servo_config_values,
 )
@@ -99,9 +101,10 @@ def graph_specs(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0, i
             raise ConfigError(f"stage {stage.name!r} has no node yet; stages with nodes: {sorted(STAGE_PARAMETERS)}")
         for axis, node in _nodes(stage, run.stages.axes):
             gate = {_READER_COUNT.get(stage.name, "min_subscribers"): len(readers[node]) + extra_subscribers}
-            # an optional output switched on (the plant's tool_position) is read by the extra subscribers alone
-            gate.update({f"{pattern}_subscribers": extra_subscribers for pattern in stage.optional_outputs
-                         if pattern in run.stages.outputs_on})
+            # an optional output switched on (the plant's tool_position, cutting_force) is read by the extra
+            # subscribers and the stages that take it (the force regulator), counted: the gate names no reader
+            gate.update({f"{pattern}_subscribers": extra_subscribers + len(run.stages.readers(pattern))
+                         for pattern in stage.optional_outputs if pattern in run.stages.outputs_on})
             required = sorted({*readers[node], *extra_readers})
             if required:
                 gate["required_readers"] = required
@@ -151,6 +154,10 @@ def _plant_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
     plant = config_values(scenario.plant)
     if not scenario.plant.faults.active:  # the node's defaults: no faults (an empty mapping is no parameter)
         del plant["faults"]
+    if scenario.plant.cutting.active:  # the schedule as the two lists the node declares
+        plant["cutting"] = scenario.plant.cutting.values()
+    else:
+        del plant["cutting"]
     loop = plant["velocity_loop"]
     for key in [k for k, v in loop.items() if isinstance(v, (list, tuple)) and not v]:
         del loop[key]  # an empty list is the node's default, and no typed parameter (rcl cannot type it)
@@ -158,11 +165,15 @@ def _plant_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
 
 
 def _interpolator_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
-    """InterpolatorConfig, AxisLimits (m/s, m/s^2) and the interpolator's run parameters."""
+    """InterpolatorConfig, AxisLimits (m/s, m/s^2), the override (``feed_override.*``) and the run parameters."""
     scenario = run.scenario
-    interpolator_run = InterpolatorRunParams(axes=scenario.axes, program_file=str(run.program_file))
+    interpolator_run = InterpolatorRunParams(axes=scenario.axes, program_file=str(run.program_file),
+                                             feed_override_source=scenario.override_source,
+                                             # a missing override is reported before the servos' "no reference"
+                                             feed_override_timeout_s=max(TIMEOUT_RANGE_S[0], 0.5 * run.input_timeout_s))
+    override = {k: v for k, v in config_values(scenario.override_config).items() if v != []}  # rcl: no empty lists
     return _merge(config_values(interpolator_run), config_values(scenario.interpolator),
-                  config_values(scenario.limits))
+                  config_values(scenario.limits), {"feed_override": override} if scenario.override_active else {})
 
 
 def _servo_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
@@ -204,6 +215,14 @@ def _compensator_parameters(run: _Run, stage: Stage, node: str, axis: str | None
     return _merge(config_values(compensator_run), settings)
 
 
+def _force_regulator_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
+    """ForceSetpoint, ForceRegulatorConfig (the law's config as ``law_params``) and the lockstep inputs."""
+    scenario = run.scenario
+    assert scenario.force_regulator is not None  # the stage runs only with the section
+    inputs = LockstepInputs(sample_time_s=scenario.sample_time_s, **_timeouts(run, LockstepInputs))
+    return _merge(config_values(inputs), scenario.force_regulator.values())
+
+
 #: Stage name -> (run, stage, node name, axis or None) -> the node's parameters.
 STAGE_PARAMETERS: dict[str, Callable[[_Run, Stage, str, str | None], dict[str, Any]]] = {
     "plant": _plant_parameters,
@@ -211,6 +230,7 @@ STAGE_PARAMETERS: dict[str, Callable[[_Run, Stage, str, str | None], dict[str, A
     "estimator": _estimator_parameters,
     "compensator": _compensator_parameters,
     "servo": _servo_parameters,
+    "force_regulator": _force_regulator_parameters,
 }
 
 

@@ -32,12 +32,13 @@ class ScoredRun:
 
 
 def score_record(run: RunRecord, out_dir: Path | None = None, metrics: Sequence[str] | None = None,
-                 verdict: Verdict | None = None) -> ScoredRun:
+                 verdict: Verdict | None = None, force_reference_n: float | None = None) -> ScoredRun:
     """Score one run record; with ``out_dir``, also write ``score.json`` and ``score.csv`` there.
 
-    ``verdict`` defaults to the record's own (:func:`~cnc_tools.analysis.verdict.judge` of its summary).
+    ``verdict`` defaults to the record's own (:func:`~cnc_tools.analysis.verdict.judge` of its summary);
+    ``force_reference_n`` [N] scores a run that cut against its force reference.
     """
-    score = score_run(run, metrics, verdict=verdict or judge(run))
+    score = score_run(run, metrics, verdict=verdict or judge(run), force_reference_n=force_reference_n)
     if out_dir is None:
         return ScoredRun(run, score)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -72,10 +73,11 @@ def run_folder(bag: Path) -> Path:
     return folder.resolve().parent
 
 
-def score_bag(bag: Path, out_dir: Path | None = None, metrics: Sequence[str] | None = None) -> ScoredRun:
+def score_bag(bag: Path, out_dir: Path | None = None, metrics: Sequence[str] | None = None,
+              force_reference_n: float | None = None) -> ScoredRun:
     """Read one bag, judge the run and score it whatever the verdict (see :func:`score_record`)."""
     record, verdict = judge_bag(bag)
-    return score_record(record, out_dir, metrics, verdict)
+    return score_record(record, out_dir, metrics, verdict, force_reference_n)
 
 
 def report_runs(scored: Sequence[ScoredRun], out_dir: Path) -> list[Path]:

@@ -14,6 +14,8 @@ from typing import Any
 from cnc_contour_control.config import build_config, read_yaml_mapping, require_choice, require_non_negative, require_positive
 from cnc_contour_control.cross_axis import CompensatorSettings, EstimatorSettings
 from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.force.settings import ForceRegulatorSettings
+from cnc_contour_control.feed_override import LiveReference, OverrideConfig, planning_limits
 from cnc_contour_control.geometry import Program
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_contour_control.lockstep import seconds_to_ns
@@ -26,9 +28,10 @@ from cnc_plant_sim.run_params import PlantRunParams
 
 MODES = ("lockstep", "realtime")
 #: Scenario sections that switch on an optional stage of the pipeline (the section's name is the stage's).
-OPTIONAL_STAGE_KEYS: tuple[str, ...] = ("estimator", "compensator")
+OPTIONAL_STAGE_KEYS: tuple[str, ...] = ("estimator", "compensator", "force_regulator")
 _TOP_KEYS = ("name", "description", "sample_time_s", "duration_s", "settle_s", "seed", "mode",
-             "plant", "limits", "program", "servo", "interpolator", "paper", *OPTIONAL_STAGE_KEYS)
+             "plant", "limits", "program", "servo", "interpolator", "paper", "feed_override",
+             *OPTIONAL_STAGE_KEYS)
 _LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2")
 
 
@@ -51,15 +54,46 @@ class Scenario:
     source: Path | None = None
     estimator: EstimatorSettings | None = None
     compensator: CompensatorSettings | None = None
+    feed_override: OverrideConfig | None = None
+    force_regulator: ForceRegulatorSettings | None = None
 
     @property
     def axes(self) -> tuple[str, ...]:
         """Axis names, in order."""
         return self.plant.axes
 
+    @property
+    def override_active(self) -> bool:
+        """True when the feed can be overridden on line: a ``feed_override`` section or a force regulator."""
+        return self.feed_override is not None or self.pipeline().has("force_regulator")
+
+    @property
+    def override_config(self) -> OverrideConfig:
+        """The on-line override's options (the defaults when only a force regulator asks for it)."""
+        return self.feed_override if self.feed_override is not None else OverrideConfig()
+
+    @property
+    def override_source(self) -> str:
+        """The interpolator's ``feed_override_source``: ``previous_tick`` with a force regulator, ``schedule``
+        with a schedule, ``topic`` with a section alone (requests from outside the run), else ``none``."""
+        if self.pipeline().has("force_regulator"):
+            if self.override_config.has_schedule:
+                raise ConfigError("scenario.feed_override.schedule and the force_regulator stage both request "
+                                  "the feed override: give one of them")
+            return "previous_tick"
+        if self.feed_override is None:
+            return "none"
+        return "schedule" if self.feed_override.has_schedule else "topic"
+
     def make_interpolator(self) -> Interpolator:
-        """A fresh interpolator of this scenario's program."""
+        """A fresh interpolator of this scenario's program (planned for the override's ``max_ratio`` when active)."""
+        if self.override_active:
+            return Interpolator(self.program, planning_limits(self.limits, self.override_config), self.interpolator)
         return Interpolator(self.program, self.limits, self.interpolator)
+
+    def make_live_reference(self) -> LiveReference:
+        """The tick-by-tick reference under the on-line feed override (what the interpolator node steps)."""
+        return LiveReference(self.program, self.limits, self.interpolator, self.override_config)
 
     @property
     def optional_stages(self) -> tuple[str, ...]:
@@ -68,8 +102,9 @@ class Scenario:
 
     def pipeline(self) -> Pipeline:
         """The run's stage pipeline: the core stages plus the optional ones the scenario asks for
-        (and the plant's ``tool_position`` when it has machine faults)."""
-        return pipeline(self.axes, self.optional_stages, ("tool_position",) if self.plant.faults.active else ())
+        (the plant's ``tool_position`` when it has machine faults, ``cutting_force`` when it cuts)."""
+        outputs = {"tool_position": self.plant.faults.active, "cutting_force": self.plant.cutting.active}
+        return pipeline(self.axes, self.optional_stages, tuple(name for name, on in outputs.items() if on))
 
     def variant(self, overrides: Mapping[str, Any] | None = None, **changes: Any) -> Scenario:
         """A validated copy: ``overrides`` deep-merged (as ``--set`` merges), then top-level ``changes`` replacing keys.
@@ -118,9 +153,11 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         raise ConfigError(f"scenario.program.axes {list(program.axis_names)} differ from scenario.plant.axes {list(plant.axes)}")
     limits = _limits(raw.get("limits", {}), len(plant.axes))
     interpolator = _interpolator_config(_section(raw, "interpolator", {}))
-    duration_s = _duration(raw, Interpolator(program, limits, interpolator).duration_s)
+    feed_override = _feed_override(raw.get("feed_override"))
+    planned = limits if feed_override is None else planning_limits(limits, feed_override)
+    duration_s = _duration(raw, Interpolator(program, planned, interpolator).duration_s)
     _as_the_nodes_take(sample_time_s=sample_time_s, duration_s=duration_s, mode=mode)
-    return Scenario(
+    scenario = Scenario(
         name=name,
         description=str(raw.get("description", "")),
         sample_time_s=sample_time_s,
@@ -134,8 +171,26 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         servos=_servos(raw.get("servo", {}), plant.axes),
         raw=dict(raw),
         source=source,
+        feed_override=feed_override,
         **_cross_axis(raw),
     )
+    scenario.override_source  # noqa: B018 -- refuses a schedule beside a force regulator
+    _check_force_loop(scenario)
+    return scenario
+
+
+def _check_force_loop(scenario: Scenario) -> None:
+    """A force regulator needs a plant that cuts, and an interpolator that takes its highest override."""
+    settings = scenario.force_regulator
+    if settings is None:
+        return
+    if not scenario.plant.cutting.active:
+        raise ConfigError("scenario.force_regulator regulates the cutting force: it needs scenario.plant.cutting "
+                          "(e.g. cutting: {process: turning, feed_axis: x})")
+    highest, allowed = settings.regulator.quantiser.max_ratio, scenario.override_config.max_ratio
+    if highest > allowed:
+        raise ConfigError(f"scenario.force_regulator.quantiser.max_ratio must be <= feed_override.max_ratio "
+                          f"({allowed}), got {highest}")
 
 
 def _section(raw: Mapping[str, Any], key: str, default: Mapping[str, Any] | None = None) -> dict[str, Any]:
@@ -199,6 +254,26 @@ def _interpolator_config(section: Any) -> InterpolatorConfig:
     return build_config(InterpolatorConfig, section, "scenario.interpolator")
 
 
+def _feed_override(section: Any) -> OverrideConfig | None:
+    """The ``feed_override`` section: max_ratio, acceleration_share and ``schedule: [[t_s, ratio], ...]``."""
+    if section is None:
+        return None
+    if not isinstance(section, Mapping):
+        raise ConfigError(f"scenario.feed_override must be a mapping, got {section!r}")
+    _refuse_unknown(section, ("max_ratio", "acceleration_share", "schedule"), "scenario.feed_override")
+    values = {k: v for k, v in section.items() if k != "schedule"}
+    schedule = section.get("schedule") or []
+    if not isinstance(schedule, (list, tuple)) or not all(
+            isinstance(row, (list, tuple)) and len(row) == 2 for row in schedule):
+        raise ConfigError(f"scenario.feed_override.schedule must be a list of [t_s, ratio] pairs, got {schedule!r}")
+    values["schedule_times_s"] = tuple(row[0] for row in schedule)
+    values["schedule_ratios"] = tuple(row[1] for row in schedule)
+    try:
+        return build_config(OverrideConfig, values, "scenario.feed_override")
+    except ConfigError as err:
+        raise ConfigError(f"scenario.feed_override.{err}") from err
+
+
 def _servos(section: Any, axes: tuple[str, ...]) -> tuple[ServoConfig, ...]:
     """One ServoConfig per axis: the section's defaults, then ``axes: {x: {...}}`` overrides."""
     if not isinstance(section, Mapping):
@@ -218,11 +293,15 @@ def _servos(section: Any, axes: tuple[str, ...]) -> tuple[ServoConfig, ...]:
 
 
 def _cross_axis(raw: Mapping[str, Any]) -> dict[str, Any]:
-    """The estimator and compensator sections (None when absent); a compensator needs an estimator."""
+    """The estimator, compensator and force-regulator sections (None when absent); a compensator needs an
+    estimator, a force regulator a plant that cuts."""
     out: dict[str, Any] = {}
     for key, settings in (("estimator", EstimatorSettings), ("compensator", CompensatorSettings)):
         section = raw.get(key)
         out[key] = None if section is None else settings.from_mapping(_section(raw, key), f"scenario.{key}")
+    section = raw.get("force_regulator")
+    out["force_regulator"] = None if section is None else ForceRegulatorSettings.from_mapping(
+        _section(raw, "force_regulator"), "scenario.force_regulator")
     if out["compensator"] is not None and out["estimator"] is None:
         raise ConfigError("scenario.compensator learns from the contour error: it needs a scenario.estimator "
                           "section too (e.g. estimator: {method: window})")

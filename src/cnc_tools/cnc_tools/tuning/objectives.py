@@ -26,6 +26,7 @@ import numpy as np
 from cnc_contour_control.config import require_choice
 from cnc_contour_control.errors import CncError, ConfigError
 from cnc_tools.analysis.ballbar import BallbarDiagnosis, diagnose_circles
+from cnc_tools.analysis.ballbar_trace import trace_of
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.scenario import Scenario
 from cnc_tools.tuning import paper003_model as p3
@@ -143,8 +144,6 @@ CIRCLE_FIGURES: dict[str, Callable[[BallbarDiagnosis], float]] = {
 
 def circle_diagnosis(scenario: Scenario) -> BallbarDiagnosis:
     """Run the scenario's circle CW and CCW on the engine and diagnose the pair."""
-    from cnc_tools.cli.circular import trace_of  # the record -> trace rule lives with `cnc-contour circular`
-
     traces = []
     for direction in ("cw", "ccw"):
         run = scenario.variant({"program": {"direction": direction}})

@@ -1,0 +1,1 @@
+"""Paper 003 (optimal velocity-loop gains against circular-test radius errors): data, runs, bench."""
