@@ -17,6 +17,7 @@ from cnc_tools.bench.sweep import sweep_bench
 from cnc_tools.bench.tune import tune_bench
 from cnc_tools.reproductions.paper000.assumptions import paper000_assumptions_bench
 from cnc_tools.reproductions.paper000.bench import paper000_bench, paper000_pid_bench
+from cnc_tools.reproductions.paper000.calibration import paper000_calibrated_bench
 from cnc_tools.reproductions.paper001.bench import paper001_bench
 from cnc_tools.reproductions.paper002.bench import paper002_bench
 from cnc_tools.reproductions.paper003.bench import paper003_bench
@@ -40,6 +41,7 @@ BENCHES: dict[str, Bench] = {
     "paper000-pid": paper000_pid_bench,
     "paper000": paper000_bench,
     "paper000-assumptions": paper000_assumptions_bench,
+    "paper000-calibrated": paper000_calibrated_bench,
     "paper001": paper001_bench,
     "paper002": paper002_bench,
     "paper003": paper003_bench,
