@@ -27,6 +27,7 @@ from cnc_tools.analysis.ballbar import (
     diagnose_circles,
 )
 from cnc_tools.analysis.ballbar_cyclic import PLANE_AXES, CyclicFit, fit_cyclic_error
+from cnc_tools.analysis.ballbar_radius import measured_radius_loss_um, model_from_scenario, predict_radius_loss
 from cnc_tools.analysis.ballbar_reversals import (WINDOW_DEG, ReversalDiagnosis, diagnose_reversals,
                                                   write_polar_plot)
 from cnc_tools.analysis.ballbar_trace import (  # noqa: F401 - measured_positions, arc_samples: re-exported
@@ -156,6 +157,38 @@ def reversal_rows(reversals: ReversalDiagnosis) -> list[tuple[str, float | None,
     return rows
 
 
+RADIUS_HOW = {
+    "radius_loss_measured_um": "mean of R - |p - c| over the trace",
+    "radius_loss_predicted_um": "R (1 - |G_servo(jω)| |G_ip(jω)|), ω = F/R: servo lag and accel/decel together",
+    "servo_lag_um": "Eq. 12 as the P loop's lag: R (1 - |(ff s + k)/(s + k)|) at s = jω (scenario's k, ff1)",
+    "accel_decel_um": "R (1 - |G_ip(jω)|): the accel/decel filter after interpolation (scenario's T_ip, kind)",
+    "accel_decel_eq13_um": "Eq. 13: T_ip² F²/(2R) exponential, /(24R) linear",
+}
+
+
+def radius_rows(traces: Sequence[BagTrace]) -> tuple[list[tuple[str, float | None, str, str]], list[str]]:
+    """Measured and predicted radius reduction per trace (Eqs. 12-13), from the ``scenario.yaml`` beside each bag."""
+    import yaml
+
+    rows: list[tuple[str, float | None, str, str]] = []
+    skipped: list[str] = []
+    for t in traces:
+        d = t.trace.direction
+        rows.append((f"{d}.radius_loss_measured_um", measured_radius_loss_um(t.trace), "µm",
+                     RADIUS_HOW["radius_loss_measured_um"]))
+        scenario_file = Path(t.bag).parent / "scenario.yaml"
+        if not scenario_file.is_file() or t.trace.feed_m_s is None:
+            skipped.append(f"{d}.radius_loss_predicted_um: no scenario.yaml beside {t.bag}")
+            continue
+        model = model_from_scenario(yaml.safe_load(scenario_file.read_text()) or {})
+        loss = predict_radius_loss(model, t.trace.feed_m_s, t.trace.radius_m)
+        for name in ("radius_loss_predicted_um", "servo_lag_um", "accel_decel_um", "accel_decel_eq13_um"):
+            value = getattr(loss, "total_um" if name == "radius_loss_predicted_um" else name)
+            rows.append((f"{d}.{name}", value, "µm", RADIUS_HOW[name]))
+        skipped += [f"{d}.{loss.skipped}"] if loss.skipped else []
+    return rows, skipped
+
+
 def table_rows(diagnosis: BallbarDiagnosis, reversals: ReversalDiagnosis | None = None,
                cyclic: CyclicFit | None = None) -> list[tuple[str, float | None, str, str]]:
     """``(quantity, value, unit, how)`` for every row; ``None`` where a diagnosis was skipped."""
@@ -175,10 +208,11 @@ def to_table(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
     lines = [f"trace {t.trace.direction}: {t.bag} ({t.n_samples} samples, feed {t.trace.feed_m_s * 60e3:.1f} mm/min)"
              for t in traces]
     lines += [f"samples: {SAMPLE_RULE}", f"{'quantity':<28} {'value':>12} {'unit':<5} how"]
-    for name, value, unit, how in table_rows(diagnosis, reversals, cyclic):
+    radius, radius_skipped = radius_rows(traces)
+    for name, value, unit, how in table_rows(diagnosis, reversals, cyclic) + radius:
         shown = "skipped" if value is None else f"{value:.6g}"
         lines.append(f"{name:<28} {shown:>12} {unit:<5} {how}")
-    lines += [f"skipped: {reason}" for reason in diagnosis.skipped]
+    lines += [f"skipped: {reason}" for reason in (*diagnosis.skipped, *radius_skipped)]
     return "\n".join(lines)
 
 
@@ -195,7 +229,7 @@ def to_json(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
                         "radius_m": t.circle.radius_m} for t in traces],
             "diagnosis": dataclasses.asdict(diagnosis),
             "rows": [{"quantity": n, "value": v, "unit": u, "how": h}
-                     for n, v, u, h in table_rows(diagnosis, reversals, cyclic)]}
+                     for n, v, u, h in table_rows(diagnosis, reversals, cyclic) + radius_rows(traces)[0]]}
 
 
 def circular(args: argparse.Namespace) -> int:
