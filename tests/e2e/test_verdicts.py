@@ -92,6 +92,7 @@ class _KillWhenRunning:
 
     def __init__(self, run_dir: Path, name: str) -> None:
         self.run_dir, self.name, self.pid = run_dir, name, None
+        self._size_when_running: int | None = None
 
     def __call__(self) -> None:
         if self.pid is None and _summary(self.run_dir).get("status") == "running" and self._recorded():
@@ -99,10 +100,13 @@ class _KillWhenRunning:
             os.kill(self.pid, signal.SIGKILL)
 
     def _recorded(self) -> bool:
-        """For the recorder: once it has flushed a chunk to its file (it flushes every second)."""
+        """For the recorder: once it has flushed a chunk written after the plant began to tick (every second)."""
         if self.name != "recorder":
             return True
-        return any(f.stat().st_size > 4096 for f in (self.run_dir / "bag").glob("*.mcap"))
+        size = sum(f.stat().st_size for f in (self.run_dir / "bag").glob("*.mcap"))
+        if self._size_when_running is None:
+            self._size_when_running = size
+        return size > self._size_when_running
 
 
 @pytest.mark.parametrize("node", ["plant", "interpolator", "servo_x", "recorder"])

@@ -19,6 +19,11 @@ velocities of at most ``v * angle``; that step is the one place where the
 finite-difference acceleration can exceed the limits. The default tolerance
 (1e-4 deg, 1.7 µrad) only absorbs rounding in exactly tangent geometry; raise
 it for G-code with few decimals, knowing the step it allows.
+
+With a path tolerance (``path_tolerance_mm``, or the program's G64 P) the
+profile is planned over the blended program (:mod:`cnc_contour_control.blending`:
+line-line corners rounded by tangent arcs): :attr:`Interpolator.program` is
+that planned program, :attr:`Interpolator.programmed_program` the one written.
 """
 from __future__ import annotations
 
@@ -32,6 +37,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from cnc_contour_control.accel_decel import AccelDecelConfig, ReferenceFilter
+from cnc_contour_control.blending import blend_program
 from cnc_contour_control.config import build_config, require_non_negative, require_positive
 from cnc_contour_control.errors import ConfigError, ProgramError
 from cnc_contour_control.geometry import Program, Segment, segment_label
@@ -97,6 +103,11 @@ class InterpolatorConfig:
         Share of each axis's acceleration budget given to centripetal
         acceleration on arcs, in [0.01, 0.99]; the rest is for speed changes.
         (Near 0 or 1 one of the two budgets vanishes and an arc crawls.)
+    path_tolerance_mm : float
+        Largest distance of a corner blend from the programmed corner, mm, in
+        [0, 1000] (G64 P; :mod:`cnc_contour_control.blending`). 0 plans the
+        program as written; a program's own ``path_tolerance_m`` (G64 P, G61)
+        takes precedence.
     clamp_feed : bool
         If True, slow a segment whose programmed feed exceeds the axis velocity
         limits; if False, refuse the program.
@@ -111,6 +122,10 @@ class InterpolatorConfig:
     arc_centripetal_fraction: float = param(
         0.5, low=0.01, high=0.99, read_only=True,
         description="share of each axis's acceleration for centripetal use on arcs (the rest changes speed)")
+    path_tolerance_mm: float = param(
+        0.0, unit="mm", low=0.0, high=1000.0, read_only=True,
+        description="largest deviation of corner blends from the programmed path (G64 P; 0: no blending, the "
+                    "program's G64 P / G61 overrides it)")
     clamp_feed: bool = param(
         False, read_only=True, description="slow down a segment whose feed exceeds the axis limits instead of refusing it")
     accel_decel: AccelDecelConfig = param(default_factory=AccelDecelConfig, read_only=True,
@@ -196,6 +211,13 @@ def segment_limits(index: int, segment: Segment, limits: AxisLimits, config: Int
     return SegmentLimits(speed, _min_ratio((1.0 - fraction) * acceleration, tangent))
 
 
+def planning_tolerance_m(program: Program, config: InterpolatorConfig) -> float:
+    """The blend tolerance, m: the program's (G64 P / G61) if it sets one, else ``config.path_tolerance_mm``."""
+    if program.path_tolerance_m is not None:
+        return program.path_tolerance_m
+    return config.path_tolerance_mm * 1.0e-3
+
+
 def _junction_angle_rad(before: Segment, after: Segment) -> float:
     """Angle between the tangent at the end of ``before`` and at the start of ``after``, rad."""
     cosine = float(np.dot(before.tangent(before.length_m), after.tangent(0.0)))
@@ -271,15 +293,18 @@ class Interpolator:
     """
 
     def __init__(self, program: Program, limits: AxisLimits, config: InterpolatorConfig | None = None) -> None:
-        self.program = program
         self.limits = limits
         self.config = config if config is not None else InterpolatorConfig()
+        tolerance_rad = math.radians(self.config.corner_angle_tolerance_deg)
+        self.blended = blend_program(program, planning_tolerance_m(program, self.config), tolerance_rad)
+        #: The program as written; :attr:`program` is the planned one (with blends).
+        self.programmed_program = program
+        self.program = program = self.blended.planned
         if limits.n_axes != program.n_axes:
             raise ConfigError(
                 f"limits must have one entry per program axis ({program.n_axes}: {list(program.axis_names)}), "
                 f"got {limits.n_axes}")
         self.segment_limits = [segment_limits(i, seg, limits, self.config) for i, seg in enumerate(program.segments)]
-        tolerance_rad = math.radians(self.config.corner_angle_tolerance_deg)
         self.junction_speeds_m_s = junction_speeds(program, self.segment_limits, tolerance_rad)
         self._build_phases()
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)

@@ -15,6 +15,13 @@ paper 000, ``counts_per_m = 1e5``), command in drive units (DAC for paper
 Quantisation rounds half away from zero; a quantised value beyond the limit
 (when the limit is not a multiple of the quantum) steps back one quantum. The
 command of one sample is the law's ``applied_command`` in the next.
+
+The servo commands the spindle, so it knows its speed: with a spindle
+schedule (``spindle_schedule_t_s``, ``spindle_schedule_rpm``) the engine
+stage and the node call :meth:`ServoController.follow_spindle` with each
+tick's stamp before the sample, and a law that follows the spindle
+(:class:`~cnc_contour_control.laws.base.SpindleFollowing`: paper 002's PDC)
+redesigns when the speed changes; a refused speed keeps the last design.
 """
 from __future__ import annotations
 
@@ -26,7 +33,9 @@ from typing import Any
 from cnc_contour_control.config import build_config, require_choice
 from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.laws import LAWS, FeedbackLaw, LawSample, law_config, make_law
+from cnc_contour_control.laws.base import SpindleFollowing
 from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.spindle_follower import SpindleFollower, spindle_schedule
 
 #: Largest feedforward gain a config accepts [drive units per count/s or count/s²].
 MAX_FEEDFORWARD = 1.0e6
@@ -56,6 +65,14 @@ class ServoConfig:
         Command resolution [drive units], in [0, 1e6] (0: no quantisation).
     command_unit : str
         Name of the drive unit (``"dac"``).
+    min_ferror_m, ferror_m : float
+        Following-error trip bounds [m], each in [0, 1]; both 0: no trip (:mod:`cnc_contour_control.safety`).
+    ferror_velocity_m_s : float
+        Velocity at which ``ferror_m`` is added [m/s], in [1e-6, 1e3].
+    spindle_schedule_t_s : tuple of float
+        Times the commanded spindle speed changes [s], >= 0, increasing (empty: the law keeps its design).
+    spindle_schedule_rpm : tuple of float
+        The commanded spindle speed from each of those times on [rpm], > 0, one per time.
     """
 
     axis_name: str = param(description="axis this servo drives", read_only=True)
@@ -72,6 +89,18 @@ class ServoConfig:
     quantum: float = param(1.0, unit="drive", low=0.0, high=1.0e6, read_only=True,
                            description="command resolution (0: no quantisation)")
     command_unit: str = param("dac", description="name of the drive unit (dac, V, N)", read_only=True)
+    min_ferror_m: float = param(0.0, unit="m", low=0.0, high=1.0,
+                                description="following-error trip: bound at rest (LinuxCNC MIN_FERROR; "
+                                            "0 with ferror_m 0: no trip), cnc_contour_control.safety")
+    ferror_m: float = param(0.0, unit="m", low=0.0, high=1.0,
+                            description="following-error trip: bound added at ferror_velocity_m_s (LinuxCNC FERROR)")
+    ferror_velocity_m_s: float = param(1.0, unit="m/s", low=1.0e-6, high=1.0e3,
+                                       description="following-error trip: velocity at which ferror_m is added "
+                                                   "(the axis's maximum velocity)")
+    spindle_schedule_t_s: tuple[float, ...] = param((), unit="s", read_only=True,
+                                                    description="times the commanded spindle speed changes")
+    spindle_schedule_rpm: tuple[float, ...] = param((), unit="rpm", read_only=True,
+                                                    description="commanded spindle speed from each time on")
 
     def __post_init__(self) -> None:
         for name in ("axis_name", "command_unit"):
@@ -85,6 +114,9 @@ class ServoConfig:
         object.__setattr__(self, "law_params", dict(params))
         check_ranges(self)
         self.law_config()
+        times, rpms = spindle_schedule(self.spindle_schedule_t_s, self.spindle_schedule_rpm)
+        object.__setattr__(self, "spindle_schedule_t_s", times)
+        object.__setattr__(self, "spindle_schedule_rpm", rpms)
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any], context: str = "servo") -> ServoConfig:
@@ -173,6 +205,9 @@ class ServoController:
         self.law = config.make_law()
         self._law_step = self.law.step
         self._law_sample = LawSample()
+        self.spindle: SpindleFollower | None = None
+        if config.spindle_schedule_t_s and isinstance(self.law, SpindleFollowing):
+            self.spindle = SpindleFollower(self.law, config.spindle_schedule_t_s, config.spindle_schedule_rpm)
         self._apply(config)
 
     def _apply(self, config: ServoConfig) -> None:
@@ -202,7 +237,17 @@ class ServoController:
                 raise ConfigError(f"servo {old.axis_name}: retune keeps {name} {getattr(old, name)!r}, "
                                   f"got {getattr(config, name)!r} (build a new controller)")
         self.law.retune(config.law_config())
+        if self.spindle is not None:  # the gains carry the design speed: back to the commanded one
+            self.spindle.apply()
         self._apply(config)
+
+    def follow_spindle(self, stamp_ns: int) -> str | None:
+        """Give the law the spindle speed commanded at ``stamp_ns`` before the tick's sample.
+
+        Returns the reason a redesign was refused (the law keeps its last valid
+        design), else None; without a schedule or a law that follows it, None.
+        """
+        return None if self.spindle is None else self.spindle.follow(stamp_ns)
 
     def step(self, dt_s: float, ref_position_m: float, ref_velocity_m_s: float, ref_acceleration_m_s2: float,
              position_m: float, velocity_m_s: float, compensation: float) -> ServoOutput:

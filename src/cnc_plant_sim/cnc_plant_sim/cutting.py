@@ -9,7 +9,10 @@ Per plant step of ``dt_s`` (:class:`CuttingPlant`)::
     v0 = v_feed(t)                  the feed axis's velocity before the step [m/s]
     inner.step(commands, dt_s)      the drive model integrates
     v1 = v_feed(t + dt_s)           and after it
-    F  = process.step((v0 + v1)/2, dt_s)    the process under the mean feed velocity (trapezoid rule)
+    F  = process.step(|(v0 + v1)/2|, dt_s)  the process under the mean feed velocity (trapezoid rule)
+
+The feed is one axis for ``turning`` (``feed_axis``), the vector of
+``milling.feed_axes`` for ``milling`` (``cnc_plant_sim.milling``); its magnitude is fed.
 
 The force is what a dynamometer measures (with its lag and noise, if
 configured), published as ``cutting_force`` every tick. Convention: a
@@ -26,6 +29,7 @@ may give ``depth_schedule: [[t_s, depth_mm], ...]`` instead
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -33,18 +37,37 @@ from typing import Any
 from cnc_contour_control.config import build_config, require_choice
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.params import config_values, param
+from cnc_contour_control.force.model import DepthSchedule
+from cnc_plant_sim.milling import MillingConfig, MillingProcess
 from cnc_plant_sim.turning import PAPER004_DEPTHS, TurningConfig, TurningProcess
 
-__all__ = ["CUTTING_PROCESSES", "CuttingConfig", "CuttingPlant", "cutting_force_n", "cutting_plant"]
+__all__ = ["CUTTING_PROCESSES", "CuttingConfig", "CuttingPlant", "CuttingProcessEntry", "cutting_force_n",
+           "cutting_plant"]
 
 #: Frame of the ``cutting_force`` wrench (its ``force.x`` is F_c).
 TOOL_FRAME = "tool"
 #: The ``process`` value of a plant that does not cut.
 NO_PROCESS = "none"
 
-#: Cutting processes by name: the validated section -> a fresh process (``step(feed_velocity_m_s, dt_s) -> N``).
-CUTTING_PROCESSES: dict[str, Callable[[CuttingConfig], TurningProcess]] = {
-    "turning": lambda config: TurningProcess(config.turning),
+
+
+@dataclass(frozen=True)
+class CuttingProcessEntry:
+    """One process: the validated section -> a fresh process (``step(feed_speed_m_s, dt_s) -> N``), the
+    plant axes whose velocity vector is its feed (the magnitude of their mean over the step is fed), and the
+    option naming them (for errors)."""
+
+    build: Callable[[CuttingConfig], TurningProcess | MillingProcess]
+    feed_axes: Callable[[CuttingConfig], tuple[str, ...]]
+    feed_option: str
+
+
+#: Cutting processes by name.
+CUTTING_PROCESSES: dict[str, CuttingProcessEntry] = {
+    "turning": CuttingProcessEntry(lambda config: TurningProcess(config.turning), lambda config: (config.feed_axis,),
+                                   "feed_axis"),
+    "milling": CuttingProcessEntry(lambda config: MillingProcess(config.milling, config.depth_schedule()),
+                                   lambda config: config.milling.feed_axes, "milling.feed_axes"),
 }
 
 
@@ -64,16 +87,21 @@ class CuttingConfig:
         Depth of cut [mm] from each time on (>= 0), as many as the times.
     turning : TurningConfig or Mapping
         The turning process (paper 004, Eqs. 2-4); its ``depth_schedule`` is the two lists above.
+    milling : MillingConfig or Mapping
+        The milling process (:mod:`cnc_plant_sim.milling`); the two lists above are its axial depth a_p,
+        its ``feed_axes`` the feed, its resultant force in the feed plane the ``force.x`` published.
     """
 
-    process: str = param(NO_PROCESS, read_only=True, description="cutting process (none, turning)")
-    feed_axis: str = param("x", read_only=True, description="axis whose velocity is the feed")
+    process: str = param(NO_PROCESS, read_only=True, description="cutting process (none, turning, milling)")
+    feed_axis: str = param("x", read_only=True, description="axis whose velocity is the feed (turning)")
     depth_schedule_t_s: tuple[float, ...] = param(tuple(t for t, _ in PAPER004_DEPTHS), unit="s", read_only=True,
                                                   description="times of the depth-of-cut schedule, increasing")
     depth_schedule_mm: tuple[float, ...] = param(tuple(d for _, d in PAPER004_DEPTHS), unit="mm", read_only=True,
                                                  description="depth of cut from each schedule time on")
     turning: TurningConfig = param(default_factory=TurningConfig, read_only=True,
                                    description="the turning process (K_s, spindle, noise, dynamometer)")
+    milling: MillingConfig = param(default_factory=MillingConfig, read_only=True,
+                                   description="the milling process (coefficients, tool, spindle, feed axes)")
 
     def __post_init__(self) -> None:
         require_choice("cutting.process", self.process, (NO_PROCESS, *CUTTING_PROCESSES))
@@ -101,6 +129,10 @@ class CuttingConfig:
         object.__setattr__(self, "depth_schedule_t_s", times)
         object.__setattr__(self, "depth_schedule_mm", depths)
         object.__setattr__(self, "turning", turning)
+        if isinstance(self.milling, Mapping):
+            object.__setattr__(self, "milling", build_config(MillingConfig, self.milling, context="cutting.milling"))
+        elif not isinstance(self.milling, MillingConfig):
+            raise ConfigError(f"cutting.milling must be a mapping, got {self.milling!r}")
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any] | None, context: str = "cutting") -> CuttingConfig:
@@ -120,6 +152,10 @@ class CuttingConfig:
     def active(self) -> bool:
         """True when the plant cuts (it then publishes ``cutting_force``)."""
         return self.process != NO_PROCESS
+
+    def depth_schedule(self) -> DepthSchedule:
+        """The depth of cut against time (milling: the axial depth a_p)."""
+        return DepthSchedule(tuple(zip(self.depth_schedule_t_s, self.depth_schedule_mm)))
 
     def values(self) -> dict[str, Any]:
         """Plain values as the plant node declares them (the derived ``turning.depth_schedule`` left out)."""
@@ -156,14 +192,17 @@ class CuttingPlant:
     """
 
     def __init__(self, inner: Any, cutting: CuttingConfig) -> None:
-        if cutting.feed_axis not in inner.axis_names:
-            raise ConfigError(f"cutting.feed_axis must be one of the plant's axes {list(inner.axis_names)}, "
-                              f"got {cutting.feed_axis!r}")
+        entry = CUTTING_PROCESSES[cutting.process]
+        feed_axes = entry.feed_axes(cutting)
+        for axis in feed_axes:
+            if axis not in inner.axis_names:
+                raise ConfigError(f"cutting.{entry.feed_option} must be one of the plant's axes "
+                                  f"{list(inner.axis_names)}, got {axis!r}")
         self.inner, self.cutting = inner, cutting
-        self.process = CUTTING_PROCESSES[cutting.process](cutting)
+        self.process = entry.build(cutting)
         self.axis_names: tuple[str, ...] = tuple(inner.axis_names)
         self.command_unit: str = inner.command_unit
-        self._feed = self.axis_names.index(cutting.feed_axis)
+        self._feed = [self.axis_names.index(axis) for axis in feed_axes]
         self.positions_m, self.velocities_m_s, self.state = inner.positions_m, inner.velocities_m_s, inner.state
         self.forces_n = inner.forces_n
 
@@ -174,10 +213,10 @@ class CuttingPlant:
 
     def step(self, commands: Sequence[float], dt_s: float) -> None:
         """The inner plant's step, then the process under the step's mean feed velocity (module docstring)."""
-        before_m_s = self.inner.state()[1][self._feed]
+        before_m_s = [self.inner.state()[1][i] for i in self._feed]
         self.inner.step(commands, dt_s)
-        after_m_s = self.inner.state()[1][self._feed]
-        self.process.step(0.5 * (before_m_s + after_m_s), dt_s)
+        after_m_s = self.inner.state()[1]
+        self.process.step(math.hypot(*(0.5 * (v0 + after_m_s[i]) for v0, i in zip(before_m_s, self._feed))), dt_s)
 
     def cutting_force_n(self) -> float:
         """The measured main cutting force F_c [N] now."""

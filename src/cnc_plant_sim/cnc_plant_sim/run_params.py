@@ -13,14 +13,15 @@ from cnc_contour_control.config import require_choice
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.params import check_ranges, param
 from cnc_contour_control.stage_params import SAMPLE_TIME_RANGE_S, TIMEOUT_RANGE_S, require_startup_after
+from cnc_plant_sim.watchdog import WatchdogParams
 
 #: Time modes of the plant: lockstep (the plant waits for every command) or real time (a wall timer).
 MODES = ("lockstep", "realtime")
 
 
 @dataclass(frozen=True)
-class PlantRunParams:
-    """Run parameters of the plant node."""
+class PlantRunParams(WatchdogParams):
+    """Run parameters of the plant node (with the real-time command watchdog's, :mod:`cnc_plant_sim.watchdog`)."""
 
     initial_position_m: tuple[float, ...] = param((0.0,), unit="m", read_only=True,
                                                   description="initial axis positions, one per axis "

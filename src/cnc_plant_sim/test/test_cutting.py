@@ -75,7 +75,7 @@ def test_the_section_splits_a_schedule_of_pairs_and_gives_the_node_flat_lists() 
 
 
 @pytest.mark.parametrize(("changes", "message"), [
-    ({"process": "milling"}, "process must be one of"),
+    ({"process": "drilling"}, "process must be one of"),
     ({"feed_axis": "y"}, "cutting.feed_axis must be one of the axes ['x', 'z'], got 'y'"),
     ({"depth_schedule": [[0.0, 1.0], [0.0, 2.0]]}, "depth_schedule[1].t_s must be > 0.0 (sorted), got 0.0"),
     ({"depth_schedule": [[0.0, -1.0]]}, "depth_schedule[0].depth_mm"),

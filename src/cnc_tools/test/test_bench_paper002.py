@@ -130,6 +130,12 @@ def test_quick_bench_checks_the_goals_with_measured_figures(quick_bench: tuple[s
     assert "best stack:" in printed and "spindle step" in printed
     step = {r["law"]: r for r in figures["steps"]}
     assert 0.0 < step["mbda_pdc"]["removal"] < 0.95  # the old design after a 10 % step: part of the line only
+    for row in figures["spindle_online"]:  # the servo follows the spindle: the PDC redesigns on line
+        assert row["met"] and min(row["online"].values()) > min(row["held"].values())
+    online = {r["law"]: r for r in figures["steps_online"]}["mbda_pdc"]
+    assert online["removal_online"] > online["removal_design"] + 0.05
+    assert online["recovery_s_online"] <= 1.0
+    assert online["recovery_s_design"] != online["recovery_s_design"], "nan: the old design never gets back"
 
 
 def test_quick_bench_writes_the_plots(quick_bench: tuple[str, dict, Path]) -> None:

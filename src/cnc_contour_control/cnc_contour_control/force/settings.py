@@ -8,7 +8,8 @@ the same values::
                       quantiser: {step_ratio: 0.1, max_ratio: 1.5}, update_period_s: 0.01}
 
 :class:`ForceSetpoint` holds what the run adds to the regulator's own config
-(the reference force and the stale-input timeout);
+(the reference force and the stale-input timeout), :class:`PreviewSettings`
+the program's depth schedule for the preview (``preview``, optional);
 :class:`~cnc_contour_control.force.regulator.ForceRegulatorConfig` the rest
 (law from :data:`~cnc_contour_control.force.FORCE_LAWS`, its parameters, the
 override switch, the update period). The node declares the two as parameters
@@ -23,6 +24,7 @@ from typing import Any
 
 from cnc_contour_control.config import build_config
 from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.force.preview_settings import PreviewSettings
 from cnc_contour_control.force.registry import force_law_config
 from cnc_contour_control.force.regulator import ForceRegulator, ForceRegulatorConfig
 from cnc_contour_control.params import check_ranges, config_values, param
@@ -50,6 +52,8 @@ class ForceSetpoint:
         check_ranges(self, "force_regulator")
 
 
+#: The optional section of the program's depth schedule (:class:`PreviewSettings`).
+PREVIEW = "preview"
 _SETPOINT_KEYS = tuple(f.name for f in dataclasses.fields(ForceSetpoint))
 _REGULATOR_KEYS = tuple(f.name for f in dataclasses.fields(ForceRegulatorConfig))
 
@@ -60,6 +64,7 @@ class ForceRegulatorSettings:
 
     setpoint: ForceSetpoint
     regulator: ForceRegulatorConfig
+    preview: PreviewSettings = PreviewSettings()
 
     @classmethod
     def from_mapping(cls, mapping: Mapping[str, Any] | None, context: str = "force_regulator") -> ForceRegulatorSettings:
@@ -67,23 +72,25 @@ class ForceRegulatorSettings:
         if mapping is not None and not isinstance(mapping, Mapping):
             raise ConfigError(f"{context} must be a mapping, got {mapping!r}")
         values = dict(mapping or {})
-        unknown = sorted(set(values) - {*_SETPOINT_KEYS, *_REGULATOR_KEYS})
+        unknown = sorted(set(values) - {*_SETPOINT_KEYS, *_REGULATOR_KEYS, PREVIEW})
         if unknown:
             raise ConfigError(f"{context}.{unknown[0]}: unknown key; valid keys are "
-                              f"{sorted({*_SETPOINT_KEYS, *_REGULATOR_KEYS})}")
+                              f"{sorted({*_SETPOINT_KEYS, *_REGULATOR_KEYS, PREVIEW})}")
         try:
             setpoint = build_config(ForceSetpoint, {k: v for k, v in values.items() if k in _SETPOINT_KEYS})
             regulator = build_config(ForceRegulatorConfig, {k: v for k, v in values.items() if k in _REGULATOR_KEYS})
+            preview = PreviewSettings() if values.get(PREVIEW) is None else PreviewSettings.from_mapping(
+                values[PREVIEW], PREVIEW)
         except ConfigError as err:
             raise ConfigError(f"{context}: {err}") from err
-        return cls(setpoint, regulator)
+        return cls(setpoint, regulator, preview)
 
     def values(self) -> dict[str, Any]:
         """Plain values under the node's parameter names (the law's config complete, as ``law_params``)."""
         regulator = config_values(self.regulator)
         regulator["law_params"] = config_values(force_law_config(self.regulator.law, self.regulator.law_params))
-        return {**config_values(self.setpoint), **regulator}
+        return {**config_values(self.setpoint), **regulator, PREVIEW: config_values(self.preview)}
 
     def make(self) -> ForceRegulator:
-        """A fresh regulator (applied ratio 1 until its first update)."""
-        return ForceRegulator(self.regulator)
+        """A fresh regulator (applied ratio 1 until its first update), with the preview's plans."""
+        return ForceRegulator(self.regulator, self.preview.plans(self.setpoint.reference_n, self.regulator))

@@ -107,6 +107,23 @@ class FeedbackLaw(Protocol):
         """Swap the gains for ``config`` (the law's config class) keeping the internal state."""
 
 
+@runtime_checkable
+class SpindleFollowing(Protocol):
+    """The optional hook of a law designed for the spindle speed (paper 002's PDC: f_d = rpm · flutes / 60).
+
+    The servo commands the spindle, so it hands the speed of each tick to a
+    law that has this method; a law without it ignores the spindle.
+    """
+
+    def set_spindle_rpm(self, spindle_rpm: float) -> bool:
+        """Follow ``spindle_rpm`` [rpm]: redesign when it differs from the design's, keeping the filter history.
+
+        Returns True when the law redesigned. Raises :class:`ConfigError` (naming the
+        parameter, the bound and the value) when no design exists for it; the law
+        keeps its last valid design then.
+        """
+
+
 def require_config(law: str, config: Any, config_class: type) -> Any:
     """Return ``config`` if it is a ``config_class``, else a :class:`ConfigError` naming both."""
     if not isinstance(config, config_class):

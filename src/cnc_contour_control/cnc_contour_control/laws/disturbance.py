@@ -17,12 +17,14 @@ built, so a config that cannot be designed (f_d at Nyquist, a bad L, an
 RLS that does not converge, a Q of too low a relative degree) is refused
 with the parameter, the bound and the value; :meth:`DisturbanceLaw.retune`
 redesigns (a spindle override changes ``spindle_rpm``) and a refused config
-never reaches it, so the running law keeps its last valid design.
+never reaches it, so the running law keeps its last valid design;
+:meth:`DisturbanceLaw.set_spindle_rpm` is the servo's per-tick hook for the
+speed it commands (:class:`~cnc_contour_control.laws.base.SpindleFollowing`).
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from cnc_contour_control.config import require_choice, require_finite
 from cnc_contour_control.disturbance.design import (
@@ -243,6 +245,24 @@ class DisturbanceLaw:
         self._retune_pdc(config, model)
         self._retune_dob(config, model)
         self._retune_mbda(config, model)
+
+    def set_spindle_rpm(self, spindle_rpm: float) -> bool:
+        """Redesign the PDC for ``spindle_rpm`` [rpm] if it differs from the design's (see :class:`SpindleFollowing`).
+
+        A law without a PDC ignores the spindle (False). The new config is built
+        (and so designed) before anything changes: a refused speed raises its
+        :class:`ConfigError` and the law keeps its last valid design.
+        """
+        config = self.config
+        if not isinstance(config, PdcConfig) or spindle_rpm == config.spindle_rpm:
+            return False
+        try:
+            redesigned = replace(config, spindle_rpm=spindle_rpm)
+        except ConfigError as err:
+            raise ConfigError(f"{self.NAME}: no design for spindle_rpm {spindle_rpm:g}, keeping the one for "
+                              f"{config.spindle_rpm:g} rpm: {err}") from err
+        self.retune(redesigned)
+        return True
 
     def _changed(self, path: str, key: object) -> bool:
         if self._key.get(path) == key:

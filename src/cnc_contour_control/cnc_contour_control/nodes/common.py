@@ -214,8 +214,9 @@ class SuiteNode(Node):
         """Declare a parameter and return its value."""
         return self.declare_parameter(name, default, descriptor).value
 
-    def report(self, level: bytes, message: str, values: dict[str, str] | None = None) -> None:
-        """Publish one status of this node on /diagnostics."""
+    def report(self, level: bytes, message: str, values: dict[str, str] | None = None,
+               stamp_ns: int | None = None) -> None:
+        """Publish one status of this node on /diagnostics (stamped ``stamp_ns`` of the run, else the node's clock)."""
         status = DiagnosticStatus(
             level=level,
             name=self.get_fully_qualified_name(),
@@ -224,7 +225,7 @@ class SuiteNode(Node):
             values=[KeyValue(key=k, value=v) for k, v in {RUN_ID_KEY: self.get_namespace(), **(values or {})}.items()],
         )
         array = DiagnosticArray(status=[status])
-        array.header.stamp = self.get_clock().now().to_msg()
+        array.header.stamp = self.get_clock().now().to_msg() if stamp_ns is None else ns_to_stamp(stamp_ns)
         self._diagnostics.publish(array)
 
     def fault(self, message: str) -> None:
@@ -331,13 +332,13 @@ def spin_node(factory: Callable[[], SuiteNode], args: Sequence[str] | None = Non
         code = EXIT_FAULT
     finally:
         if node is not None:
-            _flush_and_destroy(node)
+            flush_and_destroy(node)
         rclpy.try_shutdown()
     return code
 
 
-def _flush_and_destroy(node: SuiteNode) -> None:
-    """Wait (bounded) until every reader acknowledged what this node published, then destroy it."""
+def flush_and_destroy(node: SuiteNode) -> None:
+    """Wait (bounded) until every reader acknowledged what this node published, then destroy it (a node's exit)."""
     if node.fault_message:
         print(f"FAULT: {node.fault_message}", file=sys.stderr, flush=True)
     # After a fault, readers may be gone: wait briefly so the diagnostic still leaves.

@@ -7,8 +7,9 @@ force's stamp; the interpolator takes it at the next tick (its
 ``previous_tick`` source). Parameters: :class:`LockstepInputs`,
 :class:`~cnc_contour_control.force.settings.ForceSetpoint` (``reference_n``,
 ``stale_timeout_s``), :class:`~cnc_contour_control.force.ForceRegulatorConfig`
-(``law``, ``update_period_s``, ``quantiser.*``) and the law's config as
-``law_params.*``, all read once. A non-finite force is a fault naming the
+(``law``, ``update_period_s``, ``quantiser.*``), the law's config as
+``law_params.*`` and the program's depth schedule for the preview as
+``preview.*`` (:class:`~cnc_contour_control.force.preview_settings.PreviewSettings`), all read once. A non-finite force is a fault naming the
 value; a force that stops arriving for ``stale_timeout_s`` (wall time) is a
 STALE status on ``/diagnostics`` while the last applied override holds (no new
 message: the interpolator keeps the latest), and an OK status when it is back.
@@ -25,7 +26,8 @@ from geometry_msgs.msg import WrenchStamped
 from cnc_contour_control.config import build_config, require_choice
 from cnc_contour_control.errors import FaultError
 from cnc_contour_control.force import FORCE_LAWS, ForceRegulator, ForceRegulatorConfig, OverrideSample
-from cnc_contour_control.force.settings import ForceSetpoint
+from cnc_contour_control.force.preview_settings import PreviewSettings
+from cnc_contour_control.force.settings import PREVIEW, ForceSetpoint
 from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
 from cnc_contour_control.nodes.common import SuiteNode, ns_to_stamp, spin_node, wall_time_s
 from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config
@@ -71,7 +73,9 @@ class ForceRegulatorNode(SuiteNode):
         super().__init__("force_regulator", **kwargs)
         run = declare_config(self, LockstepInputs)
         self.setpoint = declare_config(self, ForceSetpoint)
-        self.regulator = ForceRegulator(regulator_parameters(self).declare())
+        config = regulator_parameters(self).declare()
+        preview = declare_config(self, PreviewSettings, PREVIEW)
+        self.regulator = ForceRegulator(config, preview.plans(self.setpoint.reference_n, config))
         self.sample_time_ns = seconds_to_ns(run.sample_time_s)
         self.matcher = StampMatcher((FORCE_TOPIC,), run.input_timeout_s, run.startup_timeout_s,
                                     stamp_horizon_ns(self.sample_time_ns))

@@ -5,6 +5,7 @@ from collections.abc import Callable
 from typing import Any
 
 from cnc_contour_interfaces.msg import AxisCommand, Compensation, Reference
+from diagnostic_msgs.msg import DiagnosticStatus
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.laws import law_config_class
@@ -12,6 +13,7 @@ from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, 
 from cnc_contour_control.nodes.common import (
     SuiteNode,
     spin_node,
+    wall_time_s,
 )
 from cnc_contour_control.nodes.conversions import (
     command_to_msg,
@@ -21,6 +23,8 @@ from cnc_contour_control.nodes.conversions import (
     reference_axis,
 )
 from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config
+from cnc_contour_control.nodes.safety_io import TickDiagnostics
+from cnc_contour_control.safety import check_following_error, limit_of
 from cnc_contour_control.servo import ServoConfig, ServoController
 from cnc_contour_control.stage_params import SERVO_GAINS, SERVO_NODE_SKIPS, ServoRunParams
 
@@ -60,6 +64,7 @@ class ServoNode(SuiteNode):
         if run.use_compensation:
             self._subscribe(Compensation, "compensation")
         self.watch_inputs(self.matcher, f"servo {self.axis}")
+        self.diagnostics = TickDiagnostics(self)  # every second of run time: saturation share, peak error
 
     def _subscribe(self, msg_type: type, topic: str) -> None:
         decode = _DECODE[topic]
@@ -72,9 +77,16 @@ class ServoNode(SuiteNode):
         position_m, velocity_m_s = items["joint_states"]
         ref = items["reference"]
         correction = items.get("compensation", 0.0)
+        refused = self.controller.follow_spindle(stamp_ns)  # the commanded spindle speed, as the engine at this tick
+        if refused is not None:
+            self.report(DiagnosticStatus.WARN, f"servo {self.axis}: {refused}",
+                        {"stamp_ns": str(stamp_ns), "spindle_rpm": str(self.controller.spindle.commanded_rpm)})
         output = self.controller.step(dt_ns / NS_PER_S, ref[0], ref[1], ref[2], position_m, velocity_m_s, correction)
         self.last_stamp_ns = stamp_ns
         config = self.controller.config
+        check_following_error(limit_of(config), output.error_m, ref[1], stamp_ns)  # trips as the engine does
+        self.diagnostics.account(stamp_ns, wall_time_s(), {"saturated": (int(output.saturated), 1)},
+                                 {"peak_following_error_m": output.error_m})
         self.command_pub.publish(command_to_msg(output, self.axis, config.law, config.command_unit, stamp_ns))
 
 

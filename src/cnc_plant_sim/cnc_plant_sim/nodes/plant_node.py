@@ -27,6 +27,8 @@ from cnc_contour_control.nodes.common import (
     wall_time_s,
 )
 from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config, nested
+from cnc_contour_control.nodes.safety_io import SafetyInterface
+from cnc_contour_control.safety import EstopLatch
 from cnc_plant_sim.axis import AxisConfig
 from cnc_plant_sim.cutting import CuttingConfig, cutting_plant
 from cnc_plant_sim.friction import friction_config_class
@@ -36,6 +38,7 @@ from cnc_plant_sim.plant import PLANTS, PlantConfig, make_plant
 from cnc_plant_sim.run_clock import RunClock
 from cnc_plant_sim.run_params import PlantRunParams
 from cnc_plant_sim.turning import TurningConfig
+from cnc_plant_sim.watchdog import CommandWatchdog
 
 #: Per-axis overrides of the model are the parameters ``axis_overrides.<axis>.<key>`` (keys of the model's
 #: ``PLANTS[model].axis_config``, :class:`AxisConfig` for feed drives) and
@@ -99,6 +102,9 @@ class PlantNode(SuiteNode):
                                     max_ahead_ns=0)  # only the tick it published
         self.commands = [0.0] * len(self.axes)
         self.received = [False] * len(self.axes)
+        self.watchdog = CommandWatchdog(run, len(self.axes))  # real time only
+        self.latch = EstopLatch()  # estop, ~/enable, ~/reset: zero commands while latched or disabled
+        self.safety = SafetyInterface(self, self.latch, lambda: self.clock.stamp_ns)
         self.started = False
         self.joint_pub = self.create_publisher(JointState, "joint_states", LOCKSTEP_QOS)
         self.joint_gate = self.reader_gate(self.joint_pub, JointState, "expected_subscribers", 1)
@@ -179,7 +185,8 @@ class PlantNode(SuiteNode):
         return on_command
 
     def _lockstep_step(self, commands: list[float]) -> None:
-        self.plant.step(commands, self.clock.sample_time_s)
+        self.plant.step(self.latch.gate(commands), self.clock.sample_time_s)
+        self.safety.account(self.clock.stamp_ns, wall_time_s())
         self.clock.advance()
         if self.clock.done:
             self._finish()
@@ -190,9 +197,13 @@ class PlantNode(SuiteNode):
         now_s = wall_time_s()
         period_ns = round((now_s - self.last_wall_s) * NS_PER_S)
         self.last_wall_s = now_s
-        self.clock.late_commands += self.received.count(False)
-        self.received = [False] * len(self.axes)
-        self.plant.step(self.commands, period_ns / NS_PER_S)
+        received, self.received = self.received, [False] * len(self.axes)
+        commands = self.watchdog.tick(self.clock.stamp_ns, received, self.commands)
+        self.clock.late_commands = self.watchdog.late_commands
+        self.plant.step(self.latch.gate(commands), period_ns / NS_PER_S)
+        n_axes = len(self.axes)
+        self.safety.account(self.clock.stamp_ns, now_s, {"late_commands": (n_axes - sum(received), n_axes)})
+        self.watchdog.check()  # a late share past max_late_share faults the run
         self.clock.advance(period_ns)
         if self.clock.done:
             self._finish()
@@ -216,7 +227,7 @@ class PlantNode(SuiteNode):
         self._write_summary()
         self.get_logger().info(f"run finished: {self.clock.tick} ticks")
         self.finished = True
-        self.report(DiagnosticStatus.OK, RUN_FINISHED, {TICKS_KEY: str(self.clock.tick)})
+        self.report(DiagnosticStatus.OK, RUN_FINISHED, {TICKS_KEY: str(self.clock.tick)}, stamp_ns=self.clock.stamp_ns)
 
     def _write_progress(self) -> None:
         if self.started and not self.finished:
@@ -234,6 +245,8 @@ class PlantNode(SuiteNode):
         if reason:
             summary["reason"] = reason
         summary["plant"] = self.plant.describe()
+        summary["held_commands"] = self.watchdog.held_commands
+        summary["estop_latches"] = self.latch.latch_count
         if self.summary_file:
             _replace_file(Path(self.summary_file), json.dumps(summary, indent=2))
 

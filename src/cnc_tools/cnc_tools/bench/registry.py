@@ -6,6 +6,7 @@ from collections.abc import Callable
 
 from cnc_contour_control.config import require_choice
 from cnc_tools.bench.cross_axis import cross_axis_bench
+from cnc_tools.bench.blending import blending_bench
 from cnc_tools.bench.compensator import compensator_bench
 from cnc_tools.bench.engine import engine_bench
 from cnc_tools.bench.estimator import estimator_bench
@@ -20,8 +21,11 @@ from cnc_tools.reproductions.paper000.bench import paper000_bench, paper000_pid_
 from cnc_tools.reproductions.paper000.calibration import paper000_calibrated_bench
 from cnc_tools.reproductions.paper001.bench import paper001_bench
 from cnc_tools.reproductions.paper002.bench import paper002_bench
+from cnc_tools.reproductions.paper002.speed import paper002_speed_bench
 from cnc_tools.reproductions.paper003.bench import paper003_bench
 from cnc_tools.reproductions.paper004.bench import paper004_bench
+from cnc_tools.reproductions.paper004.milling import paper004_milling_bench
+from cnc_tools.reproductions.paper004.speed import paper004_speed_bench
 
 #: A bench: parsed options in, exit code out.
 Bench = Callable[[argparse.Namespace], int]
@@ -35,6 +39,7 @@ BENCHES: dict[str, Bench] = {
     "scoring": scoring,
     "sweep": sweep_bench,
     "tune": tune_bench,
+    "blending": blending_bench,
     "laws": laws,
     "compensator": compensator_bench,
     "estimator": estimator_bench,
@@ -44,8 +49,11 @@ BENCHES: dict[str, Bench] = {
     "paper000-calibrated": paper000_calibrated_bench,
     "paper001": paper001_bench,
     "paper002": paper002_bench,
+    "paper002-speed": paper002_speed_bench,
     "paper003": paper003_bench,
     "paper004": paper004_bench,
+    "paper004-milling": paper004_milling_bench,
+    "paper004-speed": paper004_speed_bench,
 }
 
 

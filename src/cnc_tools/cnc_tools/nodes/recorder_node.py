@@ -48,12 +48,15 @@ class RecorderNode(SuiteNode):
         self.completion = Completion(tuple(self.resolve_topic_name(n) for n in per_tick))
         self.ended_at_s: float | None = None
         self.latest_sim_ns = 0
+        latched_first = self.declare("latched_first", False, describe(
+            "subscribe the per-tick topics only once the latched ones (the path) are in the bag: for a run whose "
+            "plant waits for every reader of joint_states (the runner's graph), not for a replay", read_only=True))
         latched = {topic: ty for topic, ty in topics.items() if is_latched(ty)}
-        self._awaited = set(latched)
+        self._awaited = set(latched) if latched_first else set()
         self._later = {topic: ty for topic, ty in topics.items() if topic not in latched}
         for topic, type_name in latched.items():
             self._subscribe(topic, type_name, LATCHED_QOS)
-        if not latched:
+        if not self._awaited:
             self._subscribe_per_tick()
         else:
             self.get_logger().info(f"waiting for the latched {sorted(latched)} before reading the run's topics")

@@ -17,6 +17,7 @@ import numpy as np
 
 from cnc_contour_control.feed_override import LiveReference
 from cnc_contour_control.interpolation import Interpolator, ReferenceSample
+from cnc_contour_control.safety import check_following_error, limit_of
 from cnc_contour_control.servo import ServoController, ServoOutput
 from cnc_contour_control.stages import Pipeline
 from cnc_plant_sim.cutting import cutting_plant
@@ -259,9 +260,27 @@ class ServoStage:
         self._stamps_ns = stamps_ns
         self._parts = [servo.parts for servo in self.servos]
         self._flat: list[float] = []
+        self._spindle = [servo for servo in self.servos if servo.spindle is not None]
+        self._refusals: list[dict[str, Any]] = []
+        self._trips = [(k, limit) for k, limit in enumerate(map(limit_of, scenario.servos)) if limit.active]
+
+    def _check_trips(self, board: Board) -> None:
+        """The following-error trip of each axis that has one, after its sample (as the node checks)."""
+        for k, limit in self._trips:
+            check_following_error(limit, board.ref_position_m[k] - board.position_m[k], board.ref_velocity_m_s[k],
+                                  board.stamp_ns)
+
+    def _follow_spindle(self, stamp_ns: int) -> None:
+        """The commanded spindle speed to each law that follows it, before the tick (as the node does)."""
+        for servo in self._spindle:
+            refused = servo.follow_spindle(stamp_ns)
+            if refused is not None:  # the node reports it on /diagnostics; the law keeps its last design
+                self._refusals.append({"axis": servo.config.axis_name, "stamp_ns": stamp_ns, "reason": refused})
 
     def step(self, board: Board) -> None:
         """One servo sample per axis; the commands go on the board."""
+        if self._spindle:
+            self._follow_spindle(board.stamp_ns)
         dt_s, extend = board.dt_s, self._flat.extend  # flat floats: nothing for the garbage collector to track
         board.commands = commands = []
         for parts, r, v, a, x, xv, c in zip(self._parts, board.ref_position_m, board.ref_velocity_m_s,
@@ -270,6 +289,8 @@ class ServoStage:
             row = parts(dt_s, r, v, a, x, xv, c)
             extend(row)
             commands.append(row[0])
+        if self._trips:
+            self._check_trips(board)
 
     def finish(self) -> None:
         """Nothing to do after the run."""
@@ -278,8 +299,14 @@ class ServoStage:
         """``commands``: one series per axis with the command's parts, as the command topics carry them."""
         per_tick = len(self.servos) * len(_PARTS)
         table = np.array(self._flat, float).reshape(len(self._flat) // per_tick, len(self.servos), len(_PARTS))
-        return {"commands": {servo.config.axis_name: _command_series(servo, table[:, k, :], self._stamps_ns)
-                             for k, servo in enumerate(self.servos)}}
+        out: dict[str, Any] = {"commands": {servo.config.axis_name: _command_series(servo, table[:, k, :],
+                                                                                    self._stamps_ns)
+                                            for k, servo in enumerate(self.servos)}}
+        if self._spindle:  # how each law followed the spindle (redesigns, refused speeds) into the summary
+            out["summary"] = {"spindle_redesigns": {s.config.axis_name: s.spindle.redesigns for s in self._spindle
+                                                    if s.spindle is not None},
+                              "spindle_refusals": self._refusals}
+        return out
 
 
 #: :class:`ServoOutput`'s fields, the order of :meth:`ServoController.parts`.

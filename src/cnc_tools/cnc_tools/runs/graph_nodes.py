@@ -185,7 +185,8 @@ def _servo_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
                                use_compensation=topics.COMPENSATION.name in inputs,
                                input_timeout_s=run.input_timeout_s,
                                startup_timeout_s=max(ServoRunParams.startup_timeout_s, run.input_timeout_s))
-    return _merge(config_values(servo_run), servo_config_values(config))
+    servo = {k: v for k, v in servo_config_values(config).items() if v != []}  # rcl: no empty lists (no schedule)
+    return _merge(config_values(servo_run), servo)
 
 
 def _timeouts(run: _Run, cls: type) -> dict[str, float]:
@@ -247,7 +248,7 @@ def write_program(scenario: Scenario, run_dir: Path) -> Path:
 
 def recorder_spec(scenario: Scenario, bag_path: Path) -> NodeSpec:
     """The recorder of a run: every topic of the graph, into ``bag_path``."""
-    parameters: dict[str, Any] = {"output": str(bag_path), "axes": list(scenario.axes)}
+    parameters: dict[str, Any] = {"output": str(bag_path), "axes": list(scenario.axes), "latched_first": True}
     if scenario.optional_stages:
         parameters["optional_stages"] = list(scenario.optional_stages)
     outputs_on = sorted(scenario.pipeline().outputs_on)

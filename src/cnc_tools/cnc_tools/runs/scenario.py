@@ -168,7 +168,7 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         program=program,
         limits=limits,
         interpolator=interpolator,
-        servos=_servos(raw.get("servo", {}), plant.axes),
+        servos=_servos(raw.get("servo", {}), plant),
         raw=dict(raw),
         source=source,
         feed_override=feed_override,
@@ -274,11 +274,21 @@ def _feed_override(section: Any) -> OverrideConfig | None:
         raise ConfigError(f"scenario.feed_override.{err}") from err
 
 
-def _servos(section: Any, axes: tuple[str, ...]) -> tuple[ServoConfig, ...]:
-    """One ServoConfig per axis: the section's defaults, then ``axes: {x: {...}}`` overrides."""
+def _servos(section: Any, plant: PlantConfig) -> tuple[ServoConfig, ...]:
+    """One ServoConfig per axis: the section's defaults, then ``axes: {x: {...}}`` overrides.
+
+    ``follow_spindle: true`` gives every servo the plant's spindle schedule (the speed the CNC commands,
+    :func:`_commanded_spindle`), so a law designed for the spindle speed follows it on line.
+    """
     if not isinstance(section, Mapping):
         raise ConfigError(f"scenario.servo must be a mapping, got {section!r}")
-    defaults = {k: v for k, v in section.items() if k != "axes"}
+    axes = plant.axes
+    defaults = {k: v for k, v in section.items() if k not in ("axes", "follow_spindle")}
+    follow = section.get("follow_spindle", False)
+    if not isinstance(follow, bool):
+        raise ConfigError(f"scenario.servo.follow_spindle must be true or false, got {follow!r}")
+    if follow:
+        defaults.update(_commanded_spindle(plant))
     per_axis = section.get("axes", {}) or {}
     if not isinstance(per_axis, Mapping) or not all(isinstance(v, Mapping) for v in per_axis.values()):
         raise ConfigError(f"scenario.servo.axes must map axis names to mappings (e.g. {{x: {{law: pid}}}}), "
@@ -286,10 +296,30 @@ def _servos(section: Any, axes: tuple[str, ...]) -> tuple[ServoConfig, ...]:
     unknown = sorted(set(per_axis) - set(axes))
     if unknown:
         raise ConfigError(f"scenario.servo.axes.{unknown[0]}: unknown axis; axes are {list(axes)}")
-    return tuple(
+    servos = tuple(
         ServoConfig.from_mapping({"axis_name": axis, **merge(defaults, per_axis.get(axis, {}))}, f"scenario.servo[{axis}]")
         for axis in axes
     )
+    if follow:
+        _check_flutes(servos, plant)
+    return servos
+
+
+def _commanded_spindle(plant: PlantConfig) -> dict[str, tuple[float, ...]]:
+    """The plant's spindle speed over the run as a servo's schedule: its speed from 0 s, then each change."""
+    loop = plant.velocity_loop
+    return {"spindle_schedule_t_s": (0.0, *loop.spindle_schedule_t_s),
+            "spindle_schedule_rpm": (loop.spindle_rpm, *loop.spindle_schedule_rpm)}
+
+
+def _check_flutes(servos: tuple[ServoConfig, ...], plant: PlantConfig) -> None:
+    """A law that follows the spindle must count the plant's flutes, or its f_d is not the plant's."""
+    flutes = plant.velocity_loop.flutes
+    for servo in servos:
+        law_flutes = getattr(servo.law_config(), "flutes", flutes)
+        if law_flutes != flutes:
+            raise ConfigError(f"scenario.servo[{servo.axis_name}].law_params.flutes must be the plant's "
+                              f"velocity_loop.flutes ({flutes}) with follow_spindle, got {law_flutes}")
 
 
 def _cross_axis(raw: Mapping[str, Any]) -> dict[str, Any]:

@@ -12,8 +12,11 @@ f_d 50 Hz, each axis's own model). Printed:
    model's removal at f_d;
 3. the share of the periodic error the PDC removes, beside the paper's 80 %;
 4. the goals: ≥ 95 % with |S|∞ ≤ 2 also at ±20 % inertia; ≥ 90 % at ±5 %
-   spindle speed (met or NOT met, with the measured figures);
-5. beyond the paper: the f_d sweep 20-200 Hz and a ±10 % spindle step;
+   spindle speed (met or NOT met, with the measured figures), at the design
+   and with the PDC redesigned on line (the servo follows the spindle speed
+   it commands, :mod:`.online`);
+5. beyond the paper: the f_d sweep 20-200 Hz and a ±10 % spindle step, at
+   the design and redesigned on line, with the recovery time;
 6. the plots (png) and the wall time.
 
 ``--quick``: 3-s circles, fewer laws in the goal, sweep and step sections, one
@@ -34,7 +37,7 @@ from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.laws import law_config
 from cnc_contour_control.laws.disturbance import PdcConfig, PositionLoopConfig
 from cnc_tools.bench.report import format_table, machine, write_json
-from cnc_tools.reproductions.paper002 import data, figures, tables
+from cnc_tools.reproductions.paper002 import data, figures, online, tables
 from cnc_tools.reproductions.paper002.cases import CONTOURS, INERTIA_ERRORS, LAWS, Plan, all_cases, make_plan
 from cnc_tools.reproductions.paper002.runs import METHODS, PDC_LAWS, Result, law_params, run_case
 from cnc_tools.runs.executor import make_executor
@@ -164,9 +167,10 @@ def write_figures(plan: Plan, results: Mapping[str, Result], sweep: Sequence[Map
     paths.append(figures.plot_disturbance_responses({law: design_config(law, "x") for law in LAWS}, data.F_D_HZ,
                                                     out / "disturbance_responses_x.png", plan.grid_points))
     paths.append(figures.plot_sweep(sweep, predictions, out / "fd_sweep.png"))
-    step_keys = [f"step{100 * o:+.0f}%/{law}" for o in plan.step_offsets for law in plan.step_laws]
+    step_keys = [f"step{100 * o:+.0f}%/{law}{suffix}" for o in plan.step_offsets for law in plan.step_laws
+                 for suffix in (("", "/online") if law in PDC_LAWS else ("",))]
     paths.append(figures.plot_traces(results, step_keys, f"spindle step at {plan.step_at_s:g} s, PDC at its "
-                                     "1500 rpm design", out / "spindle_step.png"))
+                                     "1500 rpm design and redesigned on line", out / "spindle_step.png"))
     return paths
 
 
@@ -179,14 +183,17 @@ def print_sections(found: Found, plan: Plan) -> tuple[dict[str, Any], dict[str, 
         tables.print_main(contour, main[contour], plan, results[f"{contour}/p"].measure.window_s)
     rows = {"shares": tables.share_rows(results), "inertia": tables.inertia_rows(results, design, plan),
             "spindle": tables.spindle_rows(results, plan), "sweep": tables.sweep_rows(results, predictions, plan),
-            "steps": tables.step_rows(results, plan), "works": tables.works_summary(predictions)}
+            "steps": tables.step_rows(results, plan), "works": tables.works_summary(predictions),
+            "spindle_online": online.held_rows(results, plan), "steps_online": online.step_rows(results, plan)}
     tables.print_shares(rows["shares"])
     print_dob_q(found.dob_q)
     tables.print_inertia(rows["inertia"])
     tables.print_spindle(rows["spindle"])
+    online.print_held(rows["spindle_online"])
     tables.print_sweep(rows["sweep"], plan)
     tables.print_works(rows["works"], plan.prediction_hz)
     tables.print_steps(rows["steps"], plan)
+    online.print_steps(rows["steps_online"], plan)
     return main, rows
 
 

@@ -2,7 +2,8 @@
 
 Keys: ``<group>/<law>`` (``/ref``: the same without the periodic disturbance;
 ``/noenc``: without the encoder; ``/redesigned``: the PDC designed for the
-plant's spindle speed). Every removal is ``1 − f_d line / the P loop's f_d
+plant's spindle speed; ``/online``: the servo follows the spindle speed it
+commands and the PDC redesigns on line). Every removal is ``1 − f_d line / the P loop's f_d
 line`` within one group.
 """
 from __future__ import annotations
@@ -107,6 +108,8 @@ def spindle_cases(plan: Plan) -> list[Case]:
             if law in PDC_LAWS:
                 cases.append(Case(f"{group}/{law}/redesigned", "circle", law, plant_rpm=rpm, design_rpm=rpm,
                                   duration_s=plan.side_s))
+                cases.append(Case(f"{group}/{law}/online", "circle", law, plant_rpm=rpm, duration_s=plan.side_s,
+                                  follow=True))
     return cases
 
 
@@ -123,12 +126,18 @@ def sweep_cases(plan: Plan) -> list[Case]:
 
 
 def step_cases(plan: Plan) -> list[Case]:
-    """A spindle step of ±10 % at :attr:`Plan.step_at_s`; the laws keep their 1500 rpm design."""
+    """A spindle step of ±10 % at :attr:`Plan.step_at_s`: the laws at their 1500 rpm design, and the PDC laws
+    redesigned on line (``/online``); each also without the encoder (``/noenc``: the recovery time's runs)."""
     cases = []
     for offset in plan.step_offsets:
-        step = (plan.step_at_s, data.SPINDLE_RPM * (1.0 + offset))
-        cases += [Case(f"step{100 * offset:+.0f}%/{law}", "circle", law, step=step, duration_s=plan.side_s,
-                       keep_trace=True) for law in plan.step_laws]
+        step, group = (plan.step_at_s, data.SPINDLE_RPM * (1.0 + offset)), f"step{100 * offset:+.0f}%"
+        for law in plan.step_laws:
+            for follow in (False, True) if law in PDC_LAWS else (False,):
+                key = f"{group}/{law}" + ("/online" if follow else "")
+                cases += [Case(key, "circle", law, step=step, duration_s=plan.side_s, keep_trace=True,
+                               follow=follow),
+                          Case(f"{key}/noenc", "circle", law, step=step, duration_s=plan.side_s, keep_trace=True,
+                               follow=follow, encoder=False)]
     return cases
 
 

@@ -12,6 +12,9 @@
   fast), so it needs no whole number of periods. Encoder quantisation is
   broadband: it sets an RMS floor that hides removal in plain RMS, but adds
   little at one frequency, which is why the bench reports both.
+- :func:`sliding_lock_in` and :func:`recovery_time_s`: the lock-in over a
+  window sliding through a run, and how long after a spindle step the f_d
+  line stays under a share of the P loop's (the step's recovery time).
 """
 from __future__ import annotations
 
@@ -68,6 +71,38 @@ def lock_in_amplitude(t_s: FloatArray, x: FloatArray, f_hz: float, degree: int =
     residual = x - np.polyval(np.polyfit(centred / scale, x, degree), centred / scale)
     window = np.hanning(t.size)
     return float(2.0 * abs(np.sum(window * residual * np.exp(-2j * np.pi * f_hz * t))) / np.sum(window))
+
+
+def sliding_lock_in(t_s: FloatArray, x: FloatArray, f_hz: float, window_s: float,
+                    hop_s: float) -> tuple[FloatArray, FloatArray]:
+    """:func:`lock_in_amplitude` of ``x`` at ``f_hz`` over windows of ``window_s`` every ``hop_s``.
+
+    Returns the window ends [s] and the amplitudes (unit of ``x``), each shape (W,).
+    """
+    t = np.asarray(t_s, dtype=float)
+    ends = np.arange(t[0] + window_s, t[-1] + 0.5 * hop_s, hop_s)
+    amplitudes = np.empty(ends.size)
+    for i, end in enumerate(ends):
+        inside = (t > end - window_s) & (t <= end)
+        amplitudes[i] = lock_in_amplitude(t[inside], x[inside], f_hz)
+    return ends, amplitudes
+
+
+def recovery_time_s(ends_s: FloatArray, law: FloatArray, bare: FloatArray, goal: float, step_s: float,
+                    window_s: float) -> float:
+    """Time from ``step_s`` to the end of the first window after which every window removes >= ``goal``.
+
+    Only windows wholly after the step count (so the answer is >= ``window_s``, the resolution). ``law``
+    and ``bare`` are the sliding f_d lines (same windows) of the law and of the P loop; removal is
+    ``1 − law/bare``. nan when the last window still misses the goal.
+    """
+    after = ends_s >= step_s + window_s - 1e-9
+    met = (1.0 - law / bare >= goal) & after
+    missing = np.flatnonzero(after & ~met)
+    if missing.size and missing[-1] == ends_s.size - 1:
+        return float("nan")
+    first = missing[-1] + 1 if missing.size else int(np.flatnonzero(after)[0])
+    return float(ends_s[first] - step_s)
 
 
 def rms(x: FloatArray) -> float:

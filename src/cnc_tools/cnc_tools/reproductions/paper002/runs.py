@@ -12,8 +12,9 @@ A = 0.15 mm/s at f_d, encoder pulse 1/2.4 µm) with, per case:
 - the periodic disturbance on or off (off: the reference run, friction and
   encoder only);
 - the plant's spindle speed (``plant_rpm``; a ``step`` changes it mid-run
-  through the plant's spindle schedule, the law keeps its design: the engine
-  cannot retune a law during a run);
+  through the plant's spindle schedule); ``follow``: the servo knows the
+  speed it commands (the scenario's ``servo.follow_spindle``) and the PDC
+  redesigns on line, else the law keeps its ``design_rpm`` design;
 - ``encoder`` off: positions not quantised (what the law removes without the
   encoder's floor);
 - ``inertia_error`` ε: None keeps the identified discrete loops; a number
@@ -74,6 +75,7 @@ class Case:
     duration_s: float | None = None
     keep_trace: bool = False
     encoder: bool = True
+    follow: bool = False
 
     @property
     def f_d_hz(self) -> float:
@@ -130,7 +132,7 @@ def law_params(law: str, design_rpm: float = data.SPINDLE_RPM) -> dict[str, Any]
 
 def _servo(base: Scenario, case: Case) -> dict[str, Any]:
     servo = {k: v for k, v in base.raw["servo"].items() if k not in ("law", "law_params", "axes")}
-    servo.update(law=case.law, law_params=law_params(case.law, case.design_rpm))
+    servo.update(law=case.law, law_params=law_params(case.law, case.design_rpm), follow_spindle=case.follow)
     if case.law != "p":
         servo["axes"] = {"y": {"law_params": {"model": "y"}}}  # each axis its own P_n (Eq. 36 for Y)
     return servo

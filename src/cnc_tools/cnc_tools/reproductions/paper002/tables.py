@@ -186,7 +186,7 @@ def print_spindle(rows: Sequence[Mapping[str, Any]]) -> None:
                                 for r in rows]))
     best = max(rows, key=lambda r: r["worst"])
     print(f"  best stack: {best['label']} (worst {_pct(best['worst'])} held): {goal_text(best['met'])}"
-          + ("" if best["met"] else "; the remedy is the redesign on line (the law redesigns on retune)"))
+          + ("" if best["met"] else "; the remedy, the redesign on line, is the next table"))
 
 
 # =========================================================================== beyond the paper
@@ -253,10 +253,9 @@ def step_rows(results: Results, plan: Plan) -> list[dict[str, Any]]:
 
 
 def print_steps(rows: Sequence[Mapping[str, Any]], plan: Plan) -> None:
-    """The spindle step: the PDC stays at its 1500 rpm design (the engine does not retune a law mid-run)."""
-    print(f"\nbeyond the paper: spindle step at {plan.step_at_s:g} s (circle); the engine cannot retune a law during "
-          "a run, so the PDC keeps its 1500 rpm design; measured from "
-          f"{plan.step_at_s:g} s + 0.3 s at the new f_d")
+    """The spindle step with every law at its design (the PDC at 1500 rpm; on line: :mod:`.online`)."""
+    print(f"\nbeyond the paper: spindle step at {plan.step_at_s:g} s (circle), every law at its design (the PDC "
+          f"at 1500 rpm); measured from {plan.step_at_s:g} s + 0.3 s at the new f_d")
     print(format_table(["step", "law", "new f_d Hz", "f_d line", "removed"],
                        [[f"{100 * r['step']:+.0f} %", r["label"], f"{r['f_d_hz']:g}", _num(r["fd_pulse"]),
                          _pct(r["removal"])] for r in rows]))

@@ -1,0 +1,87 @@
+"""A node's safety interface: the e-stop topic, ``~/enable`` and ``~/reset``, and per-second diagnostics.
+
+The logic is :class:`~cnc_contour_control.safety.EstopLatch` and
+:class:`~cnc_contour_control.tick_stats.TickStats`; this module only wires
+them to ROS: ``estop`` (std_msgs/Bool, true = e-stop), ``~/enable``
+(std_srvs/SetBool), ``~/reset`` (std_srvs/Trigger). Every change of the latch
+and every closed statistics window is a status on ``/diagnostics`` stamped in
+the run's time, so the recorder puts it in the bag.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from diagnostic_msgs.msg import DiagnosticStatus
+from std_msgs.msg import Bool
+from std_srvs.srv import SetBool, Trigger
+
+from cnc_contour_control.nodes.common import SuiteNode
+from cnc_contour_control.safety import EstopLatch, LatchAnswer
+from cnc_contour_control.tick_stats import TickStats
+
+#: Message of the per-second status (diagnostic_updater's periodic status).
+RUNNING = "running"
+
+
+class SafetyInterface:
+    """Serves ``latch`` on ``node``; ``stamp_ns`` gives the run's current stamp for the statuses."""
+
+    def __init__(self, node: SuiteNode, latch: EstopLatch, stamp_ns: Callable[[], int]) -> None:
+        self.node, self.latch, self.stamp_ns = node, latch, stamp_ns
+        self.stats = TickStats()
+        node.create_subscription(Bool, "estop", node.guarded(self._on_estop), 10)
+        node.create_service(SetBool, "~/enable", self._on_enable)
+        node.create_service(Trigger, "~/reset", self._on_reset)
+
+    def _on_estop(self, msg: Bool) -> None:
+        """An e-stop message: true latches (once), false only clears the input."""
+        stamp_ns = self.stamp_ns()
+        cause = f"{self.node.resolve_topic_name('estop')} true at t={stamp_ns / 1e9:.6f} s"
+        if self.latch.estop(bool(msg.data), cause):
+            self.node.get_logger().warning(f"e-stop latched: {cause}")
+            self._report(DiagnosticStatus.WARN, f"e-stop latched: {cause}")
+        elif not msg.data:
+            self._report(self._level(), "e-stop input released" + (", reset to clear the latch"
+                                                                     if self.latch.latched else ""))
+
+    def _on_enable(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
+        """``~/enable``: on refused while latched, with the cause."""
+        return self._answer(self.latch.enable(bool(request.data)), response)
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """``~/reset``: refused while the e-stop input is still true."""
+        return self._answer(self.latch.reset(), response)
+
+    def _answer(self, answer: LatchAnswer, response: SetBool.Response | Trigger.Response) -> object:
+        response.success, response.message = answer.accepted, answer.message
+        self._report(self._level(), answer.message)
+        return response
+
+    def _level(self) -> bytes:
+        return DiagnosticStatus.OK if self.latch.commands_allowed else DiagnosticStatus.WARN
+
+    def _report(self, level: bytes, message: str, values: dict[str, str] | None = None) -> None:
+        if not self.node.finished:
+            self.node.report(level, message, {**self.latch.state(), **(values or {})}, stamp_ns=self.stamp_ns())
+
+    def account(self, stamp_ns: int, wall_s: float, counts: dict[str, tuple[int, int]] | None = None,
+                peaks: dict[str, float] | None = None) -> None:
+        """Account one tick; at each second of run time publish the window (and the latch's state)."""
+        values = self.stats.add(stamp_ns, wall_s, counts, peaks)
+        if values is not None and not self.node.finished:
+            self.node.report(self._level(), RUNNING, {**values, **self.latch.state()}, stamp_ns=stamp_ns)
+
+
+class TickDiagnostics:
+    """Per-second diagnostics alone (a node without a latch: the servos)."""
+
+    def __init__(self, node: SuiteNode) -> None:
+        self.node = node
+        self.stats = TickStats()
+
+    def account(self, stamp_ns: int, wall_s: float, counts: dict[str, tuple[int, int]] | None = None,
+                peaks: dict[str, float] | None = None) -> None:
+        """Account one tick; at each second of run time publish the window."""
+        values = self.stats.add(stamp_ns, wall_s, counts, peaks)
+        if values is not None and not self.node.finished:
+            self.node.report(DiagnosticStatus.OK, RUNNING, values, stamp_ns=stamp_ns)

@@ -1,0 +1,34 @@
+"""Bench ``paper002-speed``: every law timed beside P in one run; the PDC's design time per spare-DOF reading."""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from cnc_tools.bench.registry import BENCHES
+from cnc_tools.reproductions.paper002.runs import METHODS
+from cnc_tools.reproductions.paper002.speed import SPARE_DOFS, design_times_s, step_costs_us
+
+
+def test_every_law_is_timed_at_both_levels() -> None:
+    costs = step_costs_us(2000, repeats=2)
+    assert set(costs) == {"law step", "servo step"}
+    for level in costs.values():
+        assert set(level) == set(METHODS) and all(0.0 < us < 1e4 for us in level.values())
+        assert level["dob_pdc"] > level["p"], "the observer and the canceller cost more than a gain"
+
+
+def test_each_spindle_change_is_a_fresh_design() -> None:
+    times = design_times_s(2)
+    assert set(times) == set(SPARE_DOFS) and all(len(found) == 2 for found in times.values())
+    assert min(times["rls"]) > max(times["zero_dc"]), "the RLS fit costs more than the closed-form W"
+
+
+def test_the_bench_writes_its_figures(tmp_path: Path, monkeypatch) -> None:  # noqa: ANN001
+    import cnc_tools.reproductions.paper002.speed as speed
+
+    monkeypatch.setattr(speed, "REPEATS", 2)
+    out = tmp_path / "speed.json"
+    assert BENCHES["paper002-speed"](argparse.Namespace(name="paper002-speed", quick=True, json=out)) == 0
+    found = json.loads(out.read_text())
+    assert set(found["step_us"]["law step"]) == set(METHODS) and set(found["design_s"]) == set(SPARE_DOFS)

@@ -1,0 +1,93 @@
+"""Tier 3: machine safety in the node graph: following-error trip (= engine), late-share fault, e-stop, diagnostics."""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+from cnc_contour_interfaces.msg import AxisCommand, Reference
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Bool
+
+from cnc_contour_control.errors import FaultError
+from cnc_contour_control.nodes.safety_io import RUNNING
+from cnc_tools.bagio.diagnostics import read_statuses
+from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.graph import NodeDied, run_graph
+from cnc_tools.runs.scenario import load_scenario
+from cnc_tools.testing import TopicProbe
+
+ROOT = Path(__file__).resolve().parents[2]
+CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"
+#: Tight enough that axis x (peak 0.31 mm in this circle) trips in its first tenth of a second.
+TRIP = {"axes": {"x": {"min_ferror_m": 1e-4, "ferror_m": 1e-3, "ferror_velocity_m_s": 0.1}}}
+FAULT = re.compile(r"servo (\w+): following error (\S+) m exceeds the bound (\S+) m .* at t=(\S+) s")
+
+pytestmark = pytest.mark.e2e
+
+
+def test_following_error_trip_faults_naming_the_axis_on_the_engines_tick(tmp_path: Path) -> None:
+    scenario = load_scenario(CIRCLE, {"duration_s": 1.0, "servo": TRIP})
+    with pytest.raises(FaultError) as engine_fault:
+        run_engine(scenario)
+    with pytest.raises(NodeDied) as graph_fault:
+        run_graph(scenario, tmp_path, record=False)
+    engine = FAULT.search(str(engine_fault.value))
+    graph = FAULT.search(str(graph_fault.value))
+    assert engine is not None and graph is not None, (str(engine_fault.value), str(graph_fault.value))
+    assert graph_fault.value.node == "servo_x"
+    assert graph.group(1) == engine.group(1) == "x"
+    assert graph.group(4) == engine.group(4) != "0.000000", "the same tick"
+    assert float(graph.group(2)) == pytest.approx(float(engine.group(2)), abs=1e-9)
+    assert abs(float(engine.group(2))) > float(engine.group(3))
+
+
+def test_realtime_graph_at_a_deadline_it_cannot_keep_faults_on_the_late_share(tmp_path: Path) -> None:
+    scenario = load_scenario(CIRCLE, {"duration_s": 1.0, "sample_time_s": 1.0e-4, "mode": "realtime"})
+    try:
+        result = run_graph(scenario, tmp_path, record=False)
+    except NodeDied as err:  # a stage that fell its queue behind may end the run first: not this test's case
+        pytest.fail(f"expected the plant's late-share fault, got {err}")
+    assert result.summary["status"] == "faulted"
+    assert "max_late_share" in result.faults[0], result.faults
+
+
+def test_plant_and_servos_report_every_second_of_run_time_into_the_bag(tmp_path: Path) -> None:
+    scenario = load_scenario(CIRCLE, {"duration_s": 1.5})
+    result = run_graph(scenario, tmp_path, record=True)
+    assert result.faults == [] and result.bag_path is not None
+    _, statuses = read_statuses(result.bag_path)
+    running = {s.name.rsplit("/", 1)[-1]: s.values for s in statuses if s.message == RUNNING}
+    assert set(running) == {"plant", "servo_x", "servo_y"}, "one window (t = 1 s) per node in 1.5 s"
+    for values in running.values():
+        assert values["run_time_s"] == "1.000000" and values["ticks"] == "101"
+        assert float(values["tick_rate_hz"]) > 0.0
+    assert running["plant"]["estop_latched"] == "false" and running["plant"]["enabled"] == "true"
+    assert 0.0 < float(running["servo_x"]["peak_following_error_m"]) < 1e-3
+    assert 0.0 <= float(running["servo_x"]["saturated_share"]) <= 1.0
+
+
+def test_estop_mid_run_latches_stops_the_axes_and_is_in_the_bag(tmp_path: Path) -> None:
+    scenario = load_scenario(CIRCLE, {"duration_s": 1.5})
+    ns = "/cnc/estop_e2e"
+    probed = {f"{ns}/joint_states": JointState, f"{ns}/reference": Reference,  # the extra reader of every topic
+              f"{ns}/servo/x/command": AxisCommand, f"{ns}/servo/y/command": AxisCommand}
+    with TopicProbe(probed) as probe:
+        estop = probe.node.create_publisher(Bool, f"{ns}/estop", 10)
+        sent: list[int] = []
+
+        def press_once_running() -> None:
+            if not sent and len(probe.received(f"{ns}/joint_states")) > 40 and estop.get_subscription_count() > 0:
+                estop.publish(Bool(data=True))
+                sent.append(len(probe.received(f"{ns}/joint_states")))
+
+        result = run_graph(scenario, tmp_path, record=True, extra_subscribers=1, namespace=ns,
+                           on_poll=press_once_running)
+    assert sent and result.faults == [] and result.summary["estop_latches"] == 1
+    _, statuses = read_statuses(result.bag_path)
+    latched = [s for s in statuses if s.message.startswith("e-stop latched")]
+    assert len(latched) == 1 and f"{ns}/estop true" in latched[0].message
+    second = [s.values for s in statuses if s.message == RUNNING and s.name.endswith("/plant")]
+    assert second and second[0]["estop_latched"] == "true", "the latch holds to the end of the run"
+    speeds = [max(abs(v) for v in m.velocity) for m in probe.received(f"{ns}/joint_states")]
+    assert max(speeds[-20:]) < 0.2 * max(speeds[sent[0]:sent[0] + 20]), "zero commands: the axes coast to rest"
