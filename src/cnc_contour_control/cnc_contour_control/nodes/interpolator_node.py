@@ -46,8 +46,8 @@ class InterpolatorNode(SuiteNode):
         self.interpolator = self._make_interpolator(run.program_file, run.feed_override_source)
         self.reference_pub = self.gated_publisher(Reference, "reference", 1)
         path_pub = self.create_publisher(Path, "path", LATCHED_QOS)
-        path_pub.publish(
-            program_to_path(self.interpolator.program, 0, self.frame_id, self.interpolator.duration_s)
+        path_pub.publish(  # the program as written: the scorer measures the blends' deviation as contour error
+            program_to_path(self.interpolator.programmed_program, 0, self.frame_id, self.interpolator.duration_s)
         )
         # A joint state is answered at once (previous_tick: once feed_override(k-1) is in, watched by a timer);
         # the matcher checks stamps (from t = 0).
