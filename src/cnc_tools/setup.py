@@ -24,6 +24,7 @@ setup(
         "console_scripts": [
             "cnc-contour = cnc_tools.cli.main:main",
             "recorder = cnc_tools.nodes.recorder_node:main",
+            "composed = cnc_tools.nodes.composed_host:main",
             "replay = cnc_tools.nodes.replay_node:main",
         ],
     },

@@ -8,6 +8,7 @@ from cnc_contour_control.config import require_choice
 from cnc_tools.bench.cross_axis import cross_axis_bench
 from cnc_tools.bench.blending import blending_bench
 from cnc_tools.bench.compensator import compensator_bench
+from cnc_tools.bench.compose import compose_bench
 from cnc_tools.bench.engine import engine_bench
 from cnc_tools.bench.estimator import estimator_bench
 from cnc_tools.bench.graph import graph_bench
@@ -36,6 +37,7 @@ BENCHES: dict[str, Bench] = {
     "engine": engine_bench,
     "graph": graph_bench,
     "cross-axis": cross_axis_bench,
+    "compose": compose_bench,
     "scoring": scoring,
     "sweep": sweep_bench,
     "tune": tune_bench,

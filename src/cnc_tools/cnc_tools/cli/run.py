@@ -8,6 +8,7 @@ from pathlib import Path
 from cnc_contour_control.errors import CncError
 from cnc_tools.cli.common import parse_overrides
 from cnc_tools.runs.backends import run_on_engine
+from cnc_tools.runs.compose import COMPOSE_MODES
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph
 from cnc_tools.runs.namespaces import run_namespace
@@ -22,6 +23,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, help="run folder (default bags/<scenario>/<timestamp>)")
     parser.add_argument("--namespace", help="ROS namespace of the run's topics, /clock and /diagnostics included "
                         "(default /cnc/run_<random id>: runs in one ROS domain never meet)")
+    parser.add_argument("--compose", choices=sorted(COMPOSE_MODES), default="none",
+                        help="nodes in one process on one executor: loop (plant, interpolator, servos and the "
+                        "optional stages; the recorder apart), all (the recorder too), none (one process each; default)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario key, e.g. --set servo.law_params.kp=3 --set mode=realtime")
 
@@ -41,9 +45,10 @@ def run(args: argparse.Namespace) -> int:
                         run_dir / "bag")
     namespace = run_namespace(namespace=args.namespace)
     print(f"running {scenario.name} through the node graph ({scenario.mode}, T = {scenario.sample_time_s} s, "
-          f"{scenario.duration_s:.2f} s simulated) in namespace {namespace}, recording to {run_dir / 'bag'}", flush=True)
+          f"{scenario.duration_s:.2f} s simulated, compose {args.compose}) in namespace {namespace}, "
+          f"recording to {run_dir / 'bag'}", flush=True)
     result = run_graph(scenario, run_dir, record=True, on_poll=Progress(run_dir / "summary.json", scenario.duration_s),
-                       namespace=namespace)
+                       namespace=namespace, compose=args.compose)
     print_summary(scenario.name, "node graph", result.summary)
     if result.faults or result.bag_path is None:
         return 1

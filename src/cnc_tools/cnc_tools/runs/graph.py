@@ -1,7 +1,9 @@
 """Run a scenario through the real node graph: start the node processes, supervise, reap.
 
 Every node is a separate process started from its installed executable (what
-``ros2 run`` starts), with a parameters file written for the run. The plant
+``ros2 run`` starts), with a parameters file written for the run, unless the
+run composes nodes (``compose="loop"`` or ``"all"``, :mod:`cnc_tools.runs.compose`):
+those share one host process and are supervised as members of it. The plant
 owns time; the run ends when the plant exits. A node that dies first ends the
 run with a :class:`NodeDied` naming it. All processes are stopped and reaped on
 every way out: errors, SIGINT/SIGTERM/SIGHUP to the runner, and the runner's own
@@ -23,6 +25,7 @@ from typing import Any
 
 from cnc_contour_control.errors import CncError, FaultError
 from cnc_contour_control.graph_files import write_params_file
+from cnc_tools.runs.compose import HOST, MemberExit, ProcessGroup, exits_path, group_nodes, read_exits, write_host_spec
 from cnc_tools.runs.dds import loopback_env
 from cnc_tools.runs.graph_nodes import NAMESPACE, NodeSpec, graph_nodes, recorder_spec, write_params_dir
 from cnc_tools.runs.lifetime import RunInterrupted, StopSignals, die_with_parent, read_summary, settle_summary
@@ -69,14 +72,20 @@ def find_executable(package: str, executable: str) -> Path:
 class GraphRun:
     """The processes of one run, all in ``namespace``; use as a context manager so they are always reaped.
 
+    ``compose`` (:data:`~cnc_tools.runs.compose.COMPOSE_MODES`) puts nodes into one
+    host process; ``processes`` is keyed by process (a node's name, or
+    :data:`~cnc_tools.runs.compose.HOST`), exit codes and waits by node.
+
     Every node runs in its own session (a terminal's Ctrl-C reaches the runner
     only, which stops the nodes in order) and dies with the runner
     (:func:`~cnc_tools.runs.lifetime.die_with_parent`).
     """
 
     def __init__(self, nodes: Sequence[NodeSpec], run_dir: Path, env: Mapping[str, str] | None = None,
-                 namespace: str = NAMESPACE) -> None:
+                 namespace: str = NAMESPACE, compose: str = "none") -> None:
         self.nodes = list(nodes)
+        self.groups = group_nodes(self.nodes, compose)
+        self.process_of = {spec.name: group.name for group in self.groups for spec in group.nodes}
         self.run_dir = run_dir
         self.namespace = namespace
         self.env = dict(env) if env is not None else loopback_env()
@@ -86,8 +95,8 @@ class GraphRun:
     def __enter__(self) -> GraphRun:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         try:
-            for spec in self.nodes:
-                self.processes[spec.name] = self._start(spec)
+            for group in self.groups:
+                self.processes[group.name] = self._start(group)
             self._write_pids()
             write_params_dir(self.nodes, self.run_dir, self.namespace, files=False)  # graph.yaml: launchable
         except BaseException:
@@ -98,18 +107,37 @@ class GraphRun:
     def __exit__(self, *exc: object) -> None:
         self.stop()
 
-    def _start(self, spec: NodeSpec) -> subprocess.Popen[bytes]:
+    @property
+    def node_names(self) -> list[str]:
+        """Every node of the run, composed or not."""
+        return [spec.name for spec in self.nodes]
+
+    def _arguments(self, spec: NodeSpec) -> list[str]:
+        """The node's ROS arguments (its own process's, or its constructor's in a host): name, namespace, remaps, file."""
         params = write_params_file(self.run_dir, self.namespace, spec.name, spec.parameters)
-        command = [str(find_executable(spec.package, spec.executable)), "--ros-args",
-                   "-r", f"__ns:={self.namespace}", "-r", f"__node:={spec.name}", *remap_arguments(self.namespace),
-                   "--params-file", str(params)]
-        with open(self.run_dir / f"{spec.name}.log", "wb") as log:  # the child keeps its own descriptor
+        return ["--ros-args", "-r", f"__ns:={self.namespace}", "-r", f"__node:={spec.name}",
+                *remap_arguments(self.namespace), "--params-file", str(params)]
+
+    def _command(self, group: ProcessGroup) -> list[str]:
+        """A lone node's executable with its arguments, or the composed host with its spec file."""
+        arguments = {spec.name: self._arguments(spec) for spec in group.nodes}
+        if group.name != HOST:
+            spec = group.nodes[0]
+            return [str(find_executable(spec.package, spec.executable)), *arguments[spec.name]]
+        return [str(find_executable("cnc_tools", HOST)), str(write_host_spec(self.run_dir, group, arguments))]
+
+    def _start(self, group: ProcessGroup) -> subprocess.Popen[bytes]:
+        command = self._command(group)
+        with open(self.run_dir / f"{group.name}.log", "wb") as log:  # the child keeps its own descriptor
             return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=self.env,
                                     start_new_session=True, preexec_fn=self._preexec)  # noqa: PLW1509
 
     def _write_pids(self) -> None:
         """``pids.json``: the runner's pid and every node's, for people and tests watching a run."""
-        pids = {"runner": os.getpid(), "nodes": {name: p.pid for name, p in self.processes.items()}}
+        pids = {"runner": os.getpid(),
+                "nodes": {name: self.processes[process].pid for name, process in self.process_of.items()
+                          if process in self.processes},
+                "processes": {name: p.pid for name, p in self.processes.items()}}
         (self.run_dir / "pids.json").write_text(json.dumps(pids, indent=2))
 
     def wait(self, main: str = "plant", timeout_s: float = 3600.0, poll: Callable[[], None] | None = None,
@@ -123,36 +151,56 @@ class GraphRun:
         while time.monotonic() < deadline:
             if poll is not None:
                 poll()
-            if self.processes[main].poll() is not None:
-                return self.exit_codes()
-            for name, process in self.processes.items():
-                if name != main and process.poll() is not None and not (name in may_finish and process.returncode == 0):
-                    raise NodeDied(name, f"node {name} (pid {process.pid}) exited with code {process.returncode} "
+            codes = self.exit_codes()
+            if codes[main] is not None:
+                return codes
+            for name, code in codes.items():
+                if name != main and code is not None and not (name in may_finish and code == 0):
+                    raise NodeDied(name, f"node {name} ({self._where(name)}) exited with code {code} "
                                          f"during the run; last output: {self.last_output(name)!r}")
             time.sleep(POLL_S)
         raise FaultError(f"run did not finish within {timeout_s} s")
 
     def wait_exit(self, name: str, timeout_s: float, poll: Callable[[], None] | None = None) -> int:
         """Wait for ``name`` to exit by itself; :class:`NodeDied` if it fails, FaultError if it hangs."""
-        process = self.processes[name]
         deadline = time.monotonic() + timeout_s
-        while process.poll() is None:
+        while (code := self.exit_codes()[name]) is None:
             if time.monotonic() > deadline:
                 raise FaultError(f"node {name} did not finish within {timeout_s} s")
             if poll is not None:
                 poll()
             time.sleep(POLL_S)
-        if process.returncode != 0:
-            raise NodeDied(name, f"node {name} exited with code {process.returncode}: {self.last_output(name)!r}")
-        return process.returncode
+        if code != 0:
+            raise NodeDied(name, f"node {name} ({self._where(name)}) exited with code {code}: "
+                                 f"{self.last_output(name)!r}")
+        return code
 
     def exit_codes(self) -> dict[str, int | None]:
-        """Exit code of every process (None while running)."""
-        return {name: process.poll() for name, process in self.processes.items()}
+        """Exit code of every node (None while running): its process's, or its end noted by its composed host."""
+        running = {name: process.poll() for name, process in self.processes.items()}  # before the notes: none missed
+        ended = {name: self._member_exits(name) for name in self.processes}
+        codes: dict[str, int | None] = {}
+        for name, process_name in self.process_of.items():
+            noted = ended.get(process_name, {}).get(name)
+            codes[name] = noted.code if noted is not None else running.get(process_name)
+        return codes
+
+    def _member_exits(self, process_name: str) -> dict[str, MemberExit]:
+        """The members a composed host noted as ended (nothing for a lone node's process)."""
+        return read_exits(exits_path(self.run_dir, process_name)) if process_name == HOST else {}
+
+    def _where(self, name: str) -> str:
+        """``pid N``, or ``in the composed process, pid N`` for a member."""
+        process_name = self.process_of[name]
+        pid = self.processes[process_name].pid if process_name in self.processes else "?"
+        return f"pid {pid}" if process_name == name else f"in the {process_name} process, pid {pid}"
 
     def last_output(self, name: str) -> str:
-        """The last non-empty line a node printed."""
-        path = self.run_dir / f"{name}.log"
+        """The last non-empty line a node printed (a composed member: the line its host noted at its end)."""
+        ended = self._member_exits(self.process_of.get(name, name)).get(name)
+        if ended is not None:
+            return ended.message
+        path = self.run_dir / f"{self.process_of.get(name, name)}.log"
         lines = [line for line in path.read_text(errors="replace").splitlines() if line.strip()] if path.exists() else []
         return lines[-1] if lines else ""
 
@@ -174,11 +222,13 @@ class GraphRun:
 
 def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_subscribers: int = 0,
               env: Mapping[str, str] | None = None, on_poll: Callable[[], None] | None = None,
-              timeout_s: float = 3600.0, namespace: str | None = None) -> RunResult:
+              timeout_s: float = 3600.0, namespace: str | None = None, compose: str = "none") -> RunResult:
     """Run ``scenario`` through the node graph in ``run_dir`` (recorded to ``run_dir/bag`` if asked).
 
     The run's topics live under ``namespace``, by default a fresh ``/cnc/<run id>``
     (:mod:`cnc_tools.runs.namespaces`), so runs in one ROS domain never meet.
+    ``compose`` (``none``, ``loop``, ``all``: :mod:`cnc_tools.runs.compose`) puts
+    nodes into one process; the bag, summary and verdicts are the same.
 
     Raises
     ------
@@ -194,7 +244,7 @@ def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_sub
     extra = [recorder_spec(scenario, run_dir / "bag")] if record else []
     nodes = [*extra, *graph_nodes(scenario, run_dir, extra_subscribers + len(extra),
                                   extra_readers=[spec.name for spec in extra])]
-    run = GraphRun(nodes, run_dir, env, namespace)
+    run = GraphRun(nodes, run_dir, env, namespace, compose)
     with StopSignals(run_dir) as signals:
         try:
             with run:
@@ -210,7 +260,7 @@ def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_sub
 
 def _supervise(run: GraphRun, record: bool, timeout_s: float, poll: Callable[[], None]) -> dict[str, Any]:
     """Wait for the plant's end (and the recorder's); the plant's summary of a finished or faulted run."""
-    learner = [name for name in run.processes if name == "compensator"]  # exits once its state is saved
+    learner = [name for name in run.node_names if name == "compensator"]  # exits once its state is saved
     codes = run.wait("plant", timeout_s, poll, may_finish=["recorder", *learner])
     summary = read_summary(run.run_dir / "summary.json")
     if summary is None or summary.get("status") not in ("finished", "faulted"):

@@ -1,0 +1,147 @@
+"""Composed host: several of the suite's nodes in one process, spun by one executor (``composed SPEC``).
+
+The ROS 2 component pattern in Python: the host reads its spec
+(:func:`cnc_tools.runs.compose.read_host_spec`), builds each member from its
+class (:mod:`cnc_tools.nodes.composable`) with the ROS arguments its own process
+would get (``__ns``, ``__node``, the run's remaps, ``--params-file``) and spins
+them all on one executor (:func:`~cnc_contour_control.nodes.common.make_executor`).
+
+Each member ends as its process would: finished (exit code 0), faulted
+(:data:`~cnc_contour_control.nodes.common.EXIT_FAULT`) or raised (1, the
+exception named by the node whose callback raised it); the host then removes
+it from the executor, flushes and destroys it, and notes its end in the exits
+file, which the runner reads as it reads a process's exit. The host ends once
+every member ended, or on SIGINT/SIGTERM (every member destroyed: the recorder
+closes its bag, the plant writes its summary).
+"""
+from __future__ import annotations
+
+import sys
+import traceback
+from collections.abc import Sequence
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+
+from cnc_contour_control.errors import CncError
+from cnc_contour_control.nodes.common import EXIT_FAULT, SuiteNode, flush_and_destroy, make_executor
+from cnc_tools.nodes.composable import node_class
+from cnc_tools.runs.compose import MemberExit, read_host_spec, write_exits
+
+#: Exit code of a member whose callback raised an error that is not the suite's (Python's own for a traceback).
+EXIT_RAISED = 1
+
+
+def culprit(trace: TracebackType | None, nodes: dict[str, Any]) -> str | None:
+    """The member whose code raised: the outermost frame of the traceback whose ``self`` is a member node."""
+    while trace is not None:
+        owner = trace.tb_frame.f_locals.get("self")
+        found = next((name for name, node in nodes.items() if owner is node), None)
+        if found is not None:
+            return found
+        trace = trace.tb_next
+    return None
+
+
+class ComposedHost:
+    """Members by name, one executor, and the ends noted in ``exits_file``."""
+
+    def __init__(self, context: Any, exits_file: Path | None) -> None:
+        self.context, self.exits_file = context, exits_file
+        self.executor = make_executor(context)
+        self.live: dict[str, SuiteNode] = {}
+        self.exits: dict[str, MemberExit] = {}
+
+    def add(self, name: str, cls: type[SuiteNode], arguments: Sequence[str]) -> None:
+        """Build one member with its own ROS arguments; a failure is that member's end, not the host's."""
+        try:
+            node = cls(context=self.context, cli_args=list(arguments), use_global_arguments=False)
+        except CncError as err:
+            self._note(name, EXIT_FAULT, f"FAULT: {err}")
+            return
+        except Exception as err:  # noqa: BLE001 - a member's crash while starting is its end, as in its own process
+            self._note(name, EXIT_RAISED, f"{type(err).__name__}: {err}", err)
+            return
+        self.live[name] = node
+        self.executor.add_node(node)
+
+    def spin(self) -> None:
+        """Spin until every member ended or the context is shut down (a signal)."""
+        while self.live and self.context.ok():
+            try:
+                self.executor.spin_once(timeout_sec=0.1)
+            except (KeyboardInterrupt, ExternalShutdownException):
+                return
+            except Exception as err:  # noqa: BLE001 - attributed to the member that raised it, or re-raised
+                self._raised(err)
+            for name in [n for n, node in self.live.items() if node.finished]:
+                node = self.live[name]
+                self.end(name, EXIT_FAULT if node.fault_message else 0,
+                         f"FAULT: {node.fault_message}" if node.fault_message else "finished")
+
+    def _raised(self, err: Exception) -> None:
+        """End the member whose callback raised ``err`` (a suite error: a fault); an unknown origin ends the host."""
+        name = culprit(err.__traceback__, dict(self.live))
+        if name is None:
+            raise err
+        if isinstance(err, CncError):
+            self.end(name, EXIT_FAULT, f"FAULT: {err}")
+        else:
+            self.end(name, EXIT_RAISED, f"{type(err).__name__}: {err}", err)
+
+    def end(self, name: str, code: int, message: str, err: BaseException | None = None) -> None:
+        """Remove, flush and destroy one member, and note its end."""
+        node = self.live.pop(name)
+        self.executor.remove_node(node)
+        try:
+            flush_and_destroy(node)
+        finally:
+            self._note(name, code, message, err)
+
+    def _note(self, name: str, code: int, message: str, err: BaseException | None = None) -> None:
+        if err is not None:
+            traceback.print_exception(err, file=sys.stderr)
+        print(f"[{name}] ended with code {code}: {message}", file=sys.stderr, flush=True)
+        self.exits[name] = MemberExit(code, message)
+        if self.exits_file is not None:
+            write_exits(self.exits_file, self.exits)
+
+    def close(self) -> None:
+        """Destroy every member still live (after a signal: no flush; the plant notes ``interrupted``)."""
+        for name, node in list(self.live.items()):
+            del self.live[name]
+            flush_and_destroy(node)
+        self.executor.shutdown()
+
+
+def run_host(spec_file: Path, args: Sequence[str] | None = None) -> int:
+    """Build the spec's members, spin them until they end; the host's exit code (0 unless the host itself failed)."""
+    spec = read_host_spec(spec_file)
+    rclpy.init(args=args)
+    host: ComposedHost | None = None
+    try:
+        host = ComposedHost(rclpy.get_default_context(), Path(spec["exits_file"]) if spec.get("exits_file") else None)
+        for entry in spec["nodes"]:
+            host.add(entry["name"], node_class(entry["package"], entry["executable"]), entry["arguments"])
+        host.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if host is not None:
+            host.close()
+        rclpy.try_shutdown()
+    return 0
+
+
+def main(args: list[str] | None = None) -> None:
+    """Entry point: ``ros2 run cnc_tools composed SPEC_FILE`` (written by the runner for ``--compose loop|all``)."""
+    argv = list(sys.argv if args is None else args)
+    plain = rclpy.utilities.remove_ros_args(argv)
+    if len(plain) != 2:
+        print(f"usage: composed SPEC_FILE (a <process>.compose.yaml the runner wrote), got {plain[1:]}",
+              file=sys.stderr)
+        raise SystemExit(2)
+    raise SystemExit(run_host(Path(plain[1]), argv))
