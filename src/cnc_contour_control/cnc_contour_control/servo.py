@@ -152,7 +152,7 @@ class ServoOutput:
     disturbance_estimate : float
         The law's disturbance estimate (0 for laws without one).
     saturated : bool
-        True when the unsaturated total exceeded ``output_limit``.
+        True when the applied command is at ``output_limit`` (:func:`at_limit`), whichever part clamped it.
     error_m : float
         Following error ``ref − position`` [m].
     """
@@ -183,6 +183,15 @@ def quantise(value: float, quantum: float, limit: float = math.inf) -> float:
     if steps * quantum > limit:
         steps -= 1
     return math.copysign(steps * quantum, value) if steps else 0.0
+
+
+def at_limit(total: float, command: float, limit: float) -> bool:
+    """True when the command is at the limit: the total reached ``±limit``, or the applied command did.
+
+    The law may clamp itself (the PID at ±127), so a total exactly at the limit
+    counts; a total beyond it too, even when quantisation stepped the command back.
+    """
+    return total >= limit or total <= -limit or command >= limit or command <= -limit
 
 
 #: One servo sample as a tuple: (command, feedback, feedforward, compensation, disturbance_estimate, saturated, error_m).
@@ -285,7 +294,7 @@ class ServoController:
         command = quantise(total, self._quantum, limit)
         sample.applied_command = command
         return (command, out.feedback, feedforward, compensation, out.disturbance_estimate,
-                total > limit or total < -limit, error_m)
+                at_limit(total, command, limit), error_m)
 
     def command(self, dt_s: float, ref_position_m: float, ref_velocity_m_s: float, ref_acceleration_m_s2: float,
                 position_m: float, velocity_m_s: float, compensation: float) -> float:

@@ -43,8 +43,9 @@ def test_output_is_the_sum_of_its_parts() -> None:
 
 @pytest.mark.parametrize(("error_blu", "command", "saturated"), [
     (2.5, 3.0, False), (-2.5, -3.0, False), (2.49, 2.0, False), (0.5, 1.0, False),
-    (-0.4, 0.0, False), (126.6, 127.0, False), (126.9, 127.0, False),
-    (130.0, 127.0, True), (-500.0, -127.0, True),
+    (-0.4, 0.0, False), (126.4, 126.0, False),
+    (126.6, 127.0, True), (126.9, 127.0, True),  # rounded onto the limit: the applied command is at it
+    (127.0, 127.0, True), (130.0, 127.0, True), (-500.0, -127.0, True),
 ])
 def test_saturation_and_quantisation_8bit(error_blu: float, command: float, saturated: bool) -> None:
     out = p_servo().step(0.01, error_blu * 1e-5, 0.0, 0.0, 0.0, 0.0, 0.0)

@@ -1,12 +1,16 @@
 """PNG reports of recorded runs (matplotlib, Agg canvas, no pyplot state).
 
+Runs are labelled by name (``<scenario>/<start time>`` for a run folder);
+runs of the same name are told apart by their source (:func:`run_labels`).
+
 Figures, chosen by name from ``FIGURES``:
 
 - ``xy``: each run's measured trace beside the programmed contour, the
   deviation normal to the contour magnified ``M`` times (``q + M (p - q)``,
   ``q`` the nearest contour point), as the papers draw it; one panel per run;
 - ``error_time`` / ``error_path``: exact contour error (µm) against time and
-  against path length, runs overlaid;
+  against path length, runs overlaid (the path-length trace breaks where the
+  nearest point jumps across a closed contour's start, :func:`path_trace`);
 - ``circular``: polar circular-test plot (radial deviation in µm about the
   nominal circle, reversals marked), one panel per circle run;
 - ``tracking``: per axis, tracking error (µm) and servo command, runs overlaid.
@@ -38,14 +42,45 @@ POINTS_PER_SEGMENT = 400
 
 @dataclass(frozen=True, eq=False)
 class _Item:
-    """One run with its score."""
+    """One run with its score and its label in legends and titles."""
 
     run: RecordedRun
     score: Score
+    label: str
 
-    @property
-    def label(self) -> str:
-        return self.run.name
+
+def run_labels(runs: Sequence[RecordedRun]) -> list[str]:
+    """One distinct label per run: its name, with its source (then its position) when names repeat."""
+    names = [run.name for run in runs]
+    labels = [name if names.count(name) == 1 else f"{name} ({run.source})" for name, run in zip(names, runs)]
+    return [label if labels.count(label) == 1 else f"{label} #{k + 1}" for k, label in enumerate(labels)]
+
+
+def path_trace(path_length_m: np.ndarray, error_m: np.ndarray, total_length_m: float) -> tuple[np.ndarray, np.ndarray]:
+    """Contour error against path length [mm, µm], NaN-separated where the path length jumps.
+
+    A sample's nearest contour point jumps from the end of a closed contour to
+    its start (or back) when the tool passes the start point; a jump of more
+    than half the contour's length is such a wrap, and a NaN between the two
+    samples keeps the plot from drawing a line across the whole figure.
+
+    Parameters
+    ----------
+    path_length_m : (N,) array
+        Arc length of each sample's nearest contour point [m].
+    error_m : (N,) array
+        Exact contour error of each sample [m].
+    total_length_m : float
+        The programmed contour's length [m].
+
+    Returns
+    -------
+    tuple of (M,) arrays
+        Path length [mm] and error [µm], ``M = N +`` the number of wraps.
+    """
+    x_mm, y_um = np.asarray(path_length_m) / M_PER_MM, np.asarray(error_m) / M_PER_UM
+    wraps = np.flatnonzero(np.abs(np.diff(path_length_m)) > 0.5 * total_length_m) + 1
+    return np.insert(x_mm, wraps, np.nan), np.insert(y_um, wraps, np.nan)
 
 
 def nice_magnification(run_items: Sequence[RecordedRun], scores: Sequence[Score]) -> float:
@@ -102,10 +137,14 @@ def _error_vs(items: Sequence[_Item], axis: str) -> Figure:
     ax = fig.add_subplot()
     for item in items:
         series = item.score.series
-        x = series.time_s if axis == "time" else series.path_length_m / M_PER_MM
-        ax.plot(x, series.error_m / M_PER_UM, lw=0.8, label=item.label)
+        if axis == "time":
+            x, y = series.time_s, series.error_m / M_PER_UM
+        else:
+            x, y = path_trace(series.path_length_m, series.error_m, item.run.program.total_length_m)
+        ax.plot(x, y, lw=0.8, label=item.label)
+    title = f"exact contour error vs {'time' if axis == 'time' else 'path length'}"
     ax.set(xlabel="time [s]" if axis == "time" else "path length [mm]", ylabel="contour error [µm]",
-           title=f"exact contour error vs {'time' if axis == 'time' else 'path length'}")
+           title=title if len(items) > 1 else f"{items[0].label}: {title}")
     ax.grid(True, alpha=0.3)
     ax.legend(loc="best", fontsize="small")
     return fig
@@ -180,7 +219,7 @@ FIGURES: dict[str, tuple[str, Callable[[Sequence[_Item], float], Figure | None]]
 def write_report(runs: Sequence[RecordedRun], out_dir: str | Path, *, scores: Sequence[Score] | None = None,
                  figures: Sequence[str] | None = None, magnification: float | None = None,
                  dpi: int = 120) -> list[Path]:
-    """Write the PNG figures of one or more runs (side by side or overlaid, labelled by run name).
+    """Write the PNG figures of one or more runs (side by side or overlaid, labelled by :func:`run_labels`).
 
     Parameters
     ----------
@@ -212,7 +251,7 @@ def write_report(runs: Sequence[RecordedRun], out_dir: str | Path, *, scores: Se
     names = list(FIGURES) if figures is None else [require_choice("figures", n, FIGURES) for n in figures]
     factor = (nice_magnification(runs, scored) if magnification is None
               else require_positive("magnification", magnification))
-    items = [_Item(run, score) for run, score in zip(runs, scored)]
+    items = [_Item(run, score, label) for run, score, label in zip(runs, scored, run_labels(runs))]
     folder = Path(out_dir)
     folder.mkdir(parents=True, exist_ok=True)
     written = []

@@ -2,8 +2,9 @@
 
 A bag is a folder ``<name>/`` holding ``metadata.yaml`` (rosbag2 version 9 with
 the per-topic message counts) and ``<name>.mcap`` (ros2 profile, ``ros2msg``
-schemas, CDR messages in chunks, message indexes and a summary), written by
-``rosbags.rosbag2.Writer``; ``ros2 bag``, Foxglove, ``rosbags`` and ``mcap`` read it.
+schemas, CDR messages in CRC-checked 64 KiB chunks, message indexes and a summary), written by
+``rosbags.rosbag2.Writer`` on the ``mcap`` library's writer (:mod:`cnc_tools.bagio.mcap_storage`);
+``ros2 bag``, Foxglove, ``rosbags`` and ``mcap`` read it.
 
 Reading (:mod:`cnc_tools.bagio.raw_bag`) goes through ``rosbags``' ``AnyReader`` (the
 file's index). When that fails (a truncated or damaged file) the salvage scan
@@ -28,6 +29,7 @@ from rosbags.typesys.store import Typestore
 from cnc_contour_control import topics
 from cnc_contour_control.errors import BagError, CncError
 from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
+from cnc_tools.bagio.mcap_storage import CheckedMcapStorage, with_ros_distro
 from cnc_tools.bagio.raw_bag import RawBag, locate, read_raw
 from cnc_tools.bagio.recording import in_some_namespace, run_namespace
 from cnc_tools.run_record import (
@@ -58,6 +60,19 @@ _NO_TIME = QosTime(sec=0, nsec=0)
 #: QoS offered for latched topics (``/cnc/path``): ``ros2 bag play`` republishes them transient-local.
 TRANSIENT_LOCAL_QOS = Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL,
                           _NO_TIME, _NO_TIME, QosLiveliness.AUTOMATIC, _NO_TIME, False)
+#: QoS the suite's nodes offer on per-tick topics (``lockstep``: reliable, volatile, depth 1000).
+LOCKSTEP_QOS = Qos(QosHistory.KEEP_LAST, 1000, QosReliability.RELIABLE, QosDurability.VOLATILE,
+                   _NO_TIME, _NO_TIME, QosLiveliness.AUTOMATIC, _NO_TIME, False)
+#: QoS offered on ``/diagnostics`` (``status``: reliable, volatile, depth 100).
+STATUS_QOS = Qos(QosHistory.KEEP_LAST, 100, QosReliability.RELIABLE, QosDurability.VOLATILE,
+                 _NO_TIME, _NO_TIME, QosLiveliness.AUTOMATIC, _NO_TIME, False)
+_DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
+
+
+class _CheckedWriter(Writer):
+    """rosbags' rosbag2 writer on :class:`CheckedMcapStorage` (chunk CRCs, small chunks)."""
+
+    STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: CheckedMcapStorage}  # type: ignore[dict-item]
 
 
 # =========================================================================== writing
@@ -89,7 +104,7 @@ class BagWriter:
             raise BagError(f"bag {self.path}: unknown message types {unknown}; not in the Jazzy typestore "
                            "nor in cnc_contour_interfaces")
         self._latched = transient_local_topics
-        self._writer: Writer | None = Writer(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer: Writer | None = _CheckedWriter(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
         self._connections: dict[str, Connection] = {}
         self._closed_counts: dict[str, int] = {}
         self.topics: dict[str, str] = {}
@@ -108,9 +123,10 @@ class BagWriter:
             reason = "is declared already" if topic in self._connections else f"has unknown type {type_name!r}"
             raise BagError(f"bag {self.path}: topic {topic!r} {reason}")
         latched = topic in self._latched if self._latched is not None else type_name == PATH_TYPE
+        qos = TRANSIENT_LOCAL_QOS if latched else STATUS_QOS if type_name == _DIAGNOSTICS_TYPE else LOCKSTEP_QOS
         try:
             self._connections[topic] = self._writer.add_connection(
-                topic, type_name, typestore=self._store, offered_qos_profiles=[TRANSIENT_LOCAL_QOS] if latched else [])
+                topic, type_name, typestore=self._store, offered_qos_profiles=[qos])
         except WriterError as err:
             raise BagError(f"bag {self.path}: cannot add topic {topic!r}: {err}") from err
         self.topics[topic] = type_name
@@ -138,19 +154,16 @@ class BagWriter:
     def flush(self) -> None:
         """Write the messages buffered so far to the file as a complete chunk, and hand them to the OS.
 
-        rosbags' MCAP writer keeps up to 1 MiB in memory; a writer killed
-        before :meth:`close` would lose all of it. After a flush, a killed
+        The writer keeps up to one chunk (``CHUNK_SIZE_BYTES``) in memory; a
+        writer killed before :meth:`close` would lose it. After a flush, a killed
         writer leaves a file whose chunks up to here the salvage scan recovers.
         """
-        storage = getattr(self._writer, "storage", None) if self._writer is not None else None
-        chunk = getattr(storage, "chunk", None)
-        if storage is None or chunk is None:  # closed, or a storage without chunks
+        storage = self._writer.storage if self._writer is not None else None
+        if not isinstance(storage, CheckedMcapStorage):  # closed, or not open yet
             return
         try:
-            if chunk.bio.tell():
-                storage.close_chunk()
-            storage.bio.flush()
-        except (AttributeError, OSError) as err:
+            storage.flush()
+        except OSError as err:
             raise BagError(f"cannot flush bag {self.path}: {err}") from err
 
     def close(self) -> None:
@@ -161,6 +174,8 @@ class BagWriter:
         writer, self._writer = self._writer, None
         try:
             writer.close()
+            metadata_path = self.path / "metadata.yaml"  # rosbags writes ros_distro: rosbags
+            metadata_path.write_text(with_ros_distro(metadata_path.read_text("utf-8")), "utf-8")
         except (WriterError, OSError) as err:
             raise BagError(f"cannot finish bag {self.path}: {err}") from err
 
@@ -397,12 +412,13 @@ def _program(raw: RawBag, topic: str) -> Program:
 
 # =========================================================================== reading
 def _run_name(mcap_path: Path, is_dir: bool) -> str:
-    """A run's name: its bag folder's name, or ``<scenario>/<timestamp>`` for a run folder's ``bag/``."""
-    if not is_dir:
-        return mcap_path.stem
+    """A run's name: ``<scenario>/<start time>`` for a run folder's ``bag/`` (its folder or its ``.mcap``).
+
+    Any other bag is named by its folder, or by its file's stem when a file was given.
+    """
     folder = mcap_path.parent
     if folder.name != "bag":
-        return folder.name
+        return folder.name if is_dir else mcap_path.stem
     run_dir = folder.resolve().parent
     return f"{run_dir.parent.name}/{run_dir.name}"
 

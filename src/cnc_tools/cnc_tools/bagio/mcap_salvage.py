@@ -197,6 +197,37 @@ def scan_mcap(mcap_path: Path, wanted: Callable[[str], bool], sink: MessageSink)
     return scan, "" if ended else "the file ends without an MCAP footer (truncated)"
 
 
+#: Bytes of the Footer record (opcode, length, summary start u64, summary offset start u64, summary CRC u32).
+_FOOTER_BYTES = 1 + 8 + 20
+#: Bytes of the DataEnd record (opcode, length, data section CRC u32).
+_DATA_END_BYTES = 1 + 8 + 4
+_OP_DATA_END = 0x0F
+
+
+def crc_problem(data: bytes) -> str:
+    """Check an MCAP file's data-section and summary CRCs; '' when they match or the file has none.
+
+    The data-section CRC (DataEnd record) covers every byte before it: chunks,
+    message indexes and metadata records alike, so one flipped byte anywhere in
+    the data is found; the summary CRC (Footer) covers the summary and the
+    footer's offsets. A CRC of 0 means "not computed" (rosbags' own writer).
+    """
+    footer = len(data) - len(MAGIC) - _FOOTER_BYTES
+    if footer < len(MAGIC) or data[footer] != _OP_FOOTER or not data.endswith(MAGIC):
+        return "the MCAP footer is missing or damaged"
+    summary_start, _, summary_crc = struct.unpack_from("<QQI", data, footer + 9)
+    summary_from = summary_start or footer
+    data_end = summary_from - _DATA_END_BYTES
+    if not len(MAGIC) <= data_end < footer or data[data_end] != _OP_DATA_END:
+        return f"no DataEnd record before the summary (summary start {summary_start})"
+    (data_crc,) = struct.unpack_from("<I", data, data_end + 9)
+    if data_crc and zlib.crc32(data[:data_end]) != data_crc:
+        return "the data section fails its CRC (a damaged byte among the recorded data)"
+    if summary_crc and zlib.crc32(data[summary_from:footer + 9 + 16]) != summary_crc:
+        return "the summary section fails its CRC"
+    return ""
+
+
 def scan_typestore(scan: SalvageScan) -> Typestore:
     """Typestore from the file's own ``ros2msg`` schemas, else the project's."""
     try:

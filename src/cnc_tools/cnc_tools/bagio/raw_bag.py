@@ -17,7 +17,7 @@ from rosbags.typesys.store import Typestore
 from ruamel.yaml import YAML
 
 from cnc_contour_control.errors import BagError
-from cnc_tools.bagio.mcap_salvage import scan_mcap, scan_typestore
+from cnc_tools.bagio.mcap_salvage import crc_problem, scan_mcap, scan_typestore
 from cnc_tools.run_record import BagIntegrity
 from cnc_tools.bagio.typestore import project_typestore
 
@@ -143,7 +143,17 @@ def _read_scanned(source: BagSource, wanted: TopicFilter, index_error: str) -> t
 
 
 def read_raw(source: BagSource, wanted: TopicFilter) -> tuple[RawBag, BagIntegrity]:
-    """Read the wanted topics through the index, else by the salvage scan; say how intact the bag is."""
+    """Read the wanted topics through the index, else by the salvage scan; say how intact the bag is.
+
+    A file whose CRCs do not match is never read through its index: the scan
+    keeps what its chunk CRCs vouch for, and the bag is not complete.
+    """
+    try:
+        crc = crc_problem(source.mcap_path.read_bytes())
+    except OSError as err:
+        raise BagError(f"cannot read {source.mcap_path}: {err}") from err
+    if crc:
+        return _read_scanned(source, wanted, crc)
     try:
         raw, summary_counts = _read_indexed(source, wanted)
     except Exception as err:  # noqa: BLE001 - a damaged file may make rosbags raise anything; the scan decides

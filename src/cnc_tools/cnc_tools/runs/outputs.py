@@ -36,8 +36,10 @@ def score_record(run: RunRecord, out_dir: Path | None = None, metrics: Sequence[
     """Score one run record; with ``out_dir``, also write ``score.json`` and ``score.csv`` there.
 
     ``verdict`` defaults to the record's own (:func:`~cnc_tools.analysis.verdict.judge` of its summary);
-    ``force_reference_n`` [N] scores a run that cut against its force reference.
+    ``force_reference_n`` [N] scores a run that cut against its force reference. An engine record
+    written into a run folder is named after it (:func:`named_by_run_folder`).
     """
+    run = named_by_run_folder(run, out_dir)
     score = score_run(run, metrics, verdict=verdict or judge(run), force_reference_n=force_reference_n)
     if out_dir is None:
         return ScoredRun(run, score)
@@ -46,6 +48,18 @@ def score_record(run: RunRecord, out_dir: Path | None = None, metrics: Sequence[
     json_path.write_text(score.to_json())
     csv_path.write_text(score.to_csv())
     return ScoredRun(run, score, json_path, csv_path)
+
+
+def named_by_run_folder(run: RunRecord, out_dir: Path | None) -> RunRecord:
+    """An engine record written into ``bags/<scenario>/<start time>`` named ``<scenario>/<start time>``.
+
+    A bag read from a run folder is named so already (``bag.read_bag``); an
+    engine record knows only its scenario, and several runs of one scenario
+    would share that name in a report.
+    """
+    if run.backend != "engine" or out_dir is None or run.name.endswith(f"/{out_dir.name}"):
+        return run
+    return run.with_(name=f"{run.name}/{out_dir.name}")
 
 
 def judge_bag(bag: Path) -> tuple[RunRecord, Verdict]:

@@ -1,0 +1,90 @@
+"""MCAP storage for ``rosbags.rosbag2.Writer`` written by the ``mcap`` library: chunk CRCs and small chunks.
+
+rosbags' own MCAP storage writes every chunk with CRC 0 (a flipped byte goes
+unnoticed) and closes a chunk only past 1 MiB (a killed writer loses all of
+it). This storage hands the same records to ``mcap.writer.Writer`` with its
+``enable_crcs`` (the CRC of each chunk's records, which both ``rosbags``' reader
+and the salvage scan check, and of the summary), ``enable_data_crcs`` (one CRC of
+the whole data section, message indexes included, checked by
+:func:`cnc_tools.bagio.mcap_salvage.crc_problem`) and a ``chunk_size`` of :data:`CHUNK_SIZE_BYTES`;
+chunks stay uncompressed so the salvage scan can enter them. The rosbag2
+metadata record carries ``ros_distro: jazzy`` as rosbag2 writes it.
+"""
+from __future__ import annotations
+
+from io import StringIO
+from pathlib import Path
+from typing import cast
+
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapFileWriter
+from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinitionFormat
+from rosbags.rosbag2.enums import CompressionMode
+from ruamel.yaml import YAML
+
+from cnc_contour_control.errors import BagError
+
+#: Largest chunk before it is closed [bytes]: about 100 ticks of a 2-axis run (1 s at T = 10 ms; was 1 MiB).
+CHUNK_SIZE_BYTES = 64 * 1024
+#: The ROS distribution the suite records for (``ros_distro`` of ``metadata.yaml``).
+ROS_DISTRO = "jazzy"
+
+
+def with_ros_distro(metadata_text: str) -> str:
+    """The serialized rosbag2 metadata (YAML) with ``ros_distro`` set to :data:`ROS_DISTRO`."""
+    yaml = YAML(typ="safe")
+    yaml.default_flow_style = False
+    data = yaml.load(metadata_text)
+    info = data.get("rosbag2_bagfile_information", data)
+    info["ros_distro"] = ROS_DISTRO
+    out = StringIO()
+    yaml.dump(data, out)
+    return out.getvalue()
+
+
+class CheckedMcapStorage:
+    """A rosbags storage writer (``StorageWriter`` protocol) on ``mcap.writer.Writer`` with chunk CRCs."""
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        if compression != CompressionMode.NONE:
+            raise BagError(f"bag {path}: compression must be none (the salvage scan reads raw chunks), "
+                             f"got {compression.name.lower()}")
+        self.path = path / f"{path.name}.mcap"
+        self._file = self.path.open("xb")
+        self._mcap = McapFileWriter(self._file, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.NONE,
+                                    enable_crcs=True, enable_data_crcs=True)
+        self._mcap.start(profile="ros2", library="cnc_tools (mcap)")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[int, int] = {}
+
+    def add_msgtype(self, connection: Connection) -> None:
+        """Register the schema of ``connection``'s message type."""
+        encoding = "ros2msg" if connection.msgdef.format == MessageDefinitionFormat.MSG else "ros2idl"
+        self._schemas[connection.msgtype] = self._mcap.register_schema(
+            connection.msgtype, encoding, connection.msgdef.data.encode())
+
+    def add_connection(self, connection: Connection, offered_qos_profiles: str) -> None:
+        """Register a channel with its offered QoS profiles (serialized YAML)."""
+        ext = cast(ConnectionExtRosbag2, connection.ext)
+        self._channels[connection.id] = self._mcap.register_channel(
+            connection.topic, ext.serialization_format, self._schemas[connection.msgtype],
+            {"offered_qos_profiles": offered_qos_profiles})
+
+    def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
+        """Append one message; log and publish time are ``timestamp`` [ns]."""
+        self._mcap.add_message(self._channels[connection.id], timestamp, bytes(data), timestamp)
+
+    def flush(self) -> None:
+        """Close the chunk in progress and hand everything written to the OS."""
+        self._mcap.flush()
+
+    def close(self, version: int, metadata: str) -> None:
+        """Write the rosbag2 metadata record, the summary and the footer."""
+        _ = version
+        self._mcap.add_metadata("rosbag2", {"serialized_metadata": with_ros_distro(metadata).strip()})
+        self._mcap.finish()
+        self._file.close()
+
+    def abort(self) -> None:
+        """Close without summary."""
+        self._file.close()
