@@ -35,6 +35,10 @@ from cnc_contour_control.stage_params import InterpolatorRunParams
 DEFAULT_MAX_VELOCITY_M_S = 0.1
 DEFAULT_MAX_ACCELERATION_M_S2 = 1.0
 
+#: The first tick's override may take this many feed_override_timeout_s: the regulator's publisher opens
+#: only once its readers are discovered (a start-up cost, as the plant's startup_timeout_s allows for).
+FIRST_OVERRIDE_TIMEOUT_FACTOR = 4.0
+
 
 class InterpolatorNode(SuiteNode):
     """Publishes ``reference`` for each ``joint_states`` tick and ``path`` once (latched)."""
@@ -111,10 +115,12 @@ class InterpolatorNode(SuiteNode):
         if self._blocked_since_s is None or self.finished:
             return
         waited_s = wall_time_s() - self._blocked_since_s
-        if waited_s > self._override_timeout_s:
+        first = self.inbox.awaited_ns == 0  # the regulator's first answer also waits for its readers' discovery
+        limit_s = self._override_timeout_s * (FIRST_OVERRIDE_TIMEOUT_FACTOR if first else 1.0)
+        if waited_s > limit_s:
             self.fault(f"no {self.resolve_topic_name('feed_override')} of the previous tick "
-                       f"(stamp {self.inbox.awaited_ns} ns) within feed_override_timeout_s = "
-                       f"{self._override_timeout_s} s")
+                       f"(stamp {self.inbox.awaited_ns} ns) within {limit_s} s (feed_override_timeout_s = "
+                       f"{self._override_timeout_s} s{', x' + str(FIRST_OVERRIDE_TIMEOUT_FACTOR) + ' for the first' if first else ''})")
 
     def _sample(self, stamp_ns: int) -> ReferenceSample:
         """The reference at the stamp: at the programmed feed, or following the override's request."""
