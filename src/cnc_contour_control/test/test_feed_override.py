@@ -87,7 +87,7 @@ def test_requests_beyond_the_range_are_clipped_and_nan_refused() -> None:
         f.advance(DT_S, math.nan)
 
 
-@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@settings(max_examples=10, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.lists(st.tuples(st.integers(1, 300), st.floats(0.0, 1.5)), min_size=1, max_size=8))
 def test_random_request_schedules_never_exceed_the_limits(schedule: list) -> None:
     config = OverrideConfig(max_ratio=1.5)
