@@ -13,6 +13,10 @@ from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.gcode import parse_gcode
 from cnc_contour_control.geometry import ArcSegment, Dwell, LineSegment, Program
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_tools.sibling_tests import sibling_module
+
+
+_INTERPOLATION_TESTS = sibling_module(__file__, "test_interpolation")  # its check_limits, the one limit check of the planner
 
 LIMITS_2 = AxisLimits((2000 / 60000,) * 2, (0.25, 0.25))
 LIMITS_3 = AxisLimits((2000 / 60000,) * 3, (0.25, 0.25, 0.4))
@@ -39,18 +43,9 @@ def star(points: int = 5, outer_m: float = 0.02, inner_m: float = 0.006) -> Prog
     return polyline(vertices)
 
 
-def check_limits(interpolator: Interpolator, dt_s: float = 2e-4, rtol: float = 1e-9) -> None:
-    """Analytic and finite-difference axis velocity and acceleration within the limits (test_interpolation's check)."""
-    times = np.arange(-3 * dt_s, interpolator.duration_s + 3 * dt_s, dt_s)
-    trajectory = interpolator.sample_array(times)
-    v_max = np.asarray(interpolator.limits.max_velocity_m_s)
-    a_max = np.asarray(interpolator.limits.max_acceleration_m_s2)
-    velocity_fd = np.diff(trajectory.position_m, axis=0) / dt_s
-    acceleration_fd = np.diff(trajectory.position_m, 2, axis=0) / dt_s**2
-    assert np.all(np.abs(trajectory.velocity_m_s) <= v_max * (1 + rtol))
-    assert np.all(np.abs(trajectory.acceleration_m_s2) <= a_max * (1 + rtol))
-    assert np.all(np.abs(velocity_fd) <= v_max * (1 + rtol) + 1e-9)
-    assert np.all(np.abs(acceleration_fd) <= a_max * (1 + rtol) + 1e-6)
+def check_limits(interpolator: Interpolator, dt_s: float = 2e-4) -> None:
+    """test_interpolation's analytic and finite-difference limit check, to 1e-9."""
+    _INTERPOLATION_TESTS.check_limits(interpolator, dt_s=dt_s, rtol=1e-9)
 
 
 def worst_deviation_m(interpolator: Interpolator, dt_s: float = 5e-4) -> float:

@@ -1,10 +1,8 @@
 """Tier 2: config classes as declared ROS parameters and back, with real rclpy nodes (no fakes)."""
 from __future__ import annotations
 
-import importlib.util
 import math
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
@@ -22,17 +20,10 @@ from cnc_contour_control.nodes.parameters import (ConfigParameters, Section, com
                                                   given_value, ros_type, ros_value)
 from cnc_contour_control.params import ParamSpec, config_values, flat_specs
 from cnc_contour_control.stage_params import InterpolatorRunParams, ServoRunParams
+from cnc_tools.sibling_tests import sibling_module
 
 
-def _sibling(name: str) -> Any:
-    """A test module beside this one (pytest imports test files by path, not as a package)."""
-    spec = importlib.util.spec_from_file_location(f"_{name}", Path(__file__).with_name(f"{name}.py"))
-    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
-    spec.loader.exec_module(module)  # type: ignore[union-attr]
-    return module
-
-
-_cases = _sibling("test_params")  # the same config classes and bounds as the ROS-free test
+_cases = sibling_module(__file__, "test_params")  # the same config classes and bounds as the ROS-free test
 CONFIGS, _outside, _with = _cases.CONFIGS, _cases._outside, _cases._with
 
 pytestmark = pytest.mark.nodes
