@@ -38,10 +38,9 @@ class TurningConfig:
 
     Parameters
     ----------
-    specific_force_n_mm2 : float
-        K_s [N/mm²] (SM45C: 1773), in [1, 1e5].
-    spindle_rpm : float
-        N [rev/min], in [1, 1e5].
+    specific_force_n_mm2, spindle_rpm : float
+        K_s and N of the real process, as :class:`~cnc_contour_control.force.model.TurningModelConfig`
+        states them for the regulator's nominal model (which may differ from these).
     depth_schedule : sequence of (t_s, depth_mm)
         Depth of cut against time; times strictly increasing, depths >= 0.
     noise_n : float
