@@ -64,7 +64,7 @@ _cnc_prepare_ros() {
 _cnc_build() {
   local stamp="$CNC_ROOT/install/.cnc-build" want
   want="$(cd "$CNC_ROOT" && _cnc_hash $(find src -name package.xml -o -name setup.py -o -name setup.cfg \
-           -o -name CMakeLists.txt -o -name '*.msg' | sort) 2>/dev/null)"
+           -o -name CMakeLists.txt -o -name '*.msg' -o -name '*.action' | sort) 2>/dev/null)"
   if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     _cnc_log "colcon build"
     (cd "$CNC_ROOT" && colcon --log-base "$CNC_ROOT/log" build --symlink-install \

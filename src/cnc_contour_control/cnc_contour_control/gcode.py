@@ -64,7 +64,8 @@ class _State:
 
 def parse_gcode(text: str, axes: Sequence[str] = ("x", "y", "z"), *, rapid_feed_mm_min: float = 1000.0,
                 start_mm: Sequence[float] | None = None, name: str = "gcode",
-                work_offsets_mm: Mapping[str, Sequence[float]] | None = None) -> Program:
+                work_offsets_mm: Mapping[str, Sequence[float]] | None = None,
+                feed_mm_min: float | None = None) -> Program:
     """Read a G-code program.
 
     Parameters
@@ -84,6 +85,9 @@ def parse_gcode(text: str, axes: Sequence[str] = ("x", "y", "z"), *, rapid_feed_
         ``{"G54": [x, y, ...], ..., "G59": [...]}``: the machine position (mm,
         one per axis) of each work system's zero; absent ones are zero. G54
         is in force at the start.
+    feed_mm_min : float, optional
+        Feed in force before the first F word, mm/min, > 0 (default: none, a
+        G1/G2/G3 before the first F is refused).
 
     Raises
     ------
@@ -96,6 +100,8 @@ def parse_gcode(text: str, axes: Sequence[str] = ("x", "y", "z"), *, rapid_feed_
     state = _State(_start_mm(start_mm, len(axis_names)), {n.upper(): i for i, n in enumerate(axis_names)},
                    require_positive("rapid_feed_mm_min", rapid_feed_mm_min),
                    _work_offsets(work_offsets_mm, len(axis_names)))
+    if feed_mm_min is not None:
+        state.feed_mm_min = require_positive("feed_mm_min", feed_mm_min)
     for number, line in enumerate(text.splitlines(), start=1):
         block = read_block(line, number)
         if not block.empty:

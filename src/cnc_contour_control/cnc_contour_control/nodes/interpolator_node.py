@@ -5,6 +5,11 @@ override (:class:`~cnc_contour_control.feed_override.LiveReference`): the
 requests come from ``feed_override.schedule_*`` or the ``feed_override`` topic
 (:class:`~cnc_contour_control.feed_override.OverrideInbox`), the applied ratio
 is echoed in ``reference.feed_override_ratio``.
+
+With ``program_source: action`` it reads no program at start-up: it runs
+RunProgram goals one after another (:mod:`~cnc_contour_control.nodes.program_action`,
+:class:`~cnc_contour_control.program_session.ProgramSession`), answers every
+tick in between with a hold reference, and republishes ``path`` for each program.
 """
 from __future__ import annotations
 
@@ -17,6 +22,7 @@ from sensor_msgs.msg import JointState
 
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.feed_override import LiveReference, OverrideConfig, OverrideInbox, check_source
+from cnc_contour_control.geometry import Program
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig, ReferenceSample
 from cnc_contour_control.lockstep import StampMatcher, ns_to_s, stamp_horizon_ns
 from cnc_contour_control.nodes.common import (
@@ -28,7 +34,9 @@ from cnc_contour_control.nodes.common import (
 )
 from cnc_contour_control.nodes.conversions import joint_positions, program_to_path, reference_to_msg
 from cnc_contour_control.nodes.parameters import declare_config
+from cnc_contour_control.nodes.program_action import ProgramActionServer
 from cnc_contour_control.program_file import read_program_file
+from cnc_contour_control.program_session import ProgramSession, ProgramSessionParams
 from cnc_contour_control.stage_params import InterpolatorRunParams
 
 #: Axis limits of a node started without them: 6000 mm/min and 1000 mm/s^2 on every axis.
@@ -46,13 +54,22 @@ class InterpolatorNode(SuiteNode):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("interpolator", **kwargs)
         run = declare_config(self, InterpolatorRunParams)
+        session_params = declare_config(self, ProgramSessionParams)
         self.axes, self.frame_id = run.axes, run.frame_id
-        self.interpolator = self._make_interpolator(run.program_file, run.feed_override_source)
+        self.session: ProgramSession | None = None
+        self.action: ProgramActionServer | None = None
+        if session_params.program_source == "file":
+            self.interpolator = self._make_interpolator(run.program_file, run.feed_override_source)
+        else:
+            self.session = self._make_session(run.feed_override_source, session_params)
         self.reference_pub = self.gated_publisher(Reference, "reference", 1)
-        path_pub = self.create_publisher(Path, "path", LATCHED_QOS)
-        path_pub.publish(  # the program as written: the scorer measures the blends' deviation as contour error
-            program_to_path(self.interpolator.programmed_program, 0, self.frame_id, self.interpolator.duration_s)
-        )
+        self.path_pub = self.create_publisher(Path, "path", LATCHED_QOS)
+        if self.session is None:  # the program as written: the scorer measures the blends' deviation as contour error
+            self.path_pub.publish(program_to_path(
+                self.interpolator.programmed_program, 0, self.frame_id, self.interpolator.duration_s))
+        else:
+            self.action = ProgramActionServer(self, self.session, session_params.bag_path,
+                                              session_params.feedback_period_s, self._publish_path)
         # A joint state is answered at once (previous_tick: once feed_override(k-1) is in, watched by a timer);
         # the matcher checks stamps (from t = 0).
         self.matcher = StampMatcher(("joint_states",), math.inf, max_ahead_ns=stamp_horizon_ns())
@@ -67,11 +84,8 @@ class InterpolatorNode(SuiteNode):
         if run.feed_override_source == "previous_tick":
             self.create_timer(min(0.1, run.feed_override_timeout_s / 4), self.guarded(self._watch_override))
 
-    def _make_interpolator(self, program_file: str, source: str) -> Interpolator:
-        """The program's interpolator with the declared limits (config units: m/s, m/s^2) and options.
-
-        With an on-line override the profile is planned for its ``max_ratio`` (``self.live``).
-        """
+    def _declare_planning(self, source: str) -> tuple[InterpolatorConfig, OverrideConfig, AxisLimits]:
+        """The planner's options, the feed override's and the axis limits (config units: m/s, m/s^2)."""
         config = declare_config(self, InterpolatorConfig)
         override = declare_config(self, OverrideConfig, "feed_override")
         check_source(source, override)
@@ -79,6 +93,20 @@ class InterpolatorNode(SuiteNode):
         limits = declare_config(self, AxisLimits, defaults={
             "max_velocity_m_s": [DEFAULT_MAX_VELOCITY_M_S] * n_axes,
             "max_acceleration_m_s2": [DEFAULT_MAX_ACCELERATION_M_S2] * n_axes})
+        return config, override, limits
+
+    def _make_session(self, source: str, params: ProgramSessionParams) -> ProgramSession:
+        """Action mode: the session that runs goals (always through the live override: a cancel ramps to 0)."""
+        config, override, limits = self._declare_planning(source)
+        self.live = None
+        return ProgramSession(self.axes, limits, config, override, params)
+
+    def _make_interpolator(self, program_file: str, source: str) -> Interpolator:
+        """The program's interpolator with the declared limits (config units: m/s, m/s^2) and options.
+
+        With an on-line override the profile is planned for its ``max_ratio`` (``self.live``).
+        """
+        config, override, limits = self._declare_planning(source)
         program = read_program_file(program_file, self.axes)
         if tuple(program.axis_names) != self.axes:
             raise ConfigError(f"program axes {list(program.axis_names)} differ from parameter axes {list(self.axes)}")
@@ -131,8 +159,23 @@ class InterpolatorNode(SuiteNode):
     def on_tick(self, msg: JointState) -> None:
         """One tick: the reference at the joint state's stamp."""
         stamp_ns = stamp_to_ns(msg.header.stamp)
-        sample = self._sample(stamp_ns)
+        if self.session is None:
+            sample = self._sample(stamp_ns)
+        else:  # action mode: the running program's reference, or the hold
+            sample = self.session.step(stamp_ns, joint_positions(msg, self.axes)[0], self.inbox.take(stamp_ns))
         self.reference_pub.publish(reference_to_msg(sample, self.axes, stamp_ns, self.frame_id))
+        if self.action is not None:
+            self.action.after_tick()
+
+    def _publish_path(self, program: Program, live: LiveReference, stamp_ns: int) -> None:
+        """Each program of the action mode on the latched ``path``, stamped at its first tick."""
+        self.path_pub.publish(program_to_path(program, stamp_ns, self.frame_id, live.interpolator.duration_s))
+
+    def fault(self, message: str) -> None:
+        """Fault as every node does; a running goal ends as faulted with the reason."""
+        if self.action is not None and not self.finished:
+            self.action.abort(message)
+        super().fault(message)
 
 
 def main(args: list[str] | None = None) -> None:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from cnc_tools.cli import bench, check, circular, identify_friction, params, replay, run, score, tune
+from cnc_tools.cli import send_program
 from cnc_tools.cli.common import Subcommand
 
 #: Subcommands by name, in the order ``--help`` lists them.
@@ -14,6 +15,8 @@ COMMANDS: dict[str, Subcommand] = {
     "circular": Subcommand(circular.configure, circular.circular,
                            "ballbar diagnoses of a recorded circle (a cw and a ccw run)"),
     "replay": Subcommand(replay.configure, replay.replay, "republish a bag with its recorded timing"),
+    "send-program": Subcommand(send_program.configure, send_program.send_program,
+                               "run a part program on a running interpolator (RunProgram action; Ctrl-C cancels)"),
     "identify-friction": Subcommand(identify_friction.configure, identify_friction.identify_friction,
                                     "identify an axis's friction-velocity curve (paper 000)"),
     "bench": Subcommand(bench.configure, bench.bench, "speed benchmarks and paper reproductions"),

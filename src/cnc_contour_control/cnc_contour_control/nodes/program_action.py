@@ -1,0 +1,135 @@
+"""The interpolator's RunProgram action server: goals to a :class:`ProgramSession`, its outcomes to results.
+
+Only translation: the session (:mod:`cnc_contour_control.program_session`)
+decides. Goals are judged in the goal callback (busy, malformed, not at the
+machine: rejected, the reason logged and reported WARN on ``/diagnostics``),
+so a rejection never disturbs the running program. The execute callback is a
+coroutine awaiting the outcome, which the tick callback resolves: it works on
+the node's single-threaded executor (events or single).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from cnc_contour_interfaces.action import RunProgram
+from diagnostic_msgs.msg import DiagnosticStatus
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.task import Future
+
+from cnc_contour_control.errors import CncError
+from cnc_contour_control.feed_override import LiveReference
+from cnc_contour_control.geometry import Program
+from cnc_contour_control.program_goal import ProgramGoal, SegmentSpec
+from cnc_contour_control.program_session import OUTCOMES, ProgramFeedback, ProgramOutcome, ProgramSession
+
+#: The action's name, in the node's namespace.
+ACTION_NAME = "run_program"
+
+
+def goal_from_msg(msg: Any) -> ProgramGoal:
+    """A RunProgram goal message as the core's goal."""
+    segments = tuple(SegmentSpec(int(s.kind), tuple(s.start_m), tuple(s.end_m), tuple(s.center_m),
+                                 (int(s.plane_axes[0]), int(s.plane_axes[1])), float(s.feed_m_s))
+                     for s in msg.segments)
+    return ProgramGoal(gcode=msg.gcode, program_file=msg.program_file, segments=segments,
+                       program_name=msg.program_name, feed_mm_min=float(msg.feed_mm_min),
+                       path_tolerance_mm=float(msg.path_tolerance_mm))
+
+
+def feedback_to_msg(feedback: ProgramFeedback) -> Any:
+    """The core's progress as a RunProgram feedback message."""
+    msg = RunProgram.Feedback()
+    for name in ("line_number", "segment_index"):
+        setattr(msg, name, int(getattr(feedback, name)))
+    for name in ("path_length_m", "total_length_m", "feed_m_s", "feed_override_ratio", "contour_error_m",
+                 "following_error_m", "elapsed_s"):
+        setattr(msg, name, float(getattr(feedback, name)))
+    return msg
+
+
+def outcome_to_result(outcome: ProgramOutcome, bag_path: str) -> Any:
+    """The core's outcome as a RunProgram result message (``outcome`` by :data:`OUTCOMES` order)."""
+    msg = RunProgram.Result()
+    msg.outcome = OUTCOMES.index(outcome.outcome)
+    msg.reason, msg.program_name, msg.bag_path = outcome.reason, outcome.program_name, bag_path
+    for name in ("max_contour_error_m", "rms_contour_error_m", "max_following_error_m", "cycle_time_s",
+                 "path_length_m", "total_length_m"):
+        setattr(msg, name, float(getattr(outcome, name)))
+    msg.ticks = int(outcome.ticks)
+    return msg
+
+
+class ProgramActionServer:
+    """RunProgram on ``node``: one goal at a time, run by ``session``; ``publish_path`` gets each started program."""
+
+    def __init__(self, node: Any, session: ProgramSession, bag_path: str, feedback_period_s: float,
+                 publish_path: Callable[[Program, LiveReference, int], None]) -> None:
+        self.node, self.session, self.bag_path, self.publish_path = node, session, bag_path, publish_path
+        self._prepared: tuple[Program, LiveReference] | None = None
+        self._handle: ServerGoalHandle | None = None
+        self._outcome: Future | None = None
+        self.server = ActionServer(node, RunProgram, ACTION_NAME, self._execute, goal_callback=self._judge,
+                                   cancel_callback=self._cancel)
+        node.create_timer(feedback_period_s, self._publish_feedback)
+
+    def _judge(self, goal: Any) -> GoalResponse:
+        """Accept a goal the session can run now; reject (and say why) any other."""
+        try:
+            if self._prepared is not None:
+                raise CncError("busy: a goal was accepted and is about to start")
+            self._prepared = self.session.prepare(goal_from_msg(goal))
+        except CncError as err:
+            message = f"RunProgram goal rejected: {err}"
+            self.node.get_logger().warning(message)
+            self.node.report(DiagnosticStatus.WARN, message)
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
+        """Accept a cancel of the running goal: the session stops it on the path."""
+        if goal_handle is not self._handle or not self.session.cancel():
+            return CancelResponse.REJECT
+        self.node.get_logger().info("RunProgram: cancel requested, stopping on the path")
+        return CancelResponse.ACCEPT
+
+    async def _execute(self, goal_handle: ServerGoalHandle) -> Any:
+        """Start the accepted program at the next tick and wait for its outcome."""
+        assert self._prepared is not None, "an accepted goal was prepared by _judge"
+        (program, live), self._prepared = self._prepared, None
+        self._handle, self._outcome = goal_handle, Future()
+        self.session.start(program, live)
+        self.node.get_logger().info(f"RunProgram: {program.name!r}, {len(program.segments)} segments, "
+                                    f"{live.interpolator.duration_s:.3f} s planned")
+        outcome: ProgramOutcome = await self._outcome
+        self._handle = self._outcome = None
+        {"completed": goal_handle.succeed, "canceled": goal_handle.canceled,
+         "faulted": goal_handle.abort}[outcome.outcome]()
+        self.node.get_logger().info(f"RunProgram: {outcome.program_name!r} {outcome.outcome} "
+                                    f"{outcome.reason}".rstrip())
+        return outcome_to_result(outcome, self.bag_path)
+
+    def after_tick(self) -> None:
+        """After each tick: publish a program that started, hand over an outcome."""
+        started = self.session.take_started()
+        if started is not None:
+            self.publish_path(*started)
+        outcome = self.session.take_outcome()
+        if outcome is not None and self._outcome is not None and not self._outcome.done():
+            self._outcome.set_result(outcome)
+
+    def abort(self, reason: str) -> None:
+        """The node faulted: end the running goal as faulted."""
+        self.session.abort(reason)
+        self.after_tick()
+
+    def _publish_feedback(self) -> None:
+        feedback = self.session.feedback()
+        if self._handle is not None and feedback is not None and self._handle.is_active:
+            self._handle.publish_feedback(feedback_to_msg(feedback))
+
+    def destroy(self) -> None:
+        """Destroy the action server (with the node)."""
+        self.server.destroy()
+

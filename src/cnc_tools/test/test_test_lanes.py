@@ -1,0 +1,59 @@
+"""The test session's lanes (root conftest.py): each xdist worker on its own ROS domain, graph tests in one lane."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[3]
+
+NOTE = '''
+import json, os
+from pathlib import Path
+
+def note(name):
+    facts = {k: os.environ.get(k) for k in ("PYTEST_XDIST_WORKER", "ROS_DOMAIN_ID", "CNC_TEST_DOMAIN_BASE",
+                                            "ROS_AUTOMATIC_DISCOVERY_RANGE")}
+    Path(os.environ["PROBE_OUT"], name + ".json").write_text(json.dumps(facts))
+'''
+PLAIN = '''
+import pytest
+from probe_note import note
+
+@pytest.mark.parametrize("i", range(6))
+def test_plain(i):
+    note(f"plain{i}")
+'''
+GRAPH = PLAIN.replace("plain", "graph").replace("range(6)", "range(4)")
+
+
+def test_two_workers_take_two_domains_and_one_lane_takes_every_graph_test(tmp_path: Path) -> None:
+    (tmp_path / "pytest.ini").write_text("[pytest]\n")
+    (tmp_path / "probe_note.py").write_text(NOTE)
+    (tmp_path / "test_plain.py").write_text(PLAIN)
+    (tmp_path / "tests" / "e2e").mkdir(parents=True)
+    (tmp_path / "tests" / "e2e" / "test_graph.py").write_text(GRAPH)
+    out = tmp_path / "out"
+    out.mkdir()
+    path = os.pathsep.join([str(ROOT), str(tmp_path), os.environ.get("PYTHONPATH", "")])
+    env = {**os.environ, "PROBE_OUT": str(out), "PYTHONPATH": path}
+    env.pop("PYTEST_XDIST_WORKER", None)
+    env.pop("CNC_TEST_DOMAIN_BASE", None)
+    done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "conftest", "-p", "no:cacheprovider", "-n", "2",
+                           "--import-mode=importlib", "test_plain.py", "tests/e2e/test_graph.py"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stdout + done.stderr
+    facts = {p.stem: json.loads(p.read_text()) for p in out.glob("*.json")}
+    assert len(facts) == 10
+    base = {f["CNC_TEST_DOMAIN_BASE"] for f in facts.values()}
+    assert len(base) == 1
+    base_id = int(base.pop())
+    by_worker = {f["PYTEST_XDIST_WORKER"]: int(f["ROS_DOMAIN_ID"]) for f in facts.values()}
+    assert set(by_worker) <= {"gw0", "gw1"}
+    for worker, domain in by_worker.items():
+        assert domain == 1 + (base_id + int(worker[2:])) % 100 and domain != base_id
+    assert all(f["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST" for f in facts.values())
+    graph_lanes = {facts[f"graph{i}"]["PYTEST_XDIST_WORKER"] for i in range(4)}
+    assert len(graph_lanes) == 1, graph_lanes
