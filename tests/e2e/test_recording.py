@@ -40,7 +40,7 @@ def _raw_by_topic(bag: Path) -> dict[str, list[bytes]]:
 
 
 def test_circle_at_1ms_loses_no_message_and_reads_back_with_rosbags_and_mcap(tmp_path: Path) -> None:
-    scenario = load_scenario(CIRCLE, {"sample_time_s": 0.001})
+    scenario = load_scenario(CIRCLE, {"sample_time_s": 0.001, "duration_s": 2.0})  # 2000 ticks
     result = run_graph(scenario, tmp_path, record=True)
     ticks = tick_count(scenario)
     assert result.summary["ticks"] == ticks and result.faults == []

@@ -233,6 +233,18 @@ class StampMatcher:
         missing = [name for name in self.required if name not in pending.items]
         return stamp_ns, missing
 
+    def waiting_for(self, now_s: float, after_s: float) -> list[str]:
+        """The inputs a node waits for: those of the oldest tick pending longer than ``after_s``, or before the
+        first release those never received (the caller knows how long it has been up)."""
+        if self._pending:
+            stamp_ns = min(self._pending)
+            pending = self._pending[stamp_ns]
+            since_s = max(pending.first_arrival_s, self._released_at_s or pending.first_arrival_s)
+            return [n for n in self.required if n not in pending.items] if now_s - since_s > after_s else []
+        if self._last_released_ns is None:
+            return [n for n in self.required if n not in self._latest_ns]
+        return []
+
     @property
     def current_timeout_s(self) -> float:
         """The start-up timeout until the first tick is released, then the per-tick one."""

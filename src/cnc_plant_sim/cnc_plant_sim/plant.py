@@ -47,6 +47,7 @@ from cnc_plant_sim.feed_drives import (
     VariationConfig,
 )
 from cnc_plant_sim.machine_faults import FaultedPlant, MachineFaults
+from cnc_plant_sim.periodic_load import PeriodicLoadConfig, periodic_load_plant
 from cnc_plant_sim.mass_friction import MassFrictionAxisConfig, MassFrictionOptions, MassFrictionPlant, paper001_axes
 from cnc_plant_sim.velocity_loop import (VelocityLoopAxisConfig, VelocityLoopOptions, VelocityLoopPlant,
                                          velocity_loop_axes)
@@ -120,6 +121,8 @@ class PlantConfig:
         Machine faults between motor and tool (any model; :mod:`cnc_plant_sim.machine_faults`).
     cutting : CuttingConfig or Mapping
         A cutting process behind one axis (any model; :mod:`cnc_plant_sim.cutting`).
+    periodic_load : PeriodicLoadConfig or Mapping
+        A periodic load A sin(2π f_d t + θ) at the plant input (any model; :mod:`cnc_plant_sim.periodic_load`).
     """
 
     model: str = param("paper000", description="plant model (registry name)", read_only=True)
@@ -138,6 +141,8 @@ class PlantConfig:
                                   description="machine faults between motor and tool (backlash, squareness, ...)")
     cutting: CuttingConfig = param(default_factory=CuttingConfig, read_only=True,
                                    description="cutting process behind the feed axis (turning: paper 004)")
+    periodic_load: PeriodicLoadConfig = param(default_factory=PeriodicLoadConfig, read_only=True,
+                                              description="periodic load at the plant input (tooth passing)")
 
     def __post_init__(self) -> None:
         require_choice("model", self.model, PLANTS)
@@ -162,6 +167,8 @@ class PlantConfig:
         self.faults.check_axes(self.axes)
         if not isinstance(self.cutting, CuttingConfig):
             object.__setattr__(self, "cutting", CuttingConfig.from_mapping(self.cutting, "cutting"))
+        if not isinstance(self.periodic_load, PeriodicLoadConfig):
+            object.__setattr__(self, "periodic_load", PeriodicLoadConfig.from_mapping(self.periodic_load))
         if self.cutting.active and self.cutting.feed_axis not in self.axes:
             raise ConfigError(f"cutting.feed_axis must be one of the axes {list(self.axes)}, "
                               f"got {self.cutting.feed_axis!r}")
@@ -278,7 +285,7 @@ def make_plant(config: PlantConfig | Mapping[str, Any]) -> Plant:
     """Build the plant of ``config`` (a config or a mapping, validated) from :data:`PLANTS`."""
     if not isinstance(config, PlantConfig):
         config = PlantConfig.from_mapping(config)
-    plant = PLANTS[config.model].build(config)
+    plant = periodic_load_plant(PLANTS[config.model].build(config), config.periodic_load)
     if config.cutting.active:
         plant = CuttingPlant(plant, config.cutting)
     return FaultedPlant(plant, config.faults) if config.faults.active else plant

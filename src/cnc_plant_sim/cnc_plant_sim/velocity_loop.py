@@ -62,6 +62,7 @@ from cnc_contour_control.velocity_models import (
     PiVelocityLoop,
 )
 
+from cnc_plant_sim.periodic_load import require_below_nyquist_rpm, schedule_from
 from cnc_plant_sim.step_checks import check_length, check_step, is_finite_number
 
 #: Paper 003's table, "standard" column: K1 = K_si [Nm/rad], K2 = K_sp [Nm s/rad].
@@ -381,6 +382,12 @@ class VelocityLoopPlant:
             loop.reset(float(value))
         self.time_s = 0.0
         self._disturbance = [0.0] * len(values)
+
+    def set_spindle_rpm(self, spindle_rpm: float, sample_time_s: float) -> None:
+        """Hold ``spindle_rpm`` from the present time on (a spindle override; :func:`~cnc_plant_sim.periodic_load.
+        set_spindle_rpm`); f_d at or above Nyquist at ``sample_time_s`` is a :class:`ConfigError`, nothing changed."""
+        rpm = require_below_nyquist_rpm("spindle_rpm", spindle_rpm, int(self.options.flutes), sample_time_s)
+        self.schedule = schedule_from(self.schedule, self.time_s, rpm * self.options.flutes / 60.0)
 
     def disturbance(self, index: int, velocity_m_s: float, command_m_s: float, t_s: float) -> float:
         """d = friction + A sin(φ(t) + θ) of axis ``index`` [m/s] (friction in Karnopp's form)."""

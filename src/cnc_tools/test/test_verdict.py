@@ -180,3 +180,12 @@ def test_an_engine_record_is_judged_by_its_own_summary() -> None:
     assert judge(record).complete, judge(record).describe()
     cut = record.with_(reference=None)
     assert "/cnc/reference holds 0 messages for 31 ticks" in judge(cut).reasons
+
+
+def test_a_stale_status_is_no_fault_but_an_error_is(synth) -> None:  # noqa: ANN001
+    run = synth.make_run(synth.circle_program(), synth.circle_trajectory(0.02, 1e-6, n=50))
+    run = run.with_(summary={"status": "finished", "ticks": 50, t.RUN_ID_KEY: "run_a"})
+    stale = Status(3, "/cnc/servo_x", "waiting for /cnc/joint_states: 0 of 1 publishers", {t.RUN_ID_KEY: "run_a"})
+    error = Status(2, "/cnc/servo_x", "servo_x: no /cnc/reference", {t.RUN_ID_KEY: "run_a"})
+    assert judge(run, [stale]).status == "partial", "the synthetic run has no commands: partial, not faulted"
+    assert judge(run, [stale, error]).status == "faulted"

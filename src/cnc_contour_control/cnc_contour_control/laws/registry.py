@@ -30,6 +30,7 @@ from cnc_contour_control.laws.disturbance import (
     PdcLaw,
 )
 from cnc_contour_control.laws.fuzzy import FuzzyConfig, FuzzyLaw
+from cnc_contour_control.laws.pdc_stack import FuzzyPdcConfig, FuzzyPdcLaw, PidPdcConfig, PidPdcLaw
 from cnc_contour_control.laws.pid import PConfig, PidConfig, PidLaw, PLaw
 
 
@@ -60,6 +61,8 @@ LAWS: dict[str, LawEntry] = {
     "pdc": LawEntry(PdcConfig, PdcLaw),
     "dob_pdc": LawEntry(DobPdcConfig, DobPdcLaw),
     "mbda_pdc": LawEntry(MbdaPdcConfig, MbdaPdcLaw),
+    "pid_pdc": LawEntry(PidPdcConfig, PidPdcLaw),
+    "fuzzy_pdc": LawEntry(FuzzyPdcConfig, FuzzyPdcLaw),
 }
 
 

@@ -41,6 +41,8 @@ LATCHED_QOS = QoSProfile(
 )
 #: Exit code of a node that stopped on a fault (bad data, missing input).
 EXIT_FAULT = 3
+#: A node waiting this long for a partner says so: in the log (throttled to this period) and STALE on /diagnostics.
+WAIT_REPORT_AFTER_S = 1.0
 
 
 def stamp_to_ns(stamp: Time) -> int:
@@ -172,13 +174,48 @@ class SuiteNode(Node):
         self.fault_message: str | None = None
         self.finished = False
         self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 100)
+        self.created_s = wall_time_s()
+        self._waits: dict[str, str] = {}  # what this node waits for, by who noticed it
+        self.create_timer(WAIT_REPORT_AFTER_S, self._report_waits)
 
     def gated_publisher(self, msg_type: type, topic: str, default_min: int) -> GatedPublisher:
         """A lockstep publisher that waits for its readers (parameters ``required_readers``, ``min_subscribers``)."""
         publisher = self.create_publisher(msg_type, topic, LOCKSTEP_QOS)
         gated = GatedPublisher(publisher, gate=self.reader_gate(publisher, msg_type, "min_subscribers", default_min))
-        timer = self.create_timer(0.01, lambda: gated.flush() or (gated.is_open and timer.cancel()))
+
+        def flush() -> None:
+            gated.flush()
+            if gated.is_open:
+                timer.cancel()
+            waiting = gated.gate.missing() if gated.gate is not None and not gated.is_open else []
+            self.waiting_for(f"readers:{publisher.topic_name}",
+                             f"readers of {publisher.topic_name}: {', '.join(waiting)}" if waiting else None)
+
+        timer = self.create_timer(0.01, flush)
         return gated
+
+    def waiting_for(self, key: str, what: str | None) -> None:
+        """Note what this node waits for (``what``), or that it no longer does (None), as noticed by ``key``."""
+        if what is None:
+            self._waits.pop(key, None)
+        else:
+            self._waits[key] = what
+
+    def _report_waits(self) -> None:
+        """Every second, once up for ``WAIT_REPORT_AFTER_S``: what the node waits for, logged and STALE.
+
+        STALE is no fault (the run's verdict counts ERROR only); it tells a user who starts the nodes by hand
+        which partner is missing.
+        """
+        if self._waits and not self.finished and wall_time_s() - self.created_s >= WAIT_REPORT_AFTER_S:
+            message = "waiting for " + "; ".join(self._waits[key] for key in sorted(self._waits))
+            self.get_logger().info(message)
+            self.report(DiagnosticStatus.STALE, message)
+
+    def publishers_of(self, topic: str) -> str:
+        """``/ns/topic: N of 1 publishers``: who a lockstep input waits for, as a user reads it."""
+        resolved = self.resolve_topic_name(topic)
+        return f"{resolved}: {self.count_publishers(resolved)} of 1 publishers"
 
     def reader_gate(self, publisher: Any, msg_type: type, count_parameter: str, default_min: int) -> ReaderGate:
         """The gate of ``publisher``: the readers named by ``required_readers``, at least ``count_parameter`` of them."""
@@ -255,6 +292,8 @@ class SuiteNode(Node):
         """Every 0.1 s: a tick whose inputs are overdue is a fault naming ``who``, the tick and the missing topics."""
 
         def check() -> None:
+            missing_inputs = matcher.waiting_for(wall_time_s(), WAIT_REPORT_AFTER_S)
+            self.waiting_for(f"inputs:{who}", "; ".join(self.publishers_of(name) for name in missing_inputs) or None)
             overdue = matcher.overdue(wall_time_s())
             if overdue is not None:
                 stamp_ns, missing = overdue

@@ -32,7 +32,7 @@ from cnc_tools.run_record import IntArray, RunRecord
 
 #: Verdicts, best first.
 VERDICTS = ("complete", "partial", "faulted")
-#: ``DiagnosticStatus.ERROR``: a fault of the node that sent it.
+#: ``DiagnosticStatus.ERROR``: a fault of the node that sent it (STALE, 3, is a node waiting for a partner: no fault).
 ERROR_LEVEL = 2
 #: Record attribute of each optional stage's per-tick series, by stage name.
 _STAGE_SERIES = {"estimator": "contour_error", "compensator": "compensation", "force_regulator": "feed_override"}
@@ -133,7 +133,7 @@ def _faults(summary: Mapping[str, Any], statuses: Iterable[Status]) -> list[str]
     if summary.get("status") == "faulted" and not found:
         found.append(f"summary.json says faulted: {summary.get('reason') or 'no reason given'}")
     for status in statuses:
-        if status.level >= ERROR_LEVEL and not any(status.message in f for f in found):
+        if status.level == ERROR_LEVEL and not any(status.message in f for f in found):
             found.append(f"{status.name}: {status.message}" if status.name else status.message)
     return found
 

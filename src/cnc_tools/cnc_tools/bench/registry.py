@@ -23,6 +23,7 @@ from cnc_tools.reproductions.paper000.calibration import paper000_calibrated_ben
 from cnc_tools.reproductions.paper001.bench import paper001_bench
 from cnc_tools.reproductions.paper002.bench import paper002_bench
 from cnc_tools.reproductions.paper002.speed import paper002_speed_bench
+from cnc_tools.reproductions.paper002.transfer import paper002_transfer_bench
 from cnc_tools.reproductions.paper003.bench import paper003_bench
 from cnc_tools.reproductions.paper004.bench import paper004_bench
 from cnc_tools.reproductions.paper004.milling import paper004_milling_bench
@@ -52,6 +53,7 @@ BENCHES: dict[str, Bench] = {
     "paper001": paper001_bench,
     "paper002": paper002_bench,
     "paper002-speed": paper002_speed_bench,
+    "paper002-transfer": paper002_transfer_bench,
     "paper003": paper003_bench,
     "paper004": paper004_bench,
     "paper004-milling": paper004_milling_bench,

@@ -158,9 +158,9 @@ def _plant_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
         plant["cutting"] = scenario.plant.cutting.values()
     else:
         del plant["cutting"]
-    loop = plant["velocity_loop"]
-    for key in [k for k, v in loop.items() if isinstance(v, (list, tuple)) and not v]:
-        del loop[key]  # an empty list is the node's default, and no typed parameter (rcl cannot type it)
+    for section in (plant["velocity_loop"], plant["periodic_load"]):
+        for key in [k for k, v in section.items() if isinstance(v, (list, tuple)) and not v]:
+            del section[key]  # an empty list is the node's default, and no typed parameter (rcl cannot type it)
     return _merge(plant, config_values(plant_run))
 
 
