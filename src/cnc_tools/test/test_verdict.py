@@ -189,3 +189,15 @@ def test_a_stale_status_is_no_fault_but_an_error_is(synth) -> None:  # noqa: ANN
     error = Status(2, "/cnc/servo_x", "servo_x: no /cnc/reference", {t.RUN_ID_KEY: "run_a"})
     assert judge(run, [stale]).status == "partial", "the synthetic run has no commands: partial, not faulted"
     assert judge(run, [stale, error]).status == "faulted"
+
+
+def test_score_out_names_each_runs_folder_by_the_run_and_keeps_two_of_one_name_apart(
+        tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    # two copies of one run: one name (its folder and the folder above), and each file's folder is "bag"
+    bags = [_run_folder(tmp_path / side / "runs" / "same", summary=FINISHED, statuses=[_finished()])
+            for side in ("a", "b")]
+    mcaps = [next(bag.glob("*.mcap")) for bag in bags]
+    assert main(["score", *map(str, mcaps), "--out", str(tmp_path / "out")]) == 0
+    capsys.readouterr()
+    folders = sorted(p.parent.name for p in (tmp_path / "out").glob("*/score.json"))
+    assert folders == ["runs_same", "runs_same-2"], folders

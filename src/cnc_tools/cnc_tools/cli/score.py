@@ -26,6 +26,7 @@ def configure_score(parser: argparse.ArgumentParser) -> None:
 def score(args: argparse.Namespace) -> int:
     """Score recorded runs: exact contour error from the recorded path and positions."""
     status = 0
+    used: set[str] = set()
     for bag in args.bags:
         record, verdict = judge_bag(bag)
         if not verdict.complete and not args.allow_partial:
@@ -33,12 +34,24 @@ def score(args: argparse.Namespace) -> int:
                   "(not scored; --allow-partial scores it anyway)", file=sys.stderr)
             status = 1
             continue
-        out = args.out / bag.resolve().parent.name if args.out else None
+        out = args.out / score_folder_name(record.name, used) if args.out else None
         scored = score_record(record, out, args.metrics, verdict)
         print(scored.score.to_table())
         if scored.json_path:
             print(f"json: {scored.json_path}\ncsv:  {scored.csv_path}")
     return status
+
+
+def score_folder_name(run_name: str, used: set[str]) -> str:
+    """The run's folder under ``--out``: its name (scenario and start time, ``/`` as ``_``), ``-2``, ``-3``... when
+    an earlier bag of this call took it; noted in ``used``."""
+    base = "".join(c if c.isalnum() or c in "-_." else "_" for c in run_name.replace("/", "_")).strip(".") or "run"
+    name, k = base, 1
+    while name in used:
+        k += 1
+        name = f"{base}-{k}"
+    used.add(name)
+    return name
 
 
 def configure_report(parser: argparse.ArgumentParser) -> None:
