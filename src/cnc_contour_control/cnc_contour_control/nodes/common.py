@@ -23,6 +23,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from cnc_contour_control.errors import CncError, FaultError
 from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, join_ns, split_ns
+from cnc_contour_control.nodes.lifecycle import ManagedNode
+from cnc_contour_control.nodes import local_bus
 from cnc_contour_control.topics import RUN_ID_KEY, qualify
 
 #: Lockstep data: reliable and deep, so nothing is dropped while a stage is busy.
@@ -99,10 +101,10 @@ class ReaderGate:
 
     def missing(self) -> list[str]:
         """Required readers the graph does not show yet, and unmatched ones as a count."""
-        readers = self._graph_readers()
-        present = {qualify(i.node_namespace, i.node_name) for i in readers}
+        readers, local = self._graph_readers(), local_bus.local_readers(self.publisher)  # local: served in process
+        present = {qualify(i.node_namespace, i.node_name) for i in readers} | set(local)
         missing = [name for name in self.required if name not in present]
-        compatible = sum(1 for i in readers if _delivers(self.publisher.qos_profile, i.qos_profile))
+        compatible = sum(1 for i in readers if _delivers(self.publisher.qos_profile, i.qos_profile)) + len(local)
         wanted = max(self.min_count, compatible if self.required else 0)
         matched = self.publisher.get_subscription_count()
         return missing + ([f"{wanted - matched} of {wanted} readers unmatched"] if matched < wanted else [])
@@ -166,8 +168,8 @@ class GatedPublisher:
             self._held.clear()
 
 
-class SuiteNode(Node):
-    """A node that reports faults on ``/diagnostics`` and stops on them."""
+class SuiteNode(ManagedNode):
+    """A node that reports faults on ``/diagnostics`` and stops on them; managed if it builds in ``configure``."""
 
     def __init__(self, name: str, **kwargs: Any) -> None:
         super().__init__(name, **kwargs)
@@ -177,6 +179,38 @@ class SuiteNode(Node):
         self.created_s = wall_time_s()
         self._waits: dict[str, str] = {}  # what this node waits for, by who noticed it
         self.create_timer(WAIT_REPORT_AFTER_S, self._report_waits)
+        self.start_lifecycle()  # unmanaged: configure and activate now (nodes/lifecycle.py)
+
+    def report_status(self, level: bytes, message: str) -> None:
+        """A lifecycle refusal on /diagnostics."""
+        self.report(level, message)
+
+    def end_lifecycle(self) -> None:
+        """Shutdown transition: the spin loop ends."""
+        self.finished = True
+
+    def create_publisher(self, msg_type: Any, topic: str, qos_profile: QoSProfile | int, **kwargs: Any) -> Any:
+        """rclpy's publisher; in a composed process with a local bus, wrapped to hand messages to members in process."""
+        publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
+        bus = local_bus.bus_of(self.context)
+        if bus is None or local_bus.is_latched(qos_profile):
+            return publisher
+        return bus.publisher(self, publisher, msg_type)
+
+    def create_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any],
+                            qos_profile: QoSProfile | int, **kwargs: Any) -> Any:
+        """rclpy's subscription; in a composed process with a local bus, served by the bus (see ``local_bus``)."""
+        bus = local_bus.bus_of(self.context)
+        if bus is None or local_bus.is_latched(qos_profile):
+            return super().create_subscription(msg_type, topic, callback, qos_profile, **kwargs)
+        raw = bool(kwargs.pop("raw", False))
+        return bus.subscribe(local_bus.LocalSubscription(self, self.resolve_topic_name(topic), msg_type, callback,
+                                                         qos_profile, raw, kwargs))
+
+    def create_dds_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any],
+                                qos_profile: QoSProfile | int, **kwargs: Any) -> Any:
+        """rclpy's own subscription, never the bus (the bus's for a member that an outside publisher reaches)."""
+        return super().create_subscription(msg_type, topic, callback, qos_profile, **kwargs)
 
     def gated_publisher(self, msg_type: type, topic: str, default_min: int) -> GatedPublisher:
         """A lockstep publisher that waits for its readers (parameters ``required_readers``, ``min_subscribers``)."""

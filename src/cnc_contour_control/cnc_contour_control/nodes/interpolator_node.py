@@ -53,6 +53,9 @@ class InterpolatorNode(SuiteNode):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("interpolator", **kwargs)
+
+    def configure(self) -> None:
+        """Lifecycle configure (nodes/lifecycle.py): the parameters validated, the program planned, the topics."""
         run = declare_config(self, InterpolatorRunParams)
         session_params = declare_config(self, ProgramSessionParams)
         self.axes, self.frame_id = run.axes, run.frame_id
@@ -83,6 +86,15 @@ class InterpolatorNode(SuiteNode):
             self.subscribe_checked(FeedOverride, "feed_override", self._accept_override)
         if run.feed_override_source == "previous_tick":
             self.create_timer(min(0.1, run.feed_override_timeout_s / 4), self.guarded(self._watch_override))
+
+    def deactivate(self) -> None:
+        """Lifecycle deactivate: stop on the path within the limits (a running goal is cancelled; a live feed is
+        held at 0 until activate); a fixed profile cannot stop on the path, so it refuses."""
+        if self.session is not None:
+            self.session.cancel()
+        elif self.live is None:
+            raise ConfigError("a fixed feed profile cannot stop on the path: set feed_override_source "
+                              "(topic, schedule, previous_tick) or program_source: action to deactivate mid-run")
 
     def _declare_planning(self, source: str) -> tuple[InterpolatorConfig, OverrideConfig, AxisLimits]:
         """The planner's options, the feed override's and the axis limits (config units: m/s, m/s^2)."""
@@ -154,7 +166,8 @@ class InterpolatorNode(SuiteNode):
         """The reference at the stamp: at the programmed feed, or following the override's request."""
         if self.live is None:
             return self.interpolator.reference(ns_to_s(stamp_ns))
-        return self.live.step(stamp_ns, self.live.request(stamp_ns, self.inbox.take(stamp_ns)))
+        request = self.live.request(stamp_ns, self.inbox.take(stamp_ns))
+        return self.live.step(stamp_ns, request if self.armed else 0.0)  # inactive: feed hold
 
     def on_tick(self, msg: JointState) -> None:
         """One tick: the reference at the joint state's stamp."""

@@ -77,6 +77,8 @@ class ProgramActionServer:
     def _judge(self, goal: Any) -> GoalResponse:
         """Accept a goal the session can run now; reject (and say why) any other."""
         try:
+            if not self.node.armed:
+                raise CncError("the interpolator is not active (lifecycle): activate it first")
             if self._prepared is not None:
                 raise CncError("busy: a goal was accepted and is about to start")
             self._prepared = self.session.prepare(goal_from_msg(goal))
