@@ -1,8 +1,8 @@
-"""Corner blending within a path tolerance (G64 P): line-line corners rounded by tangent arcs.
+"""Corner blending within a path tolerance (G64 P): corners rounded by tangent arcs.
 
-A corner at point ``P`` between unit directions ``u1`` (in) and ``u2`` (out),
-turning by ``θ``, is replaced by the circular arc of radius ``R`` tangent to
-both lines at ``P - d u1`` and ``P + d u2``, with
+A line-line corner at point ``P`` between unit directions ``u1`` (in) and
+``u2`` (out), turning by ``θ``, is replaced by the circular arc of radius ``R``
+tangent to both lines at ``P - d u1`` and ``P + d u2``, with
 
     d = R tan(θ/2)                   (trim of each neighbour, m)
     e = R (1/cos(θ/2) - 1)           (distance from P to the arc's midpoint, m)
@@ -10,26 +10,31 @@ both lines at ``P - d u1`` and ``P + d u2``, with
 ``R`` is the largest radius with ``e <= tolerance`` and ``d <= length / 2`` of
 both neighbours. ``e`` bounds the arc's distance from the programmed path
 (which is ``R (1 - cos(θ/2)) <= e``), so the planned path stays within the
-tolerance everywhere. A corner is left as it is (an exact stop for the
-planner, unless already tangent) when: a neighbour is an arc, a dwell (G4)
-sits at the junction, the turn is below ``min_angle_rad`` or within 1e-6 rad
-of a reversal, the arc's chord would be under 2 µm (``2 POSITION_TOLERANCE_M``;
-an arc with closer ends is a full circle), or the two lines do not span one coordinate plane (an
-:class:`ArcSegment` lies in one). The blended program is a plain
+tolerance everywhere. A line-arc or arc-arc corner in one coordinate plane
+gets the fillet circle tangent to both curves (:mod:`cnc_contour_control.blend_fillet`),
+its deviation measured exactly and kept within the tolerance. A corner is left
+as it is (an exact stop for the planner, unless already tangent) when: a dwell
+(G4) sits at the junction, the turn is below ``min_angle_rad`` or within 1e-6
+rad of a reversal, the arc's chord would be under 2 µm (``2 POSITION_TOLERANCE_M``;
+an arc with closer ends is a full circle), the two lines do not span one
+coordinate plane (an :class:`ArcSegment` lies in one), or a helix or an
+out-of-plane line takes part. The blended program is a plain
 :class:`Program`, so every consumer (planner, ``path`` topic) takes it as is.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from cnc_contour_control.arc import ArcSegment
+from cnc_contour_control.blend_fillet import lift, plan_fillet
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.geometry import Dwell, LineSegment, Program, Segment
-from cnc_contour_control.points import MIN_LENGTH_M, POSITION_TOLERANCE_M, FloatArray
+from cnc_contour_control.points import MIN_LENGTH_M, POSITION_TOLERANCE_M, FloatArray, IntArray
+from cnc_contour_control.segment_tangents import junction_turns_rad
 
 _AXIS_EPS = 1.0e-12
 _REVERSAL_MARGIN_RAD = 1.0e-6
@@ -42,15 +47,25 @@ _MIN_CHORD_M = 2.0 * POSITION_TOLERANCE_M
 class Blend:
     """One rounded corner: at the junction before programmed segment ``junction``.
 
-    ``radius_m`` is the arc radius (m), ``trim_m`` the length taken from each
-    neighbour (m), ``deviation_m`` the arc's largest distance from the corner
-    point (m, <= the tolerance).
+    ``radius_m`` is the arc radius (m), ``trim_m`` the length taken from the
+    segment before (m), ``trim_after_m`` the one taken from the segment after
+    (m; equal for line-line corners), ``deviation_m`` the arc's largest
+    distance from the programmed path (m, <= the tolerance; for line-line
+    corners the bound ``e``). ``start_m``, ``end_m`` and ``center_m`` (shape
+    ``(n_axes,)``, m) are the arc's tangent points and centre, ``plane`` its
+    plane and ``clockwise`` its direction.
     """
 
     junction: int
     radius_m: float
     trim_m: float
     deviation_m: float
+    trim_after_m: float = math.nan
+    start_m: FloatArray | None = field(default=None, repr=False)
+    end_m: FloatArray | None = field(default=None, repr=False)
+    center_m: FloatArray | None = field(default=None, repr=False)
+    plane: tuple[int, int] = (0, 1)
+    clockwise: bool = False
 
 
 @dataclass(frozen=True)
@@ -74,7 +89,7 @@ class BlendedProgram:
     def local_deviation_m(self, points: ArrayLike, planned_index: ArrayLike) -> FloatArray:
         """Exact distance (m, ``(N,)``) of each point from the programmed segments its planned segment comes from.
 
-        A blend arc's point is measured to both lines of its corner, any other
+        A blend arc's point is measured to both segments of its corner, any other
         point to its own programmed segment. It bounds :meth:`deviation_m` from
         above in one pass over the samples (for long programs).
         """
@@ -92,106 +107,123 @@ class BlendedProgram:
         return out
 
 
-def _corner_plane(u1: FloatArray, u2: FloatArray) -> tuple[int, int] | None:
-    """The coordinate plane spanned by both directions, or None if they need three axes or one."""
-    moving = np.flatnonzero((np.abs(u1) > _AXIS_EPS) | (np.abs(u2) > _AXIS_EPS))
-    return (int(moving[0]), int(moving[1])) if moving.size == 2 else None
-
-
-def corner_trim_m(turn_rad: float, tolerance_m: float, max_trim_m: float) -> tuple[float, float]:
-    """Radius (m) and trim (m) of the blend of a corner turning by ``turn_rad``.
+def corner_trim_m(turn_rad: ArrayLike, tolerance_m: float, max_trim_m: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Radius (m) and trim (m) of the blends of corners turning by ``turn_rad`` (scalars or arrays of one shape).
 
     Parameters
     ----------
-    turn_rad : float
+    turn_rad : float or ndarray
         Angle between the incoming and outgoing directions, rad, in (0, π).
     tolerance_m : float
         Largest distance of the arc from the corner point, m, > 0.
-    max_trim_m : float
+    max_trim_m : float or ndarray
         Largest length the blend may take from each neighbour, m.
     """
-    half = 0.5 * turn_rad
-    radius = tolerance_m / (1.0 / math.cos(half) - 1.0)
-    radius = min(radius, max_trim_m / math.tan(half))
-    return radius, radius * math.tan(half)
+    half = 0.5 * np.asarray(turn_rad, dtype=float)
+    radius = np.minimum(tolerance_m / (1.0 / np.cos(half) - 1.0), np.asarray(max_trim_m) / np.tan(half))
+    return radius, radius * np.tan(half)
 
 
-def _line_pair(program: Program, k: int) -> tuple[LineSegment, LineSegment] | None:
-    before, after = program.segments[k - 1], program.segments[k]
-    if not (isinstance(before, LineSegment) and isinstance(after, LineSegment)) or program.junction_dwell_s[k]:
+def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, tolerance_m: float) -> list[Blend]:
+    """The tangent arcs of the line-line corners before segments ``junctions`` (closed form, all at once).
+
+    A corner whose lines move three or more axes, or whose arc's chord would be under 2 µm, is left out.
+    """
+    segments = program.segments
+    u1 = np.array([segments[k - 1].unit_vector for k in junctions]).reshape(len(junctions), program.n_axes)
+    u2 = np.array([segments[k].unit_vector for k in junctions]).reshape(u1.shape)
+    shorter = np.minimum([segments[k - 1].length_m for k in junctions], [segments[k].length_m for k in junctions])
+    radius, trim = corner_trim_m(turns_rad, tolerance_m, 0.5 * shorter)
+    moving = (np.abs(u1) > _AXIS_EPS) | (np.abs(u2) > _AXIS_EPS)
+    keep = np.flatnonzero((moving.sum(axis=1) == 2) & (2.0 * radius * np.sin(0.5 * turns_rad) > _MIN_CHORD_M))
+    first = np.argmax(moving, axis=1)
+    second = moving.shape[1] - 1 - np.argmax(moving[:, ::-1], axis=1)
+    rows = np.arange(len(junctions))
+    clockwise = u1[rows, first] * u2[rows, second] - u1[rows, second] * u2[rows, first] < 0.0
+    normal = u2 - np.einsum("ij,ij->i", u1, u2)[:, None] * u1
+    normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+    corner = np.array([segments[k].start_m for k in junctions]).reshape(u1.shape)
+    start, end = corner - trim[:, None] * u1, corner + trim[:, None] * u2
+    center, deviation = start + radius[:, None] * normal, radius * (1.0 / np.cos(0.5 * turns_rad) - 1.0)
+    return [Blend(int(junctions[i]), float(radius[i]), float(trim[i]), float(deviation[i]), float(trim[i]), start[i],
+                  end[i], center[i], (int(first[i]), int(second[i])), bool(clockwise[i])) for i in keep]
+
+
+def _curve_corner(k: int, before: Segment, after: Segment, turn: float, tolerance_m: float) -> Blend | None:
+    """The fillet of a line-arc or arc-arc corner (:func:`blend_fillet.plan_fillet`), or None."""
+    planned = plan_fillet(before, after, tolerance_m, turn)
+    if planned is None:
         return None
-    return before, after
-
-
-def _plan_corner(program: Program, k: int, tolerance_m: float, min_angle_rad: float) -> Blend | None:
-    """The blend of the junction before segment ``k``, or None if it stays a corner."""
-    pair = _line_pair(program, k)
-    if pair is None:
+    shape, corner = planned.shape, after.start_m
+    if float(np.hypot(*(shape.end - shape.start))) <= _MIN_CHORD_M:
         return None
-    before, after = pair
-    turn = math.acos(min(1.0, max(-1.0, float(np.dot(before.unit_vector, after.unit_vector)))))
-    if turn <= min_angle_rad or turn >= math.pi - _REVERSAL_MARGIN_RAD:
-        return None
-    if _corner_plane(before.unit_vector, after.unit_vector) is None:
-        return None
-    radius, trim = corner_trim_m(turn, tolerance_m, 0.5 * min(before.length_m, after.length_m))
-    if 2.0 * radius * math.sin(0.5 * turn) <= _MIN_CHORD_M:
-        return None
-    return Blend(k, radius, trim, radius * (1.0 / math.cos(0.5 * turn) - 1.0))
+    return Blend(k, shape.radius_m, shape.trim_before_m, planned.deviation_m, shape.trim_after_m,
+                 lift(shape.start, planned.plane, corner), lift(shape.end, planned.plane, corner),
+                 lift(shape.center, planned.plane, corner), planned.plane, planned.side < 0.0)
 
 
-def _arc(before: LineSegment, after: LineSegment, blend: Blend, start_m: FloatArray) -> ArcSegment:
-    """The blend arc from ``start_m`` (on ``before``) to its tangent point on ``after``."""
-    u1, u2 = before.unit_vector, after.unit_vector
-    plane = _corner_plane(u1, u2)
-    assert plane is not None
-    normal = u2 - float(np.dot(u1, u2)) * u1
-    center = start_m + blend.radius_m * normal / float(np.linalg.norm(normal))
-    end = after.start_m + blend.trim_m * u2
-    a, b = plane
-    clockwise = u1[a] * u2[b] - u1[b] * u2[a] < 0.0
-    return ArcSegment(start_m, end, center, bool(clockwise), plane, min(before.feed_m_s, after.feed_m_s),
-                      after.source_line)
+def _blend_arc(blend: Blend, start_m: FloatArray, before: Segment, after: Segment) -> ArcSegment:
+    """The blend arc from ``start_m`` (where the planned path is, at the blend's start) to its end."""
+    return ArcSegment(start_m, blend.end_m, blend.center_m, blend.clockwise, blend.plane,
+                      min(before.feed_m_s, after.feed_m_s), after.source_line)
 
 
-def _planned_segments(program: Program, trims: dict[int, Blend]) -> tuple[list[Segment], list[int], list[int]]:
+def _planned_segments(program: Program, blends: dict[int, Blend]) -> tuple[list[Segment], list[int], list[int]]:
     """Planned segments, per programmed junction the planned index after it, per planned segment its source."""
     out: list[Segment] = []
     first_after: list[int] = []
     sources: list[int] = []
     start = program.segments[0].start_m
     for k, segment in enumerate(program.segments):
-        blend = trims.get(k)
+        blend, following = blends.get(k), blends.get(k + 1)
         if blend is not None:
-            previous = program.segments[k - 1]
-            assert isinstance(previous, LineSegment) and isinstance(segment, LineSegment)
-            out.append(_arc(previous, segment, blend, start))
+            out.append(_blend_arc(blend, start, program.segments[k - 1], segment))
             start = out[-1].end_m
         first_after.append(len(out))
-        end_trim = trims[k + 1].trim_m if k + 1 in trims else 0.0
-        out.extend(_trimmed(segment, start if blend is not None else None, end_trim))
+        out.extend(_trimmed(segment, start if blend is not None else None,
+                            following.start_m if following is not None else None))
         sources.extend([k] * (len(out) - len(sources)))
         start = out[-1].end_m if out else start
     return out, first_after, sources
 
 
-def _trimmed(segment: Segment, start_m: FloatArray | None, end_trim_m: float) -> list[Segment]:
-    """``segment`` from ``start_m`` (None: its own start) to ``end_trim_m`` (m) before its end.
+def _trimmed(segment: Segment, start_m: FloatArray | None, end_m: FloatArray | None) -> list[Segment]:
+    """``segment`` from ``start_m`` to ``end_m`` (None: its own ends), both on it.
 
-    An untouched segment is returned itself; a remainder shorter than ``MIN_LENGTH_M`` (or reversed by rounding
-    when two blends take half each) is dropped, the next blend starting where the previous one ends.
+    An untouched segment is returned itself; a line remainder shorter than ``MIN_LENGTH_M`` (or reversed by
+    rounding when two blends take half each) is dropped, the next blend starting where the previous one ends.
+    An arc keeps at least a few µm between two fillets (:func:`blend_fillet.max_trim_m`).
     """
-    if isinstance(segment, ArcSegment) or (start_m is None and end_trim_m == 0.0):
+    if start_m is None and end_m is None:
         return [segment]
     start = segment.start_m if start_m is None else start_m
-    end = segment.end_m - end_trim_m * segment.unit_vector if end_trim_m > 0.0 else segment.end_m
+    end = segment.end_m if end_m is None else end_m
+    if isinstance(segment, ArcSegment):
+        return [ArcSegment(start, end, segment.center_m, segment.clockwise, segment.plane, segment.feed_m_s,
+                           segment.source_line)]
     if float(np.linalg.norm(end - start)) < MIN_LENGTH_M or float(np.dot(end - start, segment.unit_vector)) <= 0.0:
         return []
     return [LineSegment(start, end, segment.feed_m_s, segment.source_line)]
 
 
+def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float) -> list[Blend]:
+    """The blends of every corner that gets one, in junction order."""
+    segments = program.segments
+    turns = junction_turns_rad(segments)
+    lines = np.array([isinstance(segment, LineSegment) for segment in segments])
+    free = program.junction_dwell_s[1:-1] == 0.0
+    corner = (turns > min_angle_rad) & (turns < math.pi - _REVERSAL_MARGIN_RAD) & free
+    line_pair = corner & lines[:-1] & lines[1:]
+    by_line = np.flatnonzero(line_pair)
+    blends = _line_corners(program, by_line + 1, turns[by_line], tolerance_m) if by_line.size else []
+    for k in np.flatnonzero(corner & ~line_pair) + 1:
+        blend = _curve_corner(int(k), segments[k - 1], segments[k], float(turns[k - 1]), tolerance_m)
+        blends += [blend] if blend is not None else []
+    return sorted(blends, key=lambda blend: blend.junction)
+
+
 def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0.0) -> BlendedProgram:
-    """Round every blendable line-line corner of ``program`` within ``tolerance_m`` (m, >= 0).
+    """Round every blendable corner of ``program`` within ``tolerance_m`` (m, >= 0).
 
     Parameters
     ----------
@@ -211,8 +243,7 @@ def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0
         raise ConfigError(f"path tolerance_m must be finite and >= 0, got {tolerance_m}")
     if tolerance_m == 0.0:
         return BlendedProgram(program, program, (), 0.0)
-    blends = [b for k in range(1, len(program.segments))
-              if (b := _plan_corner(program, k, tolerance_m, min_angle_rad)) is not None]
+    blends = _plan_corners(program, tolerance_m, min_angle_rad)
     if not blends:
         return BlendedProgram(program, program, (), tolerance_m)
     segments, first_after, sources = _planned_segments(program, {b.junction: b for b in blends})

@@ -37,11 +37,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from cnc_contour_control.accel_decel import AccelDecelConfig, ReferenceFilter
+from cnc_contour_control.arc import ArcSegment
+from cnc_contour_control.arc_budget import combined_tangential_m_s2
 from cnc_contour_control.blending import blend_program
 from cnc_contour_control.config import build_config, require_non_negative, require_positive
 from cnc_contour_control.errors import ConfigError, ProgramError
 from cnc_contour_control.geometry import Program, Segment, segment_label
 from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.segment_tangents import junction_turns_rad
 from cnc_contour_control.units import m_s_to_mm_min
 
 FloatArray = NDArray[np.float64]
@@ -103,6 +106,11 @@ class InterpolatorConfig:
         Share of each axis's acceleration budget given to centripetal
         acceleration on arcs, in [0.01, 0.99]; the rest is for speed changes.
         (Near 0 or 1 one of the two budgets vanishes and an arc crawls.)
+    arc_combined_budget : bool
+        If True, an arc's tangential acceleration is bounded together with its
+        centripetal one, ``sqrt(a_t**2 + (v**2 κ)**2) <= amax`` per axis
+        (:mod:`cnc_contour_control.arc_budget`), instead of only the split
+        ``(1 - f) amax``: faster speed changes on arcs, same limits.
     path_tolerance_mm : float
         Largest distance of a corner blend from the programmed corner, mm, in
         [0, 1000] (G64 P; :mod:`cnc_contour_control.blending`). 0 plans the
@@ -122,6 +130,9 @@ class InterpolatorConfig:
     arc_centripetal_fraction: float = param(
         0.5, low=0.01, high=0.99, read_only=True,
         description="share of each axis's acceleration for centripetal use on arcs (the rest changes speed)")
+    arc_combined_budget: bool = param(
+        False, read_only=True,
+        description="bound an arc's tangential and centripetal acceleration together (faster speed changes on arcs)")
     path_tolerance_mm: float = param(
         0.0, unit="mm", low=0.0, high=1000.0, read_only=True,
         description="largest deviation of corner blends from the programmed path (G64 P; 0: no blending, the "
@@ -135,8 +146,9 @@ class InterpolatorConfig:
         if not isinstance(self.accel_decel, AccelDecelConfig):
             object.__setattr__(self, "accel_decel", build_config(AccelDecelConfig, self.accel_decel, "accel_decel"))
         check_ranges(self)
-        if not isinstance(self.clamp_feed, (bool, np.bool_)):
-            raise ConfigError(f"clamp_feed must be true or false, got {self.clamp_feed!r}")
+        for name in ("clamp_feed", "arc_combined_budget"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
 
 
 @dataclass(frozen=True)
@@ -185,7 +197,7 @@ class SegmentLimits:
 def _min_ratio(budget: FloatArray, usage: FloatArray) -> float:
     """``min_j budget_j / usage_j`` over the axes that use any of their budget (inf if none)."""
     used = usage > _MIN_TANGENT
-    return float(np.min(budget[used] / usage[used])) if np.any(used) else math.inf
+    return float(np.divide(budget, usage, out=np.full(budget.shape, math.inf), where=used).min())
 
 
 def segment_limits(index: int, segment: Segment, limits: AxisLimits, config: InterpolatorConfig) -> SegmentLimits:
@@ -205,9 +217,11 @@ def segment_limits(index: int, segment: Segment, limits: AxisLimits, config: Int
         raise ProgramError(
             f"{segment_label(index, segment)}: feed_mm_min must be <= {m_s_to_mm_min(axis_speed):.6g} (axis velocity "
             f"limits along the segment), got {m_s_to_mm_min(segment.feed_m_s):.6g}")
-    fraction = config.arc_centripetal_fraction if np.any(curvature > 0.0) else 0.0
-    centripetal_speed = math.sqrt(_min_ratio(fraction * acceleration, curvature))
+    fraction = config.arc_centripetal_fraction if curvature.any() else 0.0
+    centripetal_speed = math.sqrt(_min_ratio(fraction * acceleration, curvature)) if fraction else math.inf
     speed = min(segment.feed_m_s, axis_speed, centripetal_speed)
+    if config.arc_combined_budget and isinstance(segment, ArcSegment):
+        return SegmentLimits(speed, combined_tangential_m_s2(segment, speed, acceleration, tangent, curvature))
     return SegmentLimits(speed, _min_ratio((1.0 - fraction) * acceleration, tangent))
 
 
@@ -218,26 +232,18 @@ def planning_tolerance_m(program: Program, config: InterpolatorConfig) -> float:
     return config.path_tolerance_mm * 1.0e-3
 
 
-def _junction_angle_rad(before: Segment, after: Segment) -> float:
-    """Angle between the tangent at the end of ``before`` and at the start of ``after``, rad."""
-    cosine = float(np.dot(before.tangent(before.length_m), after.tangent(0.0)))
-    return math.acos(min(1.0, max(-1.0, cosine)))
-
-
 def junction_speeds(program: Program, plans: list[SegmentLimits], tolerance_rad: float) -> FloatArray:
     """Speed at every junction (m/s, shape ``(n_segments + 1,)``), reachable both ways."""
     segments = program.segments
-    speeds = np.zeros(len(segments) + 1)
-    for k in range(1, len(segments)):
-        if _junction_angle_rad(segments[k - 1], segments[k]) <= tolerance_rad and not program.junction_dwell_s[k]:
-            speeds[k] = min(plans[k - 1].speed_m_s, plans[k].speed_m_s)
+    cruise = np.array([plan.speed_m_s for plan in plans])
+    smooth = (junction_turns_rad(segments) <= tolerance_rad) & (program.junction_dwell_s[1:-1] == 0.0)
+    speeds = [0.0, *np.where(smooth, np.minimum(cruise[:-1], cruise[1:]), 0.0).tolist(), 0.0]
+    reach = [2.0 * plan.acceleration_m_s2 * segment.length_m for plan, segment in zip(plans, segments)]
     for k in range(len(segments) - 1, -1, -1):
-        reach = speeds[k + 1] ** 2 + 2.0 * plans[k].acceleration_m_s2 * segments[k].length_m
-        speeds[k] = min(speeds[k], math.sqrt(reach))
+        speeds[k] = min(speeds[k], math.sqrt(speeds[k + 1] ** 2 + reach[k]))
     for k in range(len(segments)):
-        reach = speeds[k] ** 2 + 2.0 * plans[k].acceleration_m_s2 * segments[k].length_m
-        speeds[k + 1] = min(speeds[k + 1], math.sqrt(reach))
-    return speeds
+        speeds[k + 1] = min(speeds[k + 1], math.sqrt(speeds[k] ** 2 + reach[k]))
+    return np.array(speeds)
 
 
 def segment_phases(length_m: float, entry_m_s: float, exit_m_s: float,

@@ -2,17 +2,20 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from cnc_contour_control.arc_budget import combined_tangential_m_s2
 from cnc_contour_control.blending import blend_program, corner_trim_m
 from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.errors import ConfigError, ProgramError
 from cnc_contour_control.gcode import parse_gcode
 from cnc_contour_control.geometry import ArcSegment, Dwell, LineSegment, Program
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.segment_tangents import end_tangents
 from cnc_tools.sibling_tests import sibling_module
 
 
@@ -139,14 +142,77 @@ def test_g61_is_exact_stop_and_g64_p_overrides_the_configuration() -> None:
     assert worst_deviation_m(g64) <= 2e-5 * (1 + 1e-9)
 
 
-def test_arcs_and_dwells_keep_their_exact_stop() -> None:
-    line = LineSegment([0.0, 0.0], [0.01, 0.0], FEED_M_S)
-    arc = ArcSegment([0.01, 0.0], [0.02, 0.0], [0.015, -0.002], True, (0, 1), FEED_M_S)
-    after = LineSegment([0.02, 0.0], [0.02, 0.01], FEED_M_S)
-    last = LineSegment([0.02, 0.01], [0.0, 0.01], FEED_M_S)
-    program = Program("mixed", ("x", "y"), (line, arc, after, last), dwells=(Dwell(3, 0.5),))
+def test_dwells_and_helices_keep_their_exact_stop() -> None:
+    line = LineSegment([0.0, 0.0, 0.0], [0.01, 0.0, 0.0], FEED_M_S)
+    helix = ArcSegment([0.01, 0.0, 0.0], [0.02, 0.0, 0.001], [0.015, -0.002, 0.0], True, (0, 1), FEED_M_S)
+    after = LineSegment([0.02, 0.0, 0.001], [0.02, 0.01, 0.001], FEED_M_S)
+    last = LineSegment([0.02, 0.01, 0.001], [0.0, 0.01, 0.001], FEED_M_S)
+    program = Program("mixed", ("x", "y", "z"), (line, helix, after, last), dwells=(Dwell(3, 0.5),))
     plan = blend_program(program, 1e-4)
     assert plan.blends == () and plan.planned is program
+
+
+def scallops(sweep_rad: float = math.pi / 2, radii_m: tuple[float, ...] = (5e-4, 1e-3, 2e-3, 4e-3)) -> Program:
+    """Clockwise arcs of the given radii along x, each bulging up: an arc-arc corner at every junction."""
+    segments, x = [], 0.0
+    for radius in radii_m * 2:
+        chord = 2 * radius * math.sin(sweep_rad / 2)
+        segments.append(ArcSegment([x, 0.0], [x + chord, 0.0], [x + chord / 2, -radius * math.cos(sweep_rad / 2)],
+                                   True, (0, 1), FEED_M_S))
+        x += chord
+    return Program("scallops", ("x", "y"), tuple(segments))
+
+
+def lines_and_arcs() -> Program:
+    """Lines of 3 mm alternating with 120° arcs of R 0.5-4 mm: line-arc and arc-line corners of 60°."""
+    segments, x = [], 0.0
+    for radius in (5e-4, 1e-3, 2e-3, 4e-3):
+        segments.append(LineSegment([x, 0.0], [x + 3e-3, 0.0], FEED_M_S))
+        x += 3e-3
+        chord = 2 * radius * math.sin(math.pi / 3)
+        segments.append(ArcSegment([x, 0.0], [x + chord, 0.0], [x + chord / 2, -radius / 2], True, (0, 1), FEED_M_S))
+        x += chord
+    return Program("lines-and-arcs", ("x", "y"), tuple(segments))
+
+
+def test_line_arc_fillet_is_tangent_to_both_and_on_the_arc() -> None:
+    arc = ArcSegment([0.01, 0.0], [0.02, 0.0], [0.015, -0.002], True, (0, 1), FEED_M_S)
+    program = Program("la", ("x", "y"), (LineSegment([0.0, 0.0], [0.01, 0.0], FEED_M_S), arc))
+    plan = blend_program(program, 1e-5)
+    line, fillet, rest = plan.planned.segments
+    assert isinstance(fillet, ArcSegment) and not fillet.clockwise  # the corner turns left
+    assert_allclose(fillet.tangent(0.0), line.tangent(line.length_m), atol=1e-9)
+    assert_allclose(fillet.tangent(fillet.length_m), rest.tangent(0.0), atol=1e-9)
+    assert rest.radius_m == pytest.approx(arc.radius_m, abs=1e-12)
+    assert_allclose(rest.center_m, arc.center_m)
+    assert 0.9e-5 <= plan.blends[0].deviation_m <= 1e-5
+
+
+@pytest.mark.parametrize("make", [scallops, lines_and_arcs])
+@pytest.mark.parametrize("tolerance_mm", [0.001, 0.01, 0.1])
+def test_arc_corners_hold_tolerance_and_limits(make: Callable[[], Program], tolerance_mm: float) -> None:
+    program = make()
+    interpolator = blended(program, tolerance_mm)
+    corners = len(program.segments) - 1
+    assert len(interpolator.blended.blends) == corners
+    assert np.count_nonzero(interpolator.junction_speeds_m_s == 0.0) == 2  # only the ends
+    assert worst_deviation_m(interpolator) <= tolerance_mm * 1e-3 * (1 + 1e-9)
+    assert max(b.deviation_m for b in interpolator.blended.blends) <= tolerance_mm * 1e-3
+    assert interpolator.duration_s < Interpolator(program, LIMITS_2).duration_s
+    check_limits(interpolator, dt_s=5e-4)
+
+
+def test_arc_corner_fillet_deviation_is_the_measured_one() -> None:
+    """The blend's recorded deviation is the largest distance of its arc from the path (dense samples: within a step).
+
+    The distance peaks in a kink (where the nearer of the two arcs changes), so samples ``step`` apart may
+    miss the peak by up to ``step`` (distance changes at most 1 m per m of arc); they never exceed it.
+    """
+    plan = blend_program(scallops(), 1e-5)
+    for blend, arc in zip(plan.blends, (s for s in plan.planned.segments if s.radius_m < 4e-4)):
+        points = arc.point(np.linspace(0.0, arc.length_m, 20001))
+        exact = np.max(plan.programmed.contour_distance(points)[0])
+        assert blend.deviation_m - arc.length_m / 20000 <= exact <= blend.deviation_m + 1e-15
 
 
 @pytest.mark.parametrize("value", [-0.01, math.nan, math.inf])
@@ -171,3 +237,97 @@ def test_the_scenario_key_is_path_tolerance_mm() -> None:
         polygon(36), LIMITS_2, config).duration_s
     with pytest.raises(ConfigError, match="path_tolerance_mm must be in"):
         build_config(InterpolatorConfig, {"path_tolerance_mm": -1.0}, "scenario.interpolator")
+
+
+def test_combined_arc_budget_is_the_friction_circle_by_hand() -> None:
+    """R 1 mm, 250 mm/s^2, v² κ = 0.15 m/s^2: a_t = sqrt(0.25² - 0.15²) = 0.2 m/s^2 (the split gives 0.1)."""
+    arc = ArcSegment([0.001, 0.0], [0.001, 0.0], [0.0, 0.0], False, (0, 1), FEED_M_S)
+    speed = math.sqrt(0.15 * 0.001)
+    assert combined_tangential_m_s2(arc, speed, np.array([0.25, 0.25])) == pytest.approx(0.2)
+    helix = ArcSegment([0.001, 0.0, 0.0], [0.001, 0.0, 0.01], [0.0, 0.0, 0.0], False, (0, 1), FEED_M_S)
+    rate = helix.radius_m * helix.sweep_rad / helix.length_m
+    kappa = helix.radius_m * (helix.sweep_rad / helix.length_m) ** 2
+    expected = min(math.sqrt(0.25**2 - (speed**2 * kappa) ** 2) / rate, 0.1 / (0.01 / helix.length_m))
+    assert combined_tangential_m_s2(helix, speed, np.array([0.25, 0.25, 0.1])) == pytest.approx(expected)
+
+
+@pytest.mark.parametrize("make", [scallops, lines_and_arcs, lambda: polygon(36)])
+def test_combined_arc_budget_is_faster_within_the_limits(make: Callable[[], Program]) -> None:
+    program = make()
+    split = blended(program, 0.01)
+    combined = Interpolator(program, LIMITS_2, InterpolatorConfig(path_tolerance_mm=0.01, arc_combined_budget=True,
+                                                                  arc_centripetal_fraction=0.8))
+    assert combined.duration_s < split.duration_s
+    check_limits(combined, dt_s=5e-4)
+
+
+def test_arc_budget_flag_must_be_a_bool() -> None:
+    with pytest.raises(ConfigError, match="arc_combined_budget must be true or false, got 'yes'"):
+        InterpolatorConfig(arc_combined_budget="yes")
+
+
+def random_chain(rng: np.random.Generator, axes: tuple[str, ...], plane: tuple[int, int], n: int = 8) -> Program:
+    """Lines and arcs (R 0.3-5 mm, sweeps up to a full circle) in ``plane``, joined at random corners."""
+    segments, point, heading = [], np.zeros(len(axes)), rng.uniform(0.0, 2.0 * math.pi)
+    a, b = plane
+    for _ in range(n):
+        heading += rng.uniform(-2.5, 2.5)
+        direction = np.zeros(len(axes))
+        direction[[a, b]] = math.cos(heading), math.sin(heading)
+        if rng.random() < 0.5:
+            segments.append(LineSegment(point, point + rng.uniform(2e-4, 5e-3) * direction, FEED_M_S))
+        else:
+            radius, clockwise = rng.uniform(3e-4, 5e-3), bool(rng.random() < 0.5)
+            center = point.copy()
+            center[[a, b]] += (1.0 if clockwise else -1.0) * radius * np.array([direction[b], -direction[a]])
+            sweep = rng.uniform(0.2, 2.0 * math.pi)
+            angle = math.atan2(point[b] - center[b], point[a] - center[a]) + (-sweep if clockwise else sweep)
+            end = point.copy()
+            end[[a, b]] = center[[a, b]] + radius * np.array([math.cos(angle), math.sin(angle)])
+            segments.append(ArcSegment(point, end, center, clockwise, plane, FEED_M_S))
+            tangent = segments[-1].tangent(segments[-1].length_m)
+            heading = math.atan2(tangent[b], tangent[a])
+        point = segments[-1].point(segments[-1].length_m)
+    return Program("random", axes, tuple(segments))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_random_line_arc_chains_hold_tolerance_and_limits(seed: int) -> None:
+    """Random chains in XY and (3 axes) XZ, random tolerances 0.001-0.1 mm, both arc budgets."""
+    rng = np.random.default_rng(seed)
+    axes, plane, limits = (("x", "y"), (0, 1), LIMITS_2) if seed % 2 else (("x", "y", "z"), (0, 2), LIMITS_3)
+    program, tolerance_mm = random_chain(rng, axes, plane), 10 ** rng.uniform(-3.0, -1.0)
+    interpolator = Interpolator(program, limits, InterpolatorConfig(path_tolerance_mm=tolerance_mm,
+                                                                    arc_combined_budget=seed < 3))
+    assert interpolator.blended.blends
+    assert worst_deviation_m(interpolator) <= tolerance_mm * 1e-3 * (1 + 1e-9)
+    check_limits(interpolator, dt_s=5e-4)
+
+
+def test_g64_blends_the_corners_between_g1_and_g2() -> None:
+    """A slot end written as G1, G2 with a corner: blended within P, the blend arc named by the G2's line."""
+    text = "G64 P0.01\nG1 X10 F1300\nG2 X14 Y0 I2 J-1\nG1 X20\n"
+    interpolator = Interpolator(parse_gcode(text, ("x", "y")), LIMITS_2)
+    assert [b.junction for b in interpolator.blended.blends] == [1, 2]
+    fillets = [s for s in interpolator.program.segments if isinstance(s, ArcSegment) and s.radius_m < 1e-3]
+    assert [s.source_line for s in fillets] == [3, 4]
+    assert np.count_nonzero(interpolator.junction_speeds_m_s == 0.0) == 2
+    assert worst_deviation_m(interpolator) <= 1e-5 * (1 + 1e-9)
+    check_limits(interpolator, dt_s=5e-4)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_end_tangents_are_the_segments_own(seed: int) -> None:
+    """The planner's vectorised junction tangents equal each segment's tangent() (lines, arcs, helices)."""
+    rng = np.random.default_rng(seed)
+    segments = random_chain(rng, ("x", "y", "z"), (0, 2), n=12).segments + (
+        ArcSegment([0.0, 0.0, 0.0], [0.002, 0.0, 0.001], [0.001, 0.0, 0.0], True, (0, 1), FEED_M_S),)
+    start, end = end_tangents(segments)
+    assert_allclose(start, [s.tangent(0.0) for s in segments], atol=1e-15)
+    assert_allclose(end, [s.tangent(s.length_m) for s in segments], atol=1e-14)
+
+
+def test_a_feed_over_the_limits_is_refused_naming_the_g_code_line_with_blending() -> None:
+    text = "G64 P0.01\nG1 X10 F1300\nG2 X14 Y0 I2 J-1 F2500\nG1 X20 F1300\n"
+    with pytest.raises(ProgramError, match=r"line 3 \(segment \d+\): feed_mm_min must be <= 2000 .*, got 2500"):
+        Interpolator(parse_gcode(text, ("x", "y")), LIMITS_2)

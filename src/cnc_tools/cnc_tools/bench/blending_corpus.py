@@ -1,6 +1,7 @@
 """Programs of the blending bench: what CAM emits.
 
-Polygon circles, acute stars, pockets of short moves, arc chains, rasters.
+Polygon circles, acute stars, pockets of short moves, arc chains (tangent, and with line-arc and
+arc-arc corners), rasters.
 
 All at ``FEED_M_S`` (1300 mm/min); sizes in m.
 """
@@ -71,6 +72,36 @@ def arc_chain(radii_m: tuple[float, ...] = (5e-4, 1e-3, 2e-3, 4e-3), repeats: in
     return Program("arc-chain", ("x", "y"), tuple(segments))
 
 
+def arc_scallops(radii_m: tuple[float, ...] = (5e-4, 1e-3, 2e-3, 4e-3), repeats: int = 6,
+                 sweep_rad: float = math.pi / 2) -> Program:
+    """Clockwise 90° arcs of the given radii along x, each bulging up: a 90° arc-arc corner at every junction."""
+    segments: list[Segment] = []
+    x = 0.0
+    for i in range(repeats * len(radii_m)):
+        radius = radii_m[i % len(radii_m)]
+        chord = 2.0 * radius * math.sin(0.5 * sweep_rad)
+        segments.append(ArcSegment([x, 0.0], [x + chord, 0.0], [x + 0.5 * chord, -radius * math.cos(0.5 * sweep_rad)],
+                                   True, (0, 1), FEED_M_S))
+        x += chord
+    return Program("arc-scallops", ("x", "y"), tuple(segments))
+
+
+def lines_and_arcs(radii_m: tuple[float, ...] = (5e-4, 1e-3, 2e-3, 4e-3), repeats: int = 3,
+                   line_m: float = 3e-3) -> Program:
+    """Lines alternating with 120° arcs of the given radii: 60° line-arc and arc-line corners."""
+    segments: list[Segment] = []
+    x = 0.0
+    for i in range(repeats * len(radii_m)):
+        radius = radii_m[i % len(radii_m)]
+        segments.append(LineSegment([x, 0.0], [x + line_m, 0.0], FEED_M_S))
+        x += line_m
+        chord = 2.0 * radius * math.sin(math.pi / 3.0)
+        segments.append(ArcSegment([x, 0.0], [x + chord, 0.0], [x + 0.5 * chord, -0.5 * radius], True, (0, 1),
+                                   FEED_M_S))
+        x += chord
+    return Program("lines-and-arcs", ("x", "y"), tuple(segments))
+
+
 def raster(passes: int = 10, step_m: float = 5e-4, width_m: float = 0.04, stepover_m: float = 0.002) -> Program:
     """A 3-axis surface raster: passes along x over z = 2 mm sin(x / 8 mm) cos(y / 10 mm), stepovers in y and z."""
     x = np.arange(0.0, width_m + step_m / 2, step_m)
@@ -90,5 +121,7 @@ CORPUS: dict[str, tuple[Callable[[], Program], bool]] = {
     "star-5": (star, True),
     "pocket": (pocket, True),
     "arc-chain": (arc_chain, True),
+    "arc-scallops": (arc_scallops, True),
+    "lines-and-arcs": (lines_and_arcs, True),
     "raster-3axis": (raster, True),
 }
