@@ -26,6 +26,7 @@ setup(
             "recorder = cnc_tools.nodes.recorder_node:main",
             "composed = cnc_tools.nodes.composed_host:main",
             "replay = cnc_tools.nodes.replay_node:main",
+            "lifecycle_manager = cnc_tools.nodes.lifecycle_manager:main",
         ],
     },
 )

@@ -1,0 +1,51 @@
+"""Tier 2: the lifecycle manager configures, then activates, managed nodes, and faults naming a refusal."""
+from __future__ import annotations
+
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+
+from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
+from cnc_tools.nodes.lifecycle_manager import LifecycleManagerNode, TransitionPlan
+from cnc_tools.testing import InProcessNode, TopicProbe
+
+NS = "/lifecycle_manager_test"
+ACTION_MODE = {"axes": ["x", "y"], "program_source": "action", "program_file": "", "managed": True}
+
+
+def _statuses(probe: TopicProbe, level: bytes) -> list[DiagnosticStatus]:
+    return [s for a in probe.received("/diagnostics") for s in a.status if s.level == level]
+
+
+def test_the_plan_configures_every_node_before_activating_any() -> None:
+    plan = TransitionPlan(("interpolator", "servo_x", "plant"))
+    labels = [(name, label) for name, _, label in plan.steps]
+    assert labels == [("interpolator", "configure"), ("servo_x", "configure"), ("plant", "configure"),
+                      ("interpolator", "activate"), ("servo_x", "activate"), ("plant", "activate")]
+    with pytest.raises(ConfigError, match="node_names"):
+        TransitionPlan(("plant", "plant"))
+    with pytest.raises(ConfigError, match="node_names"):
+        TransitionPlan(())
+
+
+@pytest.mark.nodes
+def test_the_manager_brings_a_managed_interpolator_to_active() -> None:
+    with TopicProbe({"/diagnostics": DiagnosticArray}) as probe, \
+            InProcessNode(InterpolatorNode, ACTION_MODE, namespace=NS) as interpolator, \
+            InProcessNode(LifecycleManagerNode, {"node_names": ["interpolator"]}, namespace=NS) as manager:
+        probe.wait_for(lambda: interpolator.node.armed, 30.0, "the interpolator to be active")
+        probe.wait_for(lambda: _statuses(probe, DiagnosticStatus.OK), 10.0, "the manager's OK")
+        assert manager.node.plan.finished and manager.node.fault_message is None
+    assert _statuses(probe, DiagnosticStatus.OK)[-1].message == "active: interpolator"
+
+
+@pytest.mark.nodes
+def test_a_refused_configure_is_the_managers_fault_naming_the_node() -> None:
+    with TopicProbe({"/diagnostics": DiagnosticArray}) as probe, \
+            InProcessNode(InterpolatorNode, {**ACTION_MODE, "program_source": "tape"}, namespace=NS) as interpolator, \
+            InProcessNode(LifecycleManagerNode, {"node_names": ["interpolator"]}, namespace=NS) as manager:
+        probe.wait_for(lambda: manager.node.fault_message is not None, 30.0, "the manager's fault")
+    assert manager.node.fault_message == "lifecycle_manager: configure interpolator refused " \
+                                         "(see interpolator's log and /diagnostics)"
+    assert "tape" in str(interpolator.node.configure_error), "the node's own reason"
+    assert interpolator.node._state_machine.current_state[1] == "unconfigured"
