@@ -58,6 +58,7 @@ def test_configure_with_a_bad_parameter_is_refused_naming_it_and_the_node_stays_
     with TopicProbe({"/diagnostics": DiagnosticArray}) as probe, \
             InProcessNode(InterpolatorNode, {**ACTION_MODE, "program_source": "tape"}, namespace=NS) as node:
         assert _state(probe) == "unconfigured"
+        probe.wait_for(lambda: node.node.status_publisher.get_subscription_count() > 0, 10.0, "the probe's match")
         assert not _change(probe, Transition.TRANSITION_CONFIGURE)
         assert _state(probe) == "unconfigured" and not node.node.finished
         errors = lambda: [s for a in probe.received("/diagnostics") for s in a.status  # noqa: E731
