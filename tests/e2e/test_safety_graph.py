@@ -85,8 +85,9 @@ def test_estop_mid_run_latches_stops_the_axes_and_is_in_the_bag(tmp_path: Path) 
                            on_poll=press_once_running)
     assert sent and result.faults == [] and result.summary["estop_latches"] == 1
     _, statuses = read_statuses(result.bag_path)
-    latched = [s for s in statuses if s.message.startswith("e-stop latched")]
-    assert len(latched) == 1 and f"{ns}/estop true" in latched[0].message
+    latched = {s.name.rsplit("/", 1)[-1]: s for s in statuses if s.message.startswith("e-stop latched")}
+    assert set(latched) == {"plant", "servo_x", "servo_y"}, "each latch once (the servos freeze their laws)"
+    assert f"{ns}/estop true" in latched["plant"].message
     second = [s.values for s in statuses if s.message == RUNNING and s.name.endswith("/plant")]
     assert second and second[0]["estop_latched"] == "true", "the latch holds to the end of the run"
     speeds = [max(abs(v) for v in m.velocity) for m in probe.received(f"{ns}/joint_states")]

@@ -15,6 +15,13 @@ E-stop latch (LinuxCNC's ``estop_latch``): an e-stop input that goes true
 latches; while latched or disabled the plant applies zero commands. The latch
 clears only on a reset while the input is false; enabling while latched is
 refused with the cause. After a reset the machine is off until enabled again.
+A fault (LinuxCNC's ``fault_in``: a partner node lost) latches the same way
+without setting the input (:meth:`EstopLatch.trip`).
+
+Lost partners: a node waiting for a lockstep input watches the input's
+publishers in the ROS graph (:class:`PartnerWatch`). A topic that had
+publishers and has none while a tick waits for it will never complete the
+tick: the node stops the machine and faults naming the nodes that left.
 """
 from __future__ import annotations
 
@@ -25,7 +32,7 @@ from typing import Protocol
 from cnc_contour_control.errors import FaultError
 from cnc_contour_control.lockstep import NS_PER_S
 
-__all__ = ["EstopLatch", "FollowingErrorLimit", "LatchAnswer", "check_following_error", "limit_of"]
+__all__ = ["EstopLatch", "FollowingErrorLimit", "LatchAnswer", "PartnerWatch", "check_following_error", "limit_of"]
 
 
 class FerrorFields(Protocol):
@@ -134,6 +141,14 @@ class EstopLatch:
         self.latch_count += 1
         return True
 
+    def trip(self, cause: str) -> bool:
+        """Latch on a fault (``cause``), leaving the e-stop input as it is. True if the latch was newly set."""
+        if self.latched:
+            return False
+        self.latched, self.cause = True, cause
+        self.latch_count += 1
+        return True
+
     def reset(self) -> LatchAnswer:
         """Clear the latch, refused while the e-stop input is still true; the machine stays off until enabled."""
         if self.estop_input:
@@ -160,3 +175,37 @@ class EstopLatch:
         return {"enabled": str(self.enabled).lower(), "estop_latched": str(self.latched).lower(),
                 "estop_input": str(self.estop_input).lower(), "estop_cause": self.cause,
                 "estop_latches": str(self.latch_count)}
+
+
+class PartnerWatch:
+    """The publishers of the topics a node waits for; a topic whose publishers all left is a lost partner.
+
+    Parameters
+    ----------
+    topics : sequence of str
+        The watched topics (resolved names, as the node subscribes them).
+    """
+
+    def __init__(self, topics: Sequence[str]) -> None:
+        self.topics = tuple(topics)
+        self._seen: dict[str, tuple[str, ...]] = {topic: () for topic in self.topics}
+
+    def publishers(self, topic: str) -> tuple[str, ...]:
+        """The publishing nodes of ``topic`` last seen (empty before any)."""
+        return self._seen[topic]
+
+    def observe(self, topic: str, nodes: Sequence[str | None], stamp_ns: int) -> str | None:
+        """Note ``topic``'s publishing ``nodes`` now; the loss (a message) when all that published are gone.
+
+        A node the graph does not name yet (None: discovery has its endpoint, not its name) keeps the
+        names known before, else is noted as ``an unnamed node``.
+        """
+        if nodes:
+            named = tuple(sorted({node for node in nodes if node}))
+            self._seen[topic] = named or self._seen[topic] or ("an unnamed node",)
+            return None
+        lost = self._seen[topic]
+        if not lost:
+            return None
+        return (f"{', '.join(lost)} left the graph: {topic} has 0 publishers (had {len(lost)}) "
+                f"at t={stamp_ns / NS_PER_S:.6f} s")

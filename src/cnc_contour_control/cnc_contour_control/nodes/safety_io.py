@@ -5,19 +5,22 @@ The logic is :class:`~cnc_contour_control.safety.EstopLatch` and
 them to ROS: ``estop`` (std_msgs/Bool, true = e-stop), ``~/enable``
 (std_srvs/SetBool), ``~/reset`` (std_srvs/Trigger). Every change of the latch
 and every closed statistics window is a status on ``/diagnostics`` stamped in
-the run's time, so the recorder puts it in the bag.
+the run's time, so the recorder puts it in the bag. :class:`PartnerMonitor`
+feeds the publishers of a node's lockstep inputs to
+:class:`~cnc_contour_control.safety.PartnerWatch`.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import Bool
 from std_srvs.srv import SetBool, Trigger
 
 from cnc_contour_control.nodes.common import SuiteNode
-from cnc_contour_control.safety import EstopLatch, LatchAnswer
+from cnc_contour_control.safety import EstopLatch, LatchAnswer, PartnerWatch
 from cnc_contour_control.tick_stats import TickStats
+from cnc_contour_control.topics import qualify
 
 #: Message of the per-second status (diagnostic_updater's periodic status).
 RUNNING = "running"
@@ -38,11 +41,15 @@ class SafetyInterface:
         stamp_ns = self.stamp_ns()
         cause = f"{self.node.resolve_topic_name('estop')} true at t={stamp_ns / 1e9:.6f} s"
         if self.latch.estop(bool(msg.data), cause):
-            self.node.get_logger().warning(f"e-stop latched: {cause}")
-            self._report(DiagnosticStatus.WARN, f"e-stop latched: {cause}")
+            self.latched(cause)
         elif not msg.data:
             self._report(self._level(), "e-stop input released" + (", reset to clear the latch"
                                                                      if self.latch.latched else ""))
+
+    def latched(self, cause: str) -> None:
+        """Log and report that the latch was set by ``cause`` (the e-stop input, or a fault the node tripped)."""
+        self.node.get_logger().warning(f"e-stop latched: {cause}")
+        self._report(DiagnosticStatus.WARN, f"e-stop latched: {cause}")
 
     def _on_enable(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
         """``~/enable``: on refused while latched, with the cause."""
@@ -85,3 +92,40 @@ class TickDiagnostics:
         values = self.stats.add(stamp_ns, wall_s, counts, peaks)
         if values is not None and not self.node.finished:
             self.node.report(DiagnosticStatus.OK, RUNNING, values, stamp_ns=stamp_ns)
+
+
+#: What rmw reports for an endpoint whose node discovery has not named yet.
+UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
+
+
+def publisher_nodes(node: SuiteNode, topic: str) -> list[str | None]:
+    """Fully qualified names of the nodes publishing ``topic`` (a resolved name) now; None for one not yet named."""
+    return [None if info.node_name == UNKNOWN_NODE else qualify(info.node_namespace, info.node_name)
+            for info in node.get_publishers_info_by_topic(topic)]
+
+
+class PartnerMonitor:
+    """Every 0.1 s while ``waiting()``: ``on_lost(message)`` once a watched topic's publishers all left.
+
+    ``topics`` are the node's lockstep inputs (relative or absolute names).
+    """
+
+    def __init__(self, node: SuiteNode, topics: Sequence[str], waiting: Callable[[], bool],
+                 on_lost: Callable[[str], None], stamp_ns: Callable[[], int]) -> None:
+        self.node, self.waiting, self.on_lost, self.stamp_ns = node, waiting, on_lost, stamp_ns
+        self.watch = PartnerWatch([node.resolve_topic_name(topic) for topic in topics])
+        node.create_timer(0.1, node.guarded(self.check))
+
+    def check(self) -> None:
+        """Look at the publishers of every watched topic; report the first loss while a tick waits."""
+        waiting = self.waiting()
+        for topic in self.watch.topics:
+            lost = self.watch.observe(topic, publisher_nodes(self.node, topic), self.stamp_ns())
+            if lost is not None and waiting:
+                self.on_lost(lost)
+                return
+
+    def last_publishers(self, topic: str) -> str:
+        """`` (last published by N)`` for a resolved ``topic``, or nothing when none was seen."""
+        nodes = self.watch.publishers(topic) if topic in self.watch.topics else ()
+        return f" (last published by {', '.join(nodes)})" if nodes else ""

@@ -1,4 +1,9 @@
-"""Servo node: one axis's position loop. Joint state + reference (+ compensation) -> command."""
+"""Servo node: one axis's position loop. Joint state + reference (+ compensation) -> command.
+
+The reference is the Reference topic's, or a trajectory_msgs/JointTrajectory's sampled at each tick
+(``reference_source``, cnc_contour_control.trajectory_reference). The law is frozen while the e-stop latch
+blocks commands (cnc_contour_control.servo_hold); an input's publisher leaving mid-tick is a fault naming it.
+"""
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -7,6 +12,7 @@ from typing import Any
 from cnc_contour_interfaces.msg import AxisCommand, Compensation, Reference
 from diagnostic_msgs.msg import DiagnosticStatus
 from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory
 
 from cnc_contour_control.laws import law_config_class
 from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
@@ -23,10 +29,15 @@ from cnc_contour_control.nodes.conversions import (
     reference_axis,
 )
 from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config
-from cnc_contour_control.nodes.safety_io import TickDiagnostics
-from cnc_contour_control.safety import check_following_error, limit_of
+from cnc_contour_control.nodes.safety_io import PartnerMonitor, SafetyInterface
+from cnc_contour_control.nodes.spindle_parameter import watch_spindle_rpm
+from cnc_contour_control.nodes.trajectory_io import subscribe_trajectory
+from cnc_contour_control.safety import EstopLatch, check_following_error, limit_of
 from cnc_contour_control.servo import ServoConfig, ServoController
+from cnc_contour_control.servo_hold import HeldServo, HoldParams
+from cnc_contour_control.spindle_override import law_receiver
 from cnc_contour_control.stage_params import SERVO_GAINS, SERVO_NODE_SKIPS, ServoRunParams
+from cnc_contour_control.trajectory_reference import ReferenceSourceParams, TrajectoryFollower
 
 
 def servo_parameters(node: SuiteNode, axis: str) -> ConfigParameters[ServoConfig]:
@@ -53,18 +64,40 @@ class ServoNode(SuiteNode):
         self.sample_time_ns = seconds_to_ns(run.sample_time_s)
         self.parameters = servo_parameters(self, self.axis)
         self.controller = ServoController(self.parameters.declare())
-        self.parameters.watch(lambda config: self.controller.retune(config))  # gains change, the law's state stays
-        inputs = ["joint_states", "reference"] + (["compensation"] if run.use_compensation else [])
+        self.spindle_override = watch_spindle_rpm(self, law_receiver(self.controller.law), f"servo {self.axis}")
+        self.parameters.watch(self._retune)  # gains change, the law's state stays
+        source = declare_config(self, ReferenceSourceParams)
+        self.trajectory = TrajectoryFollower(self.axis) if source.reference_source == "joint_trajectory" else None
+        inputs = (["joint_states"] + (["reference"] if self.trajectory is None else [])
+                  + (["compensation"] if run.use_compensation else []))
         self.matcher = StampMatcher(inputs, run.input_timeout_s, run.startup_timeout_s,
                                     stamp_horizon_ns(self.sample_time_ns))
         self.last_stamp_ns: int | None = None
         self.command_pub = self.gated_publisher(AxisCommand, f"servo/{self.axis}/command", 1)
         self._subscribe(JointState, "joint_states")
-        self._subscribe(Reference, "reference")
+        if self.trajectory is None:
+            self._subscribe(Reference, "reference")
+        else:
+            subscribe_trajectory(self, JointTrajectory, source.trajectory_topic, self.trajectory)
         if run.use_compensation:
             self._subscribe(Compensation, "compensation")
         self.watch_inputs(self.matcher, f"servo {self.axis}")
-        self.diagnostics = TickDiagnostics(self)  # every second of run time: saturation share, peak error
+        self.latch = EstopLatch()  # estop, ~/enable, ~/reset: the law is frozen while commands are blocked
+        self.held = HeldServo(self.controller, self.latch, declare_config(self, HoldParams))
+        self.diagnostics = SafetyInterface(self, self.latch, self._stamp_ns)  # every second: saturation, peak error
+        self.partners = PartnerMonitor(self, inputs[1:], lambda: self.matcher.pending_count > 0,
+                                       lambda lost: self.fault(f"servo {self.axis}: {lost}"), self._stamp_ns)
+
+    def _stamp_ns(self) -> int:
+        """The last tick's stamp (0 before the first)."""
+        return self.last_stamp_ns or 0
+
+    def _retune(self, config: ServoConfig) -> None:
+        """New gains; a live ``spindle_rpm`` stays in force over the gains' design speed."""
+        self.controller.retune(config)
+        refused = self.spindle_override.reapply()
+        if refused is not None:
+            self.report(DiagnosticStatus.WARN, f"servo {self.axis}: {refused}")
 
     def _subscribe(self, msg_type: type, topic: str) -> None:
         decode = _DECODE[topic]
@@ -73,18 +106,22 @@ class ServoNode(SuiteNode):
     def _step(self, items: dict[str, Any]) -> None:
         stamp_ns = self.matcher.last_released_ns
         assert stamp_ns is not None  # a tick was just released
+        if self.last_stamp_ns is None:
+            self.partners.check()  # who sends the inputs: known from the first tick on
         dt_ns = self.sample_time_ns if self.last_stamp_ns is None else stamp_ns - self.last_stamp_ns
         position_m, velocity_m_s = items["joint_states"]
-        ref = items["reference"]
+        ref = items["reference"] if self.trajectory is None else self.trajectory.sample(stamp_ns, position_m)
         correction = items.get("compensation", 0.0)
         refused = self.controller.follow_spindle(stamp_ns)  # the commanded spindle speed, as the engine at this tick
         if refused is not None:
             self.report(DiagnosticStatus.WARN, f"servo {self.axis}: {refused}",
                         {"stamp_ns": str(stamp_ns), "spindle_rpm": str(self.controller.spindle.commanded_rpm)})
-        output = self.controller.step(dt_ns / NS_PER_S, ref[0], ref[1], ref[2], position_m, velocity_m_s, correction)
+        output = self.held.step(stamp_ns, dt_ns / NS_PER_S, ref[0], ref[1], ref[2], position_m, velocity_m_s,
+                                correction)
         self.last_stamp_ns = stamp_ns
         config = self.controller.config
-        check_following_error(limit_of(config), output.error_m, ref[1], stamp_ns)  # trips as the engine does
+        if not self.held.held:  # LinuxCNC checks the following error only while enabled
+            check_following_error(limit_of(config), output.error_m, ref[1], stamp_ns)  # trips as the engine does
         self.diagnostics.account(stamp_ns, wall_time_s(), {"saturated": (int(output.saturated), 1)},
                                  {"peak_following_error_m": output.error_m})
         self.command_pub.publish(command_to_msg(output, self.axis, config.law, config.command_unit, stamp_ns))

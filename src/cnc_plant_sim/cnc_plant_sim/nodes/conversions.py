@@ -45,3 +45,21 @@ def command_value(msg: AxisCommand, axis: str) -> float:
         raise FaultError(f"servo/{axis}/command carries axis {msg.axis_name!r}")
     require_finite_values((msg.command,), f"servo/{axis}/command.command")
     return float(msg.command)
+
+
+def joint_command_values(msg: JointState, axes: Sequence[str], field: str) -> dict[str, float]:
+    """The commands a JointState carries in ``field`` (effort or velocity), by axis; faults on bad data.
+
+    ``msg.name`` may hold some of ``axes`` (never another name, never one twice), one value each.
+    """
+    names = list(msg.name)
+    values = list(getattr(msg, field))
+    unknown = [name for name in names if name not in axes]
+    if unknown:
+        raise FaultError(f"joint_commands.name has unknown joints {unknown} (the plant's axes: {list(axes)})")
+    if len(set(names)) != len(names):
+        raise FaultError(f"joint_commands.name repeats a joint: {names}")
+    if len(values) != len(names):
+        raise FaultError(f"joint_commands.{field} has {len(values)} values for {len(names)} names")
+    require_finite_values(values, f"joint_commands.{field}")
+    return {name: float(value) for name, value in zip(names, values)}

@@ -1,5 +1,6 @@
 """Plant node: simulated feed drives. Owns /clock, publishes joint_states (and tool_position with machine
-faults, cutting_force with a cutting process), applies commands."""
+faults, cutting_force with a cutting process), applies commands (AxisCommand per axis, or JointState:
+cnc_plant_sim.command_source). A commanding node leaving the graph mid-run stops the machine with a fault."""
 from __future__ import annotations
 
 import json
@@ -27,13 +28,17 @@ from cnc_contour_control.nodes.common import (
     wall_time_s,
 )
 from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config, nested
-from cnc_contour_control.nodes.safety_io import SafetyInterface
+from cnc_contour_control.nodes.safety_io import PartnerMonitor, SafetyInterface
+from cnc_contour_control.nodes.spindle_parameter import watch_spindle_rpm
 from cnc_contour_control.safety import EstopLatch
 from cnc_plant_sim.axis import AxisConfig
+from cnc_plant_sim.command_source import CommandSourceParams, command_interface
 from cnc_plant_sim.cutting import CuttingConfig, cutting_plant
 from cnc_plant_sim.friction import friction_config_class
 from cnc_plant_sim.machine_faults import AxisFaults, FaultedPlant, MachineFaults, tool_positions_m
-from cnc_plant_sim.nodes.conversions import clock_msg, command_value, joint_state_msg, wrench_msg
+from cnc_plant_sim.nodes.conversions import (clock_msg, command_value, joint_command_values, joint_state_msg,
+                                             wrench_msg)
+from cnc_plant_sim.periodic_load import set_spindle_rpm
 from cnc_plant_sim.plant import PLANTS, PlantConfig, make_plant
 from cnc_plant_sim.run_clock import RunClock
 from cnc_plant_sim.run_params import PlantRunParams
@@ -110,10 +115,13 @@ class PlantNode(SuiteNode):
         self.joint_gate = self.reader_gate(self.joint_pub, JointState, "expected_subscribers", 1)
         self.tool_pub, self.tool_gate = self._tool_position_publisher()
         self.cutting = cutting_plant(self.plant)
+        self.spindle_override = watch_spindle_rpm(  # the periodic disturbance's speed from now on
+            self, lambda rpm: set_spindle_rpm(self.plant, rpm, self.clock.sample_time_s), "plant")
         self.force_pub, self.force_gate = self._cutting_force_publisher()
         self.clock_pub = self.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
-        for axis in self.axes:
-            self.subscribe_checked(AxisCommand, f"servo/{axis}/command", self._command_callback(axis))
+        self.command_topics = self._subscribe_commands(declare_config(self, CommandSourceParams))
+        self.partners = PartnerMonitor(self, self.command_topics, lambda: self.started, self._partner_lost,
+                                       lambda: self.clock.stamp_ns)
         self.create_timer(0.02, self.guarded(self._wait_for_graph))
         self.create_timer(0.1, self.guarded(self._watchdog))
         self.create_timer(1.0, self._write_progress)
@@ -137,16 +145,33 @@ class PlantNode(SuiteNode):
         publisher = self.create_publisher(WrenchStamped, "cutting_force", LOCKSTEP_QOS)
         return publisher, ReaderGate(self, publisher, type_name_of(WrenchStamped), (), count)
 
+    def _subscribe_commands(self, source: CommandSourceParams) -> list[str]:
+        """Subscribe the command source; the resolved topics the commands come on."""
+        if source.command_source == "axis_command":
+            for axis in self.axes:
+                self.subscribe_checked(AxisCommand, f"servo/{axis}/command", self._command_callback(axis))
+            return [self.resolve_topic_name(f"servo/{axis}/command") for axis in self.axes]
+        field = command_interface(self.plant.command_unit)
+
+        def on_joint_command(msg: JointState) -> None:
+            stamp_ns = stamp_to_ns(msg.header.stamp)
+            for axis, value in joint_command_values(msg, self.axes, field).items():
+                self._take_command(axis, stamp_ns, value)
+
+        self.subscribe_checked(JointState, source.joint_command_topic, on_joint_command)
+        return [self.resolve_topic_name(source.joint_command_topic)]
+
     def _wait_for_graph(self) -> None:
         if self.started:
             return
-        ready = all(self.count_publishers(self.resolve_topic_name(f"servo/{a}/command")) >= 1 for a in self.axes)
+        ready = all(self.count_publishers(topic) >= 1 for topic in self.command_topics)
         gates = [g for g in (self.joint_gate, self.tool_gate, self.force_gate) if g is not None]
         stalled = next((m for m in (g.overdue(self.matcher.startup_timeout_s) for g in gates) if m), None)
         if stalled:
             self.fault(f"plant: {stalled}")
         elif ready and all(g.ready() for g in gates):
             self.started = True
+            self.partners.check()  # who commands: known from the start, however short the run
             self.clock.started_wall_s = wall_time_s()
             self.get_logger().info(f"graph ready, running {self.mode} for {self.clock.duration_s} s")
             if self.mode == "realtime":
@@ -168,21 +193,22 @@ class PlantNode(SuiteNode):
             self.matcher.expect(stamp_ns, wall_time_s())
 
     def _command_callback(self, axis: str) -> Any:
-        index = self.axes.index(axis)
-
         def on_command(msg: AxisCommand) -> None:
-            value = command_value(msg, axis)
-            stamp_ns = stamp_to_ns(msg.header.stamp)
-            if self.mode == "realtime":
-                if stamp_ns == self.clock.stamp_ns:
-                    self.commands[index] = value
-                    self.received[index] = True
-                return
-            items = self.matcher.add(axis, stamp_ns, value, wall_time_s())
-            if items is not None:
-                self._lockstep_step([items[a] for a in self.axes])
+            self._take_command(axis, stamp_to_ns(msg.header.stamp), command_value(msg, axis))
 
         return on_command
+
+    def _take_command(self, axis: str, stamp_ns: int, value: float) -> None:
+        """One axis's command for tick ``stamp_ns``: held for the real-time tick, or matched in lockstep."""
+        if self.mode == "realtime":
+            if stamp_ns == self.clock.stamp_ns:
+                index = self.axes.index(axis)
+                self.commands[index] = value
+                self.received[index] = True
+            return
+        items = self.matcher.add(axis, stamp_ns, value, wall_time_s())
+        if items is not None:
+            self._lockstep_step([items[a] for a in self.axes])
 
     def _lockstep_step(self, commands: list[float]) -> None:
         self.plant.step(self.latch.gate(commands), self.clock.sample_time_s)
@@ -219,8 +245,24 @@ class PlantNode(SuiteNode):
         overdue = self.matcher.overdue(wall_time_s())
         if overdue is not None:
             stamp_ns, missing = overdue
-            topics = ", ".join(self.resolve_topic_name(f"servo/{a}/command") for a in missing)
-            self.fault(f"plant: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s within {self.matcher.current_timeout_s} s")
+            topics = ", ".join(sorted({self._command_topic(a) for a in missing}))
+            self._stop(f"plant: no {topics} for tick t={stamp_ns / NS_PER_S:.6f} s within "
+                       f"{self.matcher.current_timeout_s} s")
+
+    def _command_topic(self, axis: str) -> str:
+        """The resolved topic ``axis``'s command comes on, and who last published it."""
+        topic = self.command_topics[self.axes.index(axis)] if len(self.command_topics) > 1 else self.command_topics[0]
+        return topic + self.partners.last_publishers(topic)
+
+    def _partner_lost(self, message: str) -> None:
+        """A commanding node left the graph mid-run: stop the machine and fault naming it."""
+        self._stop(f"plant: {message}; machine stopped")
+
+    def _stop(self, message: str) -> None:
+        """Latch (zero commands, as the e-stop does) and fault: the machine stops, the run ends faulted."""
+        if self.latch.trip(message):
+            self.safety.latched(message)
+        self.fault(message)
 
     def _finish(self) -> None:
         self.clock.finished_wall_s = wall_time_s()
