@@ -63,7 +63,7 @@ class ManagedNode(LifecycleNode):
         """Declare and validate the parameters, create the topics (a node that overrides this is managed)."""
 
     def activate(self) -> None:
-        """Arm the node (default: nothing beyond ``armed``)."""
+        """Arm the node (default: nothing beyond ``armed``); raise CncError to refuse."""
 
     def deactivate(self) -> None:
         """Stop motion cleanly (default: nothing beyond ``armed``); raise CncError to refuse."""
@@ -84,7 +84,11 @@ class ManagedNode(LifecycleNode):
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
         self.armed = True
-        self.activate()
+        try:
+            self.activate()
+        except CncError as err:
+            self.armed = False
+            return self._refuse("activate", err)
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:

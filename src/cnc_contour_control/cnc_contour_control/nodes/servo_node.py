@@ -14,6 +14,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
+from cnc_contour_control.errors import CncError
 from cnc_contour_control.laws import law_config_class
 from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
 from cnc_contour_control.nodes.common import (
@@ -59,6 +60,9 @@ class ServoNode(SuiteNode):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("servo", **kwargs)
+
+    def configure(self) -> None:
+        """Lifecycle configure (nodes/lifecycle.py): the parameters validated, the law built, the topics."""
         run = declare_config(self, ServoRunParams)
         self.axis = run.axis
         self.sample_time_ns = seconds_to_ns(run.sample_time_s)
@@ -87,6 +91,16 @@ class ServoNode(SuiteNode):
         self.diagnostics = SafetyInterface(self, self.latch, self._stamp_ns)  # every second: saturation, peak error
         self.partners = PartnerMonitor(self, inputs[1:], lambda: self.matcher.pending_count > 0,
                                        lambda lost: self.fault(f"servo {self.axis}: {lost}"), self._stamp_ns)
+
+    def activate(self) -> None:
+        """Lifecycle activate: the axis enabled (refused while the e-stop is latched, naming the cause)."""
+        answer = self.latch.enable(True)
+        if not answer.accepted:
+            raise CncError(answer.message)
+
+    def deactivate(self) -> None:
+        """Lifecycle deactivate: the axis disabled (zero commands, the law frozen), as ``~/enable false``."""
+        self.latch.enable(False)
 
     def _stamp_ns(self) -> int:
         """The last tick's stamp (0 before the first)."""

@@ -96,6 +96,9 @@ class PlantNode(SuiteNode):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__("plant", **kwargs)
+
+    def configure(self) -> None:
+        """Lifecycle configure (nodes/lifecycle.py): the parameters validated, the model built, the topics."""
         run = declare_config(self, PlantRunParams)
         self.plant = make_plant(plant_parameters(self).declare())
         self.axes = self.plant.axis_names
@@ -125,6 +128,23 @@ class PlantNode(SuiteNode):
         self.create_timer(0.02, self.guarded(self._wait_for_graph))
         self.create_timer(0.1, self.guarded(self._watchdog))
         self.create_timer(1.0, self._write_progress)
+        self._tick_held = False  # lockstep, deactivated: the next tick waits for activate
+
+    def activate(self) -> None:
+        """Lifecycle activate: the run starts (once the graph is ready) or resumes; real time: drives enabled."""
+        if self.mode == "realtime" and self.started:
+            answer = self.latch.enable(True)
+            if not answer.accepted:
+                raise CncError(answer.message)
+        if self._tick_held:
+            self._tick_held = False
+            self._publish_tick()
+
+    def deactivate(self) -> None:
+        """Lifecycle deactivate: lockstep, the run pauses after this tick (nothing moves, time stands);
+        real time, the drives are switched off (zero commands) and the axes come to rest."""
+        if self.mode == "realtime":
+            self.latch.enable(False)
 
     def _tool_position_publisher(self) -> tuple[Any, ReaderGate | None]:
         """``tool_position`` and its gate (``tool_position_subscribers`` readers) when the plant has faults."""
@@ -162,7 +182,7 @@ class PlantNode(SuiteNode):
         return [self.resolve_topic_name(source.joint_command_topic)]
 
     def _wait_for_graph(self) -> None:
-        if self.started:
+        if self.started or not self.armed:
             return
         ready = all(self.count_publishers(topic) >= 1 for topic in self.command_topics)
         gates = [g for g in (self.joint_gate, self.tool_gate, self.force_gate) if g is not None]
@@ -216,6 +236,8 @@ class PlantNode(SuiteNode):
         self.clock.advance()
         if self.clock.done:
             self._finish()
+        elif not self.armed:
+            self._tick_held = True
         else:
             self._publish_tick()
 

@@ -26,6 +26,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--compose", choices=sorted(COMPOSE_MODES), default="none",
                         help="nodes in one process on one executor: loop (plant, interpolator, servos and the "
                         "optional stages; the recorder apart), all (the recorder too), none (one process each; default)")
+    parser.add_argument("--managed", action="store_true",
+                        help="start the interpolator, servos and plant unconfigured and let a lifecycle manager "
+                        "configure and activate them (default: they autostart)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario key, e.g. --set servo.law_params.kp=3 --set mode=realtime")
 
@@ -48,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
           f"{scenario.duration_s:.2f} s simulated, compose {args.compose}) in namespace {namespace}, "
           f"recording to {run_dir / 'bag'}", flush=True)
     result = run_graph(scenario, run_dir, record=True, on_poll=Progress(run_dir / "summary.json", scenario.duration_s),
-                       namespace=namespace, compose=args.compose)
+                       namespace=namespace, compose=args.compose, managed=args.managed)
     print_summary(scenario.name, "node graph", result.summary)
     if result.faults or result.bag_path is None:
         return 1

@@ -29,6 +29,7 @@ from cnc_tools.runs.compose import HOST, MemberExit, ProcessGroup, exits_path, g
 from cnc_tools.runs.dds import loopback_env
 from cnc_tools.runs.graph_nodes import NAMESPACE, NodeSpec, graph_nodes, recorder_spec, write_params_dir
 from cnc_tools.runs.lifetime import RunInterrupted, StopSignals, die_with_parent, read_summary, settle_summary
+from cnc_tools.runs.managed import managed_nodes
 from cnc_tools.runs.namespaces import remap_arguments, run_namespace
 from cnc_tools.runs.scenario import Scenario
 
@@ -222,13 +223,16 @@ class GraphRun:
 
 def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_subscribers: int = 0,
               env: Mapping[str, str] | None = None, on_poll: Callable[[], None] | None = None,
-              timeout_s: float = 3600.0, namespace: str | None = None, compose: str = "none") -> RunResult:
+              timeout_s: float = 3600.0, namespace: str | None = None, compose: str = "none",
+              managed: bool = False) -> RunResult:
     """Run ``scenario`` through the node graph in ``run_dir`` (recorded to ``run_dir/bag`` if asked).
 
     The run's topics live under ``namespace``, by default a fresh ``/cnc/<run id>``
     (:mod:`cnc_tools.runs.namespaces`), so runs in one ROS domain never meet.
     ``compose`` (``none``, ``loop``, ``all``: :mod:`cnc_tools.runs.compose`) puts
     nodes into one process; the bag, summary and verdicts are the same.
+    ``managed`` starts the lifecycle nodes unconfigured and a lifecycle
+    manager that configures and activates them (:mod:`cnc_tools.runs.managed`).
 
     Raises
     ------
@@ -244,6 +248,8 @@ def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_sub
     extra = [recorder_spec(scenario, run_dir / "bag")] if record else []
     nodes = [*extra, *graph_nodes(scenario, run_dir, extra_subscribers + len(extra),
                                   extra_readers=[spec.name for spec in extra])]
+    if managed:
+        nodes = managed_nodes(nodes)
     run = GraphRun(nodes, run_dir, env, namespace, compose)
     with StopSignals(run_dir) as signals:
         try:
