@@ -65,6 +65,8 @@ _cnc_build() {
   local stamp="$CNC_ROOT/install/.cnc-build" want
   want="$(cd "$CNC_ROOT" && _cnc_hash $(find src -name package.xml -o -name setup.py -o -name setup.cfg \
            -o -name CMakeLists.txt -o -name '*.msg' -o -name '*.action' | sort) 2>/dev/null)"
+  # installed data files (setup.py globs them): a new or removed one needs a build, an edit does not (symlinks)
+  want="$want $(cd "$CNC_ROOT" && find src -path '*/config/*' -o -path '*/launch/*' | sort | sha256sum | cut -d' ' -f1)"
   if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     _cnc_log "colcon build"
     (cd "$CNC_ROOT" && colcon --log-base "$CNC_ROOT/log" build --symlink-install \
@@ -94,5 +96,45 @@ cnc_setup() {
   _cnc_build || { _cnc_log "colcon build failed (see $CNC_ROOT/log/latest_build)"; return 1; }
   cnc_dds_env
   export CNC_CONTOUR_ROOT="$CNC_ROOT"
-  export PATH="$CNC_ROOT/install/cnc_tools/lib/cnc_tools:$PATH"
+  export CNC_CONFIG_DIR="$CNC_ROOT/install/cnc_contour_control/share/cnc_contour_control/config"
+  cnc_node_path
+}
+
+# The folders of the executables the workspace's packages install: <prefix>/lib/<package>/ (what
+# `ros2 run <package> <executable>` looks in), one a line.
+_cnc_exec_dirs() {
+  local dir
+  for dir in "$CNC_ROOT"/install/*/lib/*/; do
+    dir="${dir%/}"
+    if [ -d "$dir" ] && [ "$(basename "$dir")" = "$(basename "$(dirname "$(dirname "$dir")")")" ]; then
+      echo "$dir"
+    fi
+  done
+}
+
+# Every node executable (plant, interpolator, servo, ..., recorder) and cnc-contour on PATH.
+cnc_node_path() {
+  local dir
+  while read -r dir; do
+    case ":$PATH:" in *":$dir:"*) ;; *) PATH="$dir:$PATH" ;; esac
+  done < <(_cnc_exec_dirs)
+  export PATH
+}
+
+# What a shell of ./dev uses (printed by `./dev shell` and `./dev env`): the ROS domain, the DDS
+# settings, the installed parameter files, and where each executable resolves on PATH.
+cnc_env_report() {
+  local dir exe
+  printf 'ROS_DOMAIN_ID=%s  (random per shell unless set; other shells join it: ROS_DOMAIN_ID=%s ./dev shell)\n' \
+    "$ROS_DOMAIN_ID" "$ROS_DOMAIN_ID"
+  printf '%s=%s\n' RMW_IMPLEMENTATION "$RMW_IMPLEMENTATION" \
+    ROS_AUTOMATIC_DISCOVERY_RANGE "$ROS_AUTOMATIC_DISCOVERY_RANGE" \
+    FASTRTPS_DEFAULT_PROFILES_FILE "$FASTRTPS_DEFAULT_PROFILES_FILE" CNC_CONFIG_DIR "$CNC_CONFIG_DIR"
+  while read -r dir; do
+    for exe in "$dir"/*; do
+      if [ -f "$exe" ] && [ -x "$exe" ]; then
+        printf 'executable %s -> %s\n' "$(basename "$exe")" "$(command -v "$(basename "$exe")" || echo 'not on PATH')"
+      fi
+    done
+  done < <(_cnc_exec_dirs)
 }

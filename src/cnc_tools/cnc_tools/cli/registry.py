@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from cnc_tools.cli import bench, check, circular, identify_friction, params, replay, run, score, tune
+from cnc_tools.cli import config_files
 from cnc_tools.cli import send_program
 from cnc_tools.cli.common import Subcommand
 
@@ -10,6 +11,8 @@ COMMANDS: dict[str, Subcommand] = {
     "run": Subcommand(run.configure, run.run, "run a scenario through the node graph (or the engine), record, score, plot"),
     "check": Subcommand(check.configure, check.check, "validate a scenario and print what it resolves to"),
     "params": Subcommand(params.configure, params.params, "write a scenario's node parameter files (for ros2 launch)"),
+    "config-files": Subcommand(config_files.configure, config_files.config_files,
+                               "write (--check: check) the parameter files the packages install"),
     "score": Subcommand(score.configure_score, score.score, "score recorded runs (exact contour error)"),
     "report": Subcommand(score.configure_report, score.report, "PNG plots of recorded runs, side by side"),
     "circular": Subcommand(circular.configure, circular.circular,
