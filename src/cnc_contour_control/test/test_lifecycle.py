@@ -1,6 +1,8 @@
 """Tier 2: a managed node (rclpy.lifecycle) waits unconfigured, validates on configure, refuses wrong transitions."""
 from __future__ import annotations
 
+import uuid
+
 from pathlib import Path
 from typing import Any
 
@@ -15,6 +17,12 @@ from cnc_tools.testing import InProcessNode, TopicProbe
 pytestmark = pytest.mark.nodes
 NS = "/lifecycle_test"
 ACTION_MODE = {"axes": ["x", "y"], "program_source": "action", "program_file": "", "managed": True}
+
+
+@pytest.fixture(autouse=True)
+def _fresh_namespace(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A namespace of each test's own: no stale service of an earlier test's node (same name) can take a request."""
+    monkeypatch.setitem(globals(), "NS", f"/lifecycle_{uuid.uuid4().hex[:8]}")
 
 
 def _call(probe: TopicProbe, srv_type: type, name: str, request: Any) -> Any:

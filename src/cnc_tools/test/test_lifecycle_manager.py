@@ -1,6 +1,8 @@
 """Tier 2: the lifecycle manager configures, then activates, managed nodes, and faults naming a refusal."""
 from __future__ import annotations
 
+import uuid
+
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 
@@ -11,6 +13,12 @@ from cnc_tools.testing import InProcessNode, TopicProbe
 
 NS = "/lifecycle_manager_test"
 ACTION_MODE = {"axes": ["x", "y"], "program_source": "action", "program_file": "", "managed": True}
+
+
+@pytest.fixture(autouse=True)
+def _fresh_namespace(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A namespace of each test's own: no stale service of an earlier test's node (same name) can take a request."""
+    monkeypatch.setitem(globals(), "NS", f"/lifecycle_manager_{uuid.uuid4().hex[:8]}")
 
 
 def test_the_plan_configures_every_node_before_activating_any() -> None:

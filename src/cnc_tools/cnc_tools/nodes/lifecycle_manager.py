@@ -18,7 +18,7 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from lifecycle_msgs.msg import Transition
-from lifecycle_msgs.srv import ChangeState
+from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.parameter import Parameter
 
 from cnc_contour_control.errors import ConfigError
@@ -26,6 +26,11 @@ from cnc_contour_control.nodes.common import SuiteNode, describe, spin_node, wal
 
 #: The transitions an autostart drives, in order, with their names as the log says them.
 AUTOSTART = ((Transition.TRANSITION_CONFIGURE, "configure"), (Transition.TRANSITION_ACTIVATE, "activate"))
+#: Each transition's start and goal state (labels of lifecycle_msgs/State).
+STATES = {"configure": ("unconfigured", "inactive"), "activate": ("inactive", "active")}
+#: An unanswered or refused request is checked against the node's state after this long: a response lost in
+#: discovery (the server's answer writer not yet matched to this client) must not stall the start-up.
+ANSWER_WAIT_S = 2.0
 
 
 @dataclass
@@ -65,7 +70,10 @@ class LifecycleManagerNode(SuiteNode):
             "wall time to wait for a node's change_state service, s", 0.1, 3600.0, True))
         self.plan = TransitionPlan(tuple(names or ()))
         self._change_state = {name: self.create_client(ChangeState, f"{name}/change_state") for name in self.plan.node_names}
+        self._get_state = {name: self.create_client(GetState, f"{name}/get_state") for name in self.plan.node_names}
         self._pending: Any = None
+        self._state_query: Any = None
+        self._sent_s = wall_time_s()
         self._since_s = wall_time_s()
         self._timer = self.create_timer(0.02, self.guarded(self._advance))
 
@@ -74,7 +82,7 @@ class LifecycleManagerNode(SuiteNode):
         if self._pending is not None:
             self._check_pending()
             return
-        name, transition_id, label = self.plan.current
+        name, _, label = self.plan.current
         client = self._change_state[name]
         if not client.service_is_ready():
             self.waiting_for("service", f"{client.srv_name} to {label} {name}")
@@ -83,17 +91,46 @@ class LifecycleManagerNode(SuiteNode):
             return
         self.waiting_for("service", None)
         self._since_s = wall_time_s()
-        self._pending = client.call_async(ChangeState.Request(transition=Transition(id=transition_id)))
+        self._send()
+
+    def _send(self) -> None:
+        name, transition_id, _ = self.plan.current
+        self._sent_s = wall_time_s()
+        self._pending = self._change_state[name].call_async(ChangeState.Request(transition=Transition(id=transition_id)))
 
     def _check_pending(self) -> None:
+        """An answer, or after ANSWER_WAIT_S without one (or with a refusal) the node's state, decides the step."""
         name, _, label = self.plan.current
-        if not self._pending.done():
-            if wall_time_s() - self._since_s > self.timeout_s:
-                self.fault(f"lifecycle_manager: {label} {name} not answered within {self.timeout_s} s")
+        if self._state_query is not None:
+            self._check_state()
+        elif self._pending.done() and self._pending.result().success:
+            self._step_done()
+        elif self._pending.done() or wall_time_s() - self._sent_s > ANSWER_WAIT_S:
+            self._state_query = self._get_state[name].call_async(GetState.Request())
+        if self._pending is not None and wall_time_s() - self._since_s > self.timeout_s:
+            self.fault(f"lifecycle_manager: {label} {name} not answered within {self.timeout_s} s")
+
+    def _check_state(self) -> None:
+        """The node's state after an unanswered or refused request: done, send again, or refused."""
+        name, _, label = self.plan.current
+        if not self._state_query.done():
+            if wall_time_s() - self._sent_s > 2 * ANSWER_WAIT_S:
+                self._state_query = None  # the query itself was lost: ask again
             return
-        if not self._pending.result().success:
+        state = self._state_query.result().current_state.label
+        self._state_query = None
+        start, goal = STATES[label]
+        if state == goal:
+            self._step_done()
+        elif self._pending.done():
             self.fault(f"lifecycle_manager: {label} {name} refused (see {name}'s log and /diagnostics)")
-            return
+        elif state == start:
+            self._send()  # the request was lost: send it again
+        else:
+            self._sent_s = wall_time_s()  # still in transition: look again in ANSWER_WAIT_S
+
+    def _step_done(self) -> None:
+        name, _, label = self.plan.current
         self.get_logger().info(f"{label} {name}: done")
         self._pending, self._since_s = None, wall_time_s()
         self.plan.done += 1
