@@ -83,6 +83,17 @@ class ArcSegment:
         for name, value in values.items():
             object.__setattr__(self, name, value)
 
+    @classmethod
+    def from_validated(cls, values: dict[str, object]) -> ArcSegment:
+        """An arc from every field (init and derived, as ``__post_init__`` sets them), without re-checking.
+
+        :func:`cnc_contour_control.segment_batch.arc_segments` is the one caller; it checks and derives
+        what ``__post_init__`` does, for many arcs at once.
+        """
+        arc = object.__new__(cls)
+        arc.__dict__.update(values)  # what object.__setattr__ does per field, in one call
+        return arc
+
     def _check_plane(self, n_axes: int) -> tuple[int, int]:
         try:
             a, b = (int(i) for i in self.plane)

@@ -15,9 +15,8 @@ the speed on a segment at most its cruise speed, which is the ``v`` used here.
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
+from numpy.typing import NDArray
 
 from cnc_contour_control.arc import ArcSegment
 from cnc_contour_control.points import FloatArray
@@ -42,17 +41,45 @@ def combined_tangential_m_s2(arc: ArcSegment, speed_m_s: float, max_acceleration
         The arc's :meth:`~ArcSegment.max_abs_tangent` and :meth:`~ArcSegment.max_abs_curvature_per_m`
         (1/m) if the caller has them.
     """
-    kappa = arc.radius_m * (arc.sweep_rad / arc.length_m) ** 2
-    rate = arc.radius_m * arc.sweep_rad / arc.length_m
     tangent = arc.max_abs_tangent() if max_abs_tangent is None else max_abs_tangent
     curvature = arc.max_abs_curvature_per_m() if max_abs_curvature_per_m is None else max_abs_curvature_per_m
-    centripetal_sq = speed_m_s ** 2
-    bounds = []
-    for j, limit in enumerate(np.asarray(max_acceleration_m_s2, dtype=float).tolist()):
-        if j in arc.plane:
-            split = (limit - centripetal_sq * curvature[j]) / max(tangent[j], _MIN_TANGENT)
-            combined = math.sqrt(max(limit * limit - (centripetal_sq * kappa) ** 2, 0.0)) / rate
-            bounds.append(max(split, combined, 0.0))
-        elif tangent[j] > _MIN_TANGENT:
-            bounds.append(limit / tangent[j])
-    return min(bounds) if bounds else math.inf
+    in_plane = np.zeros((1, arc.n_axes), dtype=bool)
+    in_plane[0, list(arc.plane)] = True
+    return float(combined_tangential_rows(
+        np.array([arc.radius_m * (arc.sweep_rad / arc.length_m) ** 2]), np.array([arc.radius_m * arc.sweep_rad
+                                                                                  / arc.length_m]),
+        in_plane, np.array([speed_m_s]), np.asarray(max_acceleration_m_s2, dtype=float),
+        np.asarray(tangent, dtype=float)[None, :], np.asarray(curvature, dtype=float)[None, :])[0])
+
+
+def combined_tangential_rows(kappa_per_m: FloatArray, rate: FloatArray, in_plane: NDArray[np.bool_],
+                             speed_m_s: FloatArray, max_acceleration_m_s2: FloatArray, max_abs_tangent: FloatArray,
+                             max_abs_curvature_per_m: FloatArray) -> FloatArray:
+    """:func:`combined_tangential_m_s2` of many arcs at once (the planner's path).
+
+    Parameters
+    ----------
+    kappa_per_m, rate : ndarray, shape (M,)
+        Each arc's curvature ``R (sweep / length)**2`` (1/m) and ``ρ = R sweep / length``.
+    in_plane : ndarray of bool, shape (M, n_axes)
+        True on each arc's two plane axes.
+    speed_m_s : ndarray, shape (M,)
+        Largest path speed on each arc, m/s.
+    max_acceleration_m_s2 : ndarray, shape (n_axes,)
+        Per-axis acceleration limits, m/s².
+    max_abs_tangent, max_abs_curvature_per_m : ndarray, shape (M, n_axes)
+        Each arc's largest ``|T_j|`` and ``|K_j|`` (1/m).
+
+    Returns
+    -------
+    ndarray, shape (M,)
+        Tangential acceleration, m/s² (inf where no axis bounds it).
+    """
+    limit = np.asarray(max_acceleration_m_s2, dtype=float)[None, :]
+    centripetal_sq = (np.asarray(speed_m_s, dtype=float) ** 2)[:, None]
+    split = (limit - centripetal_sq * max_abs_curvature_per_m) / np.maximum(max_abs_tangent, _MIN_TANGENT)
+    combined = np.sqrt(np.maximum(limit * limit - (centripetal_sq * kappa_per_m[:, None]) ** 2, 0.0)) / rate[:, None]
+    used = max_abs_tangent > _MIN_TANGENT
+    out_of_plane = np.divide(limit, max_abs_tangent, out=np.full(used.shape, np.inf), where=used)
+    bounds = np.where(in_plane, np.maximum(np.maximum(split, combined), 0.0), out_of_plane)
+    return bounds.min(axis=1)

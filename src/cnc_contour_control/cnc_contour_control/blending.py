@@ -23,17 +23,20 @@ out-of-plane line takes part. The blended program is a plain
 """
 from __future__ import annotations
 
+import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from cnc_contour_control.arc import ArcSegment
+from cnc_contour_control.blend_assembly import planned_segments
 from cnc_contour_control.blend_fillet import lift, plan_fillet
+from cnc_contour_control.blend_table import Blend, BlendTable
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.geometry import Dwell, LineSegment, Program, Segment
-from cnc_contour_control.points import MIN_LENGTH_M, POSITION_TOLERANCE_M, FloatArray, IntArray
+from cnc_contour_control.points import POSITION_TOLERANCE_M, FloatArray, IntArray
 from cnc_contour_control.segment_tangents import junction_turns_rad
 
 _AXIS_EPS = 1.0e-12
@@ -41,31 +44,6 @@ _REVERSAL_MARGIN_RAD = 1.0e-6
 #: Shortest chord of a blend arc, m: an :class:`ArcSegment` whose ends are within
 #: ``POSITION_TOLERANCE_M`` is a full circle, so smaller blends stay corners.
 _MIN_CHORD_M = 2.0 * POSITION_TOLERANCE_M
-
-
-@dataclass(frozen=True)
-class Blend:
-    """One rounded corner: at the junction before programmed segment ``junction``.
-
-    ``radius_m`` is the arc radius (m), ``trim_m`` the length taken from the
-    segment before (m), ``trim_after_m`` the one taken from the segment after
-    (m; equal for line-line corners), ``deviation_m`` the arc's largest
-    distance from the programmed path (m, <= the tolerance; for line-line
-    corners the bound ``e``). ``start_m``, ``end_m`` and ``center_m`` (shape
-    ``(n_axes,)``, m) are the arc's tangent points and centre, ``plane`` its
-    plane and ``clockwise`` its direction.
-    """
-
-    junction: int
-    radius_m: float
-    trim_m: float
-    deviation_m: float
-    trim_after_m: float = math.nan
-    start_m: FloatArray | None = field(default=None, repr=False)
-    end_m: FloatArray | None = field(default=None, repr=False)
-    center_m: FloatArray | None = field(default=None, repr=False)
-    plane: tuple[int, int] = (0, 1)
-    clockwise: bool = False
 
 
 @dataclass(frozen=True)
@@ -77,10 +55,16 @@ class BlendedProgram:
 
     programmed: Program
     planned: Program
-    blends: tuple[Blend, ...]
+    #: The blends as arrays, in junction order (:attr:`blends` as objects).
+    table: BlendTable
     tolerance_m: float
     #: Per planned segment, the programmed segment it comes from (a blend arc: the one after its corner).
     source_segment: tuple[int, ...] = ()
+
+    @functools.cached_property
+    def blends(self) -> tuple[Blend, ...]:
+        """The blends, one :class:`Blend` per rounded corner, in junction order."""
+        return self.table.rows()
 
     def deviation_m(self, points: ArrayLike) -> FloatArray:
         """Exact distance (m, shape ``(N,)``) of ``points`` (``(N, n_axes)``, m) from the programmed path."""
@@ -124,7 +108,7 @@ def corner_trim_m(turn_rad: ArrayLike, tolerance_m: float, max_trim_m: ArrayLike
     return radius, radius * np.tan(half)
 
 
-def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, tolerance_m: float) -> list[Blend]:
+def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, tolerance_m: float) -> BlendTable:
     """The tangent arcs of the line-line corners before segments ``junctions`` (closed form, all at once).
 
     A corner whose lines move three or more axes, or whose arc's chord would be under 2 µm, is left out.
@@ -145,8 +129,8 @@ def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, 
     corner = np.array([segments[k].start_m for k in junctions]).reshape(u1.shape)
     start, end = corner - trim[:, None] * u1, corner + trim[:, None] * u2
     center, deviation = start + radius[:, None] * normal, radius * (1.0 / np.cos(0.5 * turns_rad) - 1.0)
-    return [Blend(int(junctions[i]), float(radius[i]), float(trim[i]), float(deviation[i]), float(trim[i]), start[i],
-                  end[i], center[i], (int(first[i]), int(second[i])), bool(clockwise[i])) for i in keep]
+    return BlendTable(junctions[keep], radius[keep], trim[keep], deviation[keep], trim[keep], start[keep], end[keep],
+                      center[keep], np.c_[first, second][keep], clockwise[keep])
 
 
 def _curve_corner(k: int, before: Segment, after: Segment, turn: float, tolerance_m: float) -> Blend | None:
@@ -162,51 +146,7 @@ def _curve_corner(k: int, before: Segment, after: Segment, turn: float, toleranc
                  lift(shape.center, planned.plane, corner), planned.plane, planned.side < 0.0)
 
 
-def _blend_arc(blend: Blend, start_m: FloatArray, before: Segment, after: Segment) -> ArcSegment:
-    """The blend arc from ``start_m`` (where the planned path is, at the blend's start) to its end."""
-    return ArcSegment(start_m, blend.end_m, blend.center_m, blend.clockwise, blend.plane,
-                      min(before.feed_m_s, after.feed_m_s), after.source_line)
-
-
-def _planned_segments(program: Program, blends: dict[int, Blend]) -> tuple[list[Segment], list[int], list[int]]:
-    """Planned segments, per programmed junction the planned index after it, per planned segment its source."""
-    out: list[Segment] = []
-    first_after: list[int] = []
-    sources: list[int] = []
-    start = program.segments[0].start_m
-    for k, segment in enumerate(program.segments):
-        blend, following = blends.get(k), blends.get(k + 1)
-        if blend is not None:
-            out.append(_blend_arc(blend, start, program.segments[k - 1], segment))
-            start = out[-1].end_m
-        first_after.append(len(out))
-        out.extend(_trimmed(segment, start if blend is not None else None,
-                            following.start_m if following is not None else None))
-        sources.extend([k] * (len(out) - len(sources)))
-        start = out[-1].end_m if out else start
-    return out, first_after, sources
-
-
-def _trimmed(segment: Segment, start_m: FloatArray | None, end_m: FloatArray | None) -> list[Segment]:
-    """``segment`` from ``start_m`` to ``end_m`` (None: its own ends), both on it.
-
-    An untouched segment is returned itself; a line remainder shorter than ``MIN_LENGTH_M`` (or reversed by
-    rounding when two blends take half each) is dropped, the next blend starting where the previous one ends.
-    An arc keeps at least a few µm between two fillets (:func:`blend_fillet.max_trim_m`).
-    """
-    if start_m is None and end_m is None:
-        return [segment]
-    start = segment.start_m if start_m is None else start_m
-    end = segment.end_m if end_m is None else end_m
-    if isinstance(segment, ArcSegment):
-        return [ArcSegment(start, end, segment.center_m, segment.clockwise, segment.plane, segment.feed_m_s,
-                           segment.source_line)]
-    if float(np.linalg.norm(end - start)) < MIN_LENGTH_M or float(np.dot(end - start, segment.unit_vector)) <= 0.0:
-        return []
-    return [LineSegment(start, end, segment.feed_m_s, segment.source_line)]
-
-
-def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float) -> list[Blend]:
+def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float) -> BlendTable:
     """The blends of every corner that gets one, in junction order."""
     segments = program.segments
     turns = junction_turns_rad(segments)
@@ -215,11 +155,11 @@ def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float) ->
     corner = (turns > min_angle_rad) & (turns < math.pi - _REVERSAL_MARGIN_RAD) & free
     line_pair = corner & lines[:-1] & lines[1:]
     by_line = np.flatnonzero(line_pair)
-    blends = _line_corners(program, by_line + 1, turns[by_line], tolerance_m) if by_line.size else []
-    for k in np.flatnonzero(corner & ~line_pair) + 1:
-        blend = _curve_corner(int(k), segments[k - 1], segments[k], float(turns[k - 1]), tolerance_m)
-        blends += [blend] if blend is not None else []
-    return sorted(blends, key=lambda blend: blend.junction)
+    by_line_table = _line_corners(program, by_line + 1, turns[by_line], tolerance_m) if by_line.size \
+        else BlendTable.empty(program.n_axes)
+    curves = [_curve_corner(int(k), segments[k - 1], segments[k], float(turns[k - 1]), tolerance_m)
+              for k in np.flatnonzero(corner & ~line_pair) + 1]
+    return by_line_table.merged(BlendTable.from_blends([b for b in curves if b is not None], program.n_axes))
 
 
 def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0.0) -> BlendedProgram:
@@ -242,12 +182,12 @@ def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0
     if not (math.isfinite(tolerance_m) and tolerance_m >= 0.0):
         raise ConfigError(f"path tolerance_m must be finite and >= 0, got {tolerance_m}")
     if tolerance_m == 0.0:
-        return BlendedProgram(program, program, (), 0.0)
+        return BlendedProgram(program, program, BlendTable.empty(program.n_axes), 0.0)
     blends = _plan_corners(program, tolerance_m, min_angle_rad)
-    if not blends:
-        return BlendedProgram(program, program, (), tolerance_m)
-    segments, first_after, sources = _planned_segments(program, {b.junction: b for b in blends})
+    if not len(blends):
+        return BlendedProgram(program, program, blends, tolerance_m)
+    segments, first_after, sources = planned_segments(program, blends)
     first_after.append(len(segments))
     dwells = tuple(Dwell(first_after[d.before_segment], d.duration_s, d.source_line) for d in program.dwells)
     planned = Program(program.name, program.axis_names, tuple(segments), dwells, program.path_tolerance_m)
-    return BlendedProgram(program, planned, tuple(blends), tolerance_m, tuple(sources))
+    return BlendedProgram(program, planned, blends, tolerance_m, tuple(sources))

@@ -71,6 +71,19 @@ class LineSegment:
             object.__setattr__(self, name, value)
         object.__setattr__(self, "feed_m_s", require_feed(self.feed_m_s))
 
+    @classmethod
+    def from_validated(cls, start_m: FloatArray, end_m: FloatArray, feed_m_s: float, source_line: int | None,
+                       length_m: float, unit_vector: FloatArray) -> LineSegment:
+        """A segment from values a batch builder has validated and derived (read-only arrays), without re-checking.
+
+        :func:`cnc_contour_control.segment_batch.line_segments` is the one caller; it checks what
+        ``__post_init__`` checks, for many segments at once.
+        """
+        segment = object.__new__(cls)
+        segment.__dict__.update(start_m=start_m, end_m=end_m, feed_m_s=feed_m_s, source_line=source_line,
+                                length_m=length_m, unit_vector=unit_vector)  # as object.__setattr__ per field
+        return segment
+
     @property
     def n_axes(self) -> int:
         """Number of axes."""
@@ -195,8 +208,7 @@ class Program:
         segments = tuple(self.segments)
         if not segments:
             raise ProgramError(f"program {self.name!r} has no segments")
-        for index, segment in enumerate(segments):
-            _check_segment(index, segment, axes, segments[index - 1] if index else None)
+        _check_segments(segments, axes)
         lengths = np.array([segment.length_m for segment in segments])
         starts = np.concatenate(([0.0], np.cumsum(lengths)[:-1]))
         starts.setflags(write=False)
@@ -270,6 +282,24 @@ def _junction_dwells(dwells: tuple[Dwell, ...], n_segments: int) -> FloatArray:
         times[dwell.before_segment] += dwell.duration_s
     times.setflags(write=False)
     return times
+
+
+def _check_segments(segments: tuple[Segment, ...], axes: tuple[str, ...]) -> None:
+    """:func:`_check_segment` on every segment, the contiguity gaps of all segments in one NumPy pass.
+
+    The first failing segment raises :func:`_check_segment`'s error, as a loop over them would.
+    """
+    kinds = (LineSegment, ArcSegment)
+    valid = next((i for i, s in enumerate(segments) if not (isinstance(s, kinds) and s.n_axes == len(axes))),
+                 len(segments))
+    if valid > 1:
+        ends = np.array([segment.end_m for segment in segments[:valid - 1]])
+        starts = np.array([segment.start_m for segment in segments[1:valid]])
+        gaps = np.flatnonzero(np.sqrt(np.einsum("ij,ij->i", starts - ends, starts - ends)) > POSITION_TOLERANCE_M)
+        if gaps.size:
+            _check_segment(int(gaps[0]) + 1, segments[gaps[0] + 1], axes, segments[gaps[0]])
+    if valid < len(segments):
+        _check_segment(valid, segments[valid], axes, segments[valid - 1] if valid else None)
 
 
 def _check_segment(index: int, segment: Segment, axes: tuple[str, ...], previous: Segment | None) -> None:

@@ -29,26 +29,24 @@ from __future__ import annotations
 
 import bisect
 import dataclasses
+import functools
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from cnc_contour_control.accel_decel import AccelDecelConfig, ReferenceFilter
-from cnc_contour_control.arc import ArcSegment
-from cnc_contour_control.arc_budget import combined_tangential_m_s2
 from cnc_contour_control.blending import blend_program
 from cnc_contour_control.config import build_config, require_non_negative, require_positive
 from cnc_contour_control.errors import ConfigError, ProgramError
-from cnc_contour_control.geometry import Program, Segment, segment_label
+from cnc_contour_control.geometry import Program, Segment
 from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.plan_arrays import junction_speeds_m_s, plan_limits, profile_phases
 from cnc_contour_control.segment_tangents import junction_turns_rad
-from cnc_contour_control.units import m_s_to_mm_min
 
 FloatArray = NDArray[np.float64]
-_MIN_TANGENT = 1.0e-12
 
 
 @dataclass(frozen=True)
@@ -194,35 +192,22 @@ class SegmentLimits:
     acceleration_m_s2: float
 
 
-def _min_ratio(budget: FloatArray, usage: FloatArray) -> float:
-    """``min_j budget_j / usage_j`` over the axes that use any of their budget (inf if none)."""
-    used = usage > _MIN_TANGENT
-    return float(np.divide(budget, usage, out=np.full(budget.shape, math.inf), where=used).min())
-
-
 def segment_limits(index: int, segment: Segment, limits: AxisLimits, config: InterpolatorConfig) -> SegmentLimits:
-    """Cruise speed and tangential acceleration that keep every axis within ``limits``.
+    """Cruise speed and tangential acceleration that keep every axis within ``limits`` (:func:`plan_limits` of one).
 
     Raises
     ------
     ProgramError
         If the programmed feed exceeds the axis velocity limits and ``config.clamp_feed`` is False.
     """
-    velocity = np.asarray(limits.max_velocity_m_s)
-    acceleration = np.asarray(limits.max_acceleration_m_s2)
-    tangent = segment.max_abs_tangent()
-    curvature = segment.max_abs_curvature_per_m()
-    axis_speed = _min_ratio(velocity, tangent)
-    if segment.feed_m_s > axis_speed * (1.0 + 1e-12) and not config.clamp_feed:
-        raise ProgramError(
-            f"{segment_label(index, segment)}: feed_mm_min must be <= {m_s_to_mm_min(axis_speed):.6g} (axis velocity "
-            f"limits along the segment), got {m_s_to_mm_min(segment.feed_m_s):.6g}")
-    fraction = config.arc_centripetal_fraction if curvature.any() else 0.0
-    centripetal_speed = math.sqrt(_min_ratio(fraction * acceleration, curvature)) if fraction else math.inf
-    speed = min(segment.feed_m_s, axis_speed, centripetal_speed)
-    if config.arc_combined_budget and isinstance(segment, ArcSegment):
-        return SegmentLimits(speed, combined_tangential_m_s2(segment, speed, acceleration, tangent, curvature))
-    return SegmentLimits(speed, _min_ratio((1.0 - fraction) * acceleration, tangent))
+    speed, accel = _plan_limits([segment], limits, config, index)
+    return SegmentLimits(float(speed[0]), float(accel[0]))
+
+
+def _plan_limits(segments: Sequence[Segment], limits: AxisLimits, config: InterpolatorConfig,
+                 first_index: int = 0) -> tuple[FloatArray, FloatArray]:
+    return plan_limits(segments, np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
+                       config.arc_centripetal_fraction, config.arc_combined_budget, config.clamp_feed, first_index)
 
 
 def planning_tolerance_m(program: Program, config: InterpolatorConfig) -> float:
@@ -232,49 +217,44 @@ def planning_tolerance_m(program: Program, config: InterpolatorConfig) -> float:
     return config.path_tolerance_mm * 1.0e-3
 
 
+def with_planning_tolerance(program: Program, config: InterpolatorConfig) -> Program:
+    """``program`` carrying the tolerance it is planned with (:func:`planning_tolerance_m`) as ``path_tolerance_m``.
+
+    What a run records, so that the scorer can set the reference's deviation beside it. The same object
+    when the program already sets it (G64 P / G61).
+    """
+    tolerance_m = planning_tolerance_m(program, config)
+    if program.path_tolerance_m == tolerance_m:
+        return program
+    return dataclasses.replace(program, path_tolerance_m=tolerance_m)
+
+
 def junction_speeds(program: Program, plans: list[SegmentLimits], tolerance_rad: float) -> FloatArray:
     """Speed at every junction (m/s, shape ``(n_segments + 1,)``), reachable both ways."""
-    segments = program.segments
-    cruise = np.array([plan.speed_m_s for plan in plans])
-    smooth = (junction_turns_rad(segments) <= tolerance_rad) & (program.junction_dwell_s[1:-1] == 0.0)
-    speeds = [0.0, *np.where(smooth, np.minimum(cruise[:-1], cruise[1:]), 0.0).tolist(), 0.0]
-    reach = [2.0 * plan.acceleration_m_s2 * segment.length_m for plan, segment in zip(plans, segments)]
-    for k in range(len(segments) - 1, -1, -1):
-        speeds[k] = min(speeds[k], math.sqrt(speeds[k + 1] ** 2 + reach[k]))
-    for k in range(len(segments)):
-        speeds[k + 1] = min(speeds[k + 1], math.sqrt(speeds[k] ** 2 + reach[k]))
-    return np.array(speeds)
+    return _junction_speeds(program, np.array([plan.speed_m_s for plan in plans]),
+                            np.array([plan.acceleration_m_s2 for plan in plans]), tolerance_rad)
+
+
+def _junction_speeds(program: Program, cruise_m_s: FloatArray, accel_m_s2: FloatArray,
+                     tolerance_rad: float) -> FloatArray:
+    smooth = (junction_turns_rad(program.segments) <= tolerance_rad) & (program.junction_dwell_s[1:-1] == 0.0)
+    lengths = np.array([segment.length_m for segment in program.segments])
+    return junction_speeds_m_s(cruise_m_s, accel_m_s2, lengths, smooth)
 
 
 def segment_phases(length_m: float, entry_m_s: float, exit_m_s: float,
                    plan: SegmentLimits) -> list[tuple[float, float, float, float]]:
-    """Accelerate / cruise / decelerate phases of one segment.
+    """Accelerate / cruise / decelerate phases of one segment (:func:`plan_arrays.profile_phases`).
 
     Returns
     -------
     list of (start_s_m, start_speed_m_s, acceleration_m_s2, duration_s)
         Phases with a positive duration, ``start_s_m`` along the segment.
     """
-    accel = plan.acceleration_m_s2
-    peak_sq = min(plan.speed_m_s ** 2, accel * length_m + 0.5 * (entry_m_s ** 2 + exit_m_s ** 2))
-    peak = max(math.sqrt(peak_sq), entry_m_s, exit_m_s)
-    accel_len = (peak ** 2 - entry_m_s ** 2) / (2.0 * accel)
-    decel_len = (peak ** 2 - exit_m_s ** 2) / (2.0 * accel)
-    cruise_len = max(length_m - accel_len - decel_len, 0.0)
-    phases = [(0.0, entry_m_s, accel, (peak - entry_m_s) / accel),
-              (accel_len, peak, 0.0, cruise_len / peak),
-              (accel_len + cruise_len, peak, -accel, (peak - exit_m_s) / accel)]
-    return [phase for phase in phases if phase[3] > 0.0]
-
-
-def _with_dwells(program: Program, k: int, phases: list[tuple[float, float, float, float]]
-                 ) -> list[tuple[float, float, float, float]]:
-    """Segment ``k``'s phases with its dwells (G4) as phases at rest: the one before it and, last, the program's end."""
-    dwell_s = program.junction_dwell_s
-    before = [(0.0, 0.0, 0.0, float(dwell_s[k]))] if dwell_s[k] > 0.0 else []
-    at_end = k == len(program.segments) - 1 and dwell_s[k + 1] > 0.0
-    after = [(program.segments[k].length_m, 0.0, 0.0, float(dwell_s[k + 1]))] if at_end else []
-    return before + phases + after
+    phases = profile_phases(np.array([length_m]), np.array([entry_m_s]), np.array([exit_m_s]),
+                            np.array([plan.speed_m_s]), np.array([plan.acceleration_m_s2]), np.zeros(2))
+    return list(zip(phases.s0_m.tolist(), phases.v0_m_s.tolist(), phases.accel_m_s2.tolist(),
+                    np.diff(phases.start_s).tolist()))
 
 
 class Interpolator:
@@ -310,28 +290,29 @@ class Interpolator:
             raise ConfigError(
                 f"limits must have one entry per program axis ({program.n_axes}: {list(program.axis_names)}), "
                 f"got {limits.n_axes}")
-        self.segment_limits = [segment_limits(i, seg, limits, self.config) for i, seg in enumerate(program.segments)]
-        self.junction_speeds_m_s = junction_speeds(program, self.segment_limits, tolerance_rad)
+        self.cruise_speed_m_s, self.tangential_acceleration_m_s2 = _plan_limits(program.segments, limits, self.config)
+        self.junction_speeds_m_s = _junction_speeds(program, self.cruise_speed_m_s, self.tangential_acceleration_m_s2,
+                                                    tolerance_rad)
         self._build_phases()
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
         self._profile_time_s = 0.0
         self._accel_decel = ReferenceFilter(self.config.accel_decel)
 
+    @functools.cached_property
+    def segment_limits(self) -> list[SegmentLimits]:
+        """Cruise speed and tangential acceleration per planned segment (:attr:`cruise_speed_m_s`, ...)."""
+        return [SegmentLimits(v, a) for v, a in zip(self.cruise_speed_m_s.tolist(),
+                                                     self.tangential_acceleration_m_s2.tolist())]
+
     def _build_phases(self) -> None:
-        starts, s0, v0, accel, index = [0.0], [], [], [], []
-        for k, segment in enumerate(self.program.segments):
-            entry, exit_ = float(self.junction_speeds_m_s[k]), float(self.junction_speeds_m_s[k + 1])
-            for start_s, speed, acceleration, duration in _with_dwells(self.program, k, segment_phases(
-                    segment.length_m, entry, exit_, self.segment_limits[k])):
-                s0.append(start_s)
-                v0.append(speed)
-                accel.append(acceleration)
-                index.append(k)
-                starts.append(starts[-1] + duration)
-        self._phase_start_s = starts[:-1]
-        self._phase_s0_m, self._phase_v0_m_s, self._phase_accel_m_s2 = s0, v0, accel
-        self._phase_segment = index
-        self.duration_s = starts[-1]
+        speeds = self.junction_speeds_m_s
+        lengths = np.array([segment.length_m for segment in self.program.segments])
+        self._phases = phases = profile_phases(lengths, speeds[:-1], speeds[1:], self.cruise_speed_m_s,
+                                               self.tangential_acceleration_m_s2, self.program.junction_dwell_s)
+        self._phase_start_s = phases.start_s[:-1].tolist()
+        self._phase_s0_m, self._phase_v0_m_s = phases.s0_m.tolist(), phases.v0_m_s.tolist()
+        self._phase_accel_m_s2, self._phase_segment = phases.accel_m_s2.tolist(), phases.segment.tolist()
+        self.duration_s = float(phases.start_s[-1])
 
     @property
     def phase_count(self) -> int:
@@ -387,12 +368,13 @@ class Interpolator:
         """
         t = np.asarray(times_s, dtype=float).reshape(-1)
         clipped = np.clip(t, 0.0, self.duration_s)
-        k = np.maximum(np.searchsorted(self._phase_start_s, clipped, side="right") - 1, 0)
-        dt = np.maximum(clipped - np.asarray(self._phase_start_s)[k], 0.0)
-        v0, accel = np.asarray(self._phase_v0_m_s)[k], np.asarray(self._phase_accel_m_s2)[k]
-        s_local = np.asarray(self._phase_s0_m)[k] + v0 * dt + 0.5 * accel * dt * dt
+        phases = self._phases
+        k = np.maximum(np.searchsorted(phases.start_s[:-1], clipped, side="right") - 1, 0)
+        dt = np.maximum(clipped - phases.start_s[k], 0.0)
+        v0, accel = phases.v0_m_s[k], phases.accel_m_s2[k]
+        s_local = phases.s0_m[k] + v0 * dt + 0.5 * accel * dt * dt
         speed = np.maximum(v0 + accel * dt, 0.0)
-        index = np.asarray(self._phase_segment, dtype=np.intp)[k]
+        index = phases.segment[k]
         done = t >= self.duration_s
         speed[done], accel[done | (t < 0.0)] = 0.0, 0.0
         arrays = self._axis_arrays(index, s_local, speed, accel, done)

@@ -8,7 +8,7 @@ import pytest
 
 from cnc_contour_control.geometry import LineSegment, Program
 from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_tools.bench.blending import limit_ratios, limits_for, worst_deviation_m
+from cnc_tools.bench.blending import limit_ratios, limits_for, planning_cost, worst_deviation_m
 from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, polygon, true_circle
 from cnc_tools.bench.time_optimal import ProgramPath, time_optimal_s
 
@@ -52,3 +52,10 @@ def test_a_square_is_four_rest_to_rest_lines_for_toppra() -> None:
     square = Program("square", ("x", "y"), tuple(LineSegment(points[i], points[i + 1], 0.02) for i in range(4)))
     assert time_optimal_s(square, LIMITS, 1e-4) == pytest.approx(4 * (0.01 / 0.02 + 0.02 / 0.5), rel=1e-4)
     assert Interpolator(square, LIMITS).duration_s == pytest.approx(4 * (0.01 / 0.02 + 0.02 / 0.5))
+
+
+def test_planning_cost_per_segment_does_not_grow_with_the_program() -> None:
+    """CPU per segment of a 10x longer polygon within 3x (it is flat; 3x absorbs a loaded machine)."""
+    short, long = planning_cost((500, 5000))
+    assert long["segments"] == 5000 and long["load_1min"] >= 0.0
+    assert long["us_per_segment"] < 3.0 * short["us_per_segment"]

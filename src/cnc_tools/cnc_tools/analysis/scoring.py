@@ -28,6 +28,7 @@ from cnc_tools.run_record import BagIntegrity, RecordedRun
 from cnc_tools.analysis.circular import CircularTest, analyse_circle, circle_of
 from cnc_tools.analysis.force import ForceFigures, force_figures
 from cnc_tools.analysis.metrics import Metric, evaluate, get_metrics, length_units, trapezoid_weights_s
+from cnc_tools.analysis.reference_deviation import ReferenceDeviation, reference_deviation
 from cnc_tools.analysis.verdict import Verdict
 
 FloatArray = NDArray[np.float64]
@@ -188,6 +189,8 @@ class Score:
     series: ContourErrorSeries = field(repr=False)
     verdict: Verdict | None = None
     force: ForceFigures | None = None
+    #: The reference's own deviation from the programmed path (corner blends) beside the path tolerance.
+    deviation: ReferenceDeviation | None = None
 
     def to_dict(self) -> dict[str, object]:
         """Plain data: every length in µm and BLU, keys carry their unit."""
@@ -204,6 +207,7 @@ class Score:
             "tracking_error_note": self.tracking_note,
             "circular_test": None if self.circular is None else _circular_dict(self.circular, units),
             "cutting_force": None if self.force is None else self.force.to_dict(),
+            "reference_deviation": None if self.deviation is None else self.deviation.to_dict(),
         }
 
     def to_json(self, indent: int | None = 2) -> str:
@@ -256,7 +260,7 @@ def score_run(run: RecordedRun, metrics: Sequence[str] | None = None, *, blu_m: 
     return Score(run.name, run.program.name, chosen, blu_m, window,
                  ErrorStats("run", int(series.error_m.size), evaluate(chosen, series.error_m, series.weight_s)),
                  segments, tracking, tracking_note, _circular(run, series, window_deg), run.integrity, series,
-                 verdict, force_figures(run, force_reference_n))
+                 verdict, force_figures(run, force_reference_n), reference_deviation(run))
 
 
 # =========================================================================== rendering
@@ -318,6 +322,10 @@ def _csv_groups(data: Mapping[str, object]) -> list[tuple[str, list[dict[str, ob
     """(scope, items) of the score's plain data; every item has ``item``, ``n_samples`` and unit-suffixed values."""
     groups = [("contour", [data["contour_error"]]), ("segment", data["segments"]),
               ("tracking", list(data["tracking_error"].values()))]  # type: ignore[union-attr]
+    deviation = data["reference_deviation"]
+    if isinstance(deviation, dict):
+        groups.append(("reference_deviation", [{"item": "reference", "n_samples": deviation["n_samples"],
+                                                **{k: v for k, v in deviation.items() if k.endswith("_um")}}]))
     circular = data["circular_test"]
     if isinstance(circular, dict):
         lengths = {k: v for k, v in circular.items() if k.endswith(("_um", "_blu")) and isinstance(v, float)}
@@ -391,6 +399,8 @@ def _table_lines(score: Score) -> Iterator[str]:
     yield f"samples: {score.window.describe()}"
     yield "contour error = distance from the recorded position to the recorded program (exact, not the estimator)"
     yield from _error_table("contour error", [score.contour], score.segments, score.metrics, units)
+    if score.deviation is not None:
+        yield from score.deviation.lines()
     yield f"tracking error: {score.tracking_note}"
     tracking = get_metrics(TRACKING_METRICS)
     yield from _render([["axis", "n", *(f"{m.name} µm" for m in tracking), *(f"{m.name} BLU" for m in tracking)]],

@@ -15,11 +15,14 @@ combined acceleration budget (``arc_combined_budget``, centripetal fraction 0.8;
   blended path (``toppra``, :mod:`cnc_tools.bench.time_optimal`; goal within
   10 %) and, for the polygon circles, the true arc's time (goal within 10 %);
 - planning time per segment against program length (polygons of 0.2 mm sides;
-  CPU time, so that other processes' load does not count).
+  CPU time, so that other processes' load does not count, beside the 1-minute load
+  average; planning is NumPy over whole programs: :mod:`cnc_contour_control.plan_arrays`,
+  :mod:`cnc_contour_control.blend_assembly`, :mod:`cnc_contour_control.segment_batch`).
 """
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from typing import Any
 
@@ -112,7 +115,8 @@ def planning_cost(sizes: tuple[int, ...]) -> list[dict[str, float]]:
         started, started_cpu = time.perf_counter(), time.process_time()
         Interpolator(program, limits_for(program), bench_config())
         elapsed, cpu = time.perf_counter() - started, time.process_time() - started_cpu
-        rows.append({"segments": sides, "plan_s": elapsed, "plan_cpu_s": cpu, "us_per_segment": cpu / sides * 1e6})
+        rows.append({"segments": sides, "plan_s": elapsed, "plan_cpu_s": cpu, "us_per_segment": cpu / sides * 1e6,
+                     "load_1min": os.getloadavg()[0]})
     return rows
 
 
@@ -129,9 +133,9 @@ def blending_bench(options: argparse.Namespace) -> int:
                         "v ratio per axis", "a ratio per axis", "dev um", "limits+tol", "time 10 %"],
                        [_row(f, arc_s) for f in figures]))
     cost = planning_cost(PLAN_SIZES[:2] if quick else PLAN_SIZES)
-    print(format_table(["segments", "plan wall s", "plan CPU s", "CPU us/segment"],
-                       [[c["segments"], round(c["plan_s"], 2), round(c["plan_cpu_s"], 2), round(c["us_per_segment"], 1)]
-                        for c in cost]))
+    print(format_table(["segments", "plan wall s", "plan CPU s", "CPU us/segment", "load (1 min)"],
+                       [[c["segments"], round(c["plan_s"], 2), round(c["plan_cpu_s"], 2), round(c["us_per_segment"], 1),
+                         round(c["load_1min"], 1)] for c in cost]))
     write_json(options.json, {"bench": "blending", "tolerance_mm": TOLERANCE_MM, "arc_s": arc_s,
                               "programs": figures, "planning": cost, "machine": machine()})
     return 0

@@ -34,6 +34,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.interpolation import with_planning_tolerance
 from cnc_contour_control.lockstep import NS_PER_S, duration_to_ns, seconds_to_ns
 from cnc_contour_control.stages import Pipeline
 from cnc_tools.run_record import BagIntegrity, FloatArray, IntArray, JointStateSeries, RunRecord
@@ -144,5 +145,6 @@ def _record(scenario: Scenario, stages: list[EngineStage], stamps_ns: IntArray, 
     found = {name: ticks for name in scenario.pipeline().per_tick_topics()}
     integrity = BagIntegrity(True, "engine", found, dict(found), "engine (in-process, no bag)")
     joint_states: JointStateSeries = parts.pop("joint_states")
-    return RunRecord(name=scenario.name, source=run_dir or Path("engine"), program=scenario.program,
+    return RunRecord(name=scenario.name, source=run_dir or Path("engine"),
+                     program=with_planning_tolerance(scenario.program, scenario.interpolator),
                      joint_states=joint_states, integrity=integrity, summary=summary, backend="engine", **parts)
