@@ -1,9 +1,9 @@
 """Launch a complete lockstep contour graph from one parameters file; the launch ends when the plant exits.
 
-    ros2 launch cnc_contour_control contour_graph.launch.py                     # the installed default graph
-    ros2 launch cnc_contour_control contour_graph.launch.py params_file:=FILE   # another graph file
-    ros2 launch cnc_contour_control contour_graph.launch.py params_dir:=DIR     # a folder of `cnc-contour params`
-    ros2 launch cnc_contour_control contour_graph.launch.py \
+    ros2 launch cnc_contour_bringup contour_graph.launch.py                     # the installed default graph
+    ros2 launch cnc_contour_bringup contour_graph.launch.py params_file:=FILE   # another graph file
+    ros2 launch cnc_contour_bringup contour_graph.launch.py params_dir:=DIR     # a folder of `cnc-contour params`
+    ros2 launch cnc_contour_bringup contour_graph.launch.py \
         params_file:=.../config/paper000_circle_high.recorded.params.yaml bag:=/tmp/circle_bag   # recorded
 
 ``params_file`` (default: ``share/cnc_contour_control/config/paper000_circle_high.params.yaml``,

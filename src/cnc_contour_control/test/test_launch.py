@@ -36,7 +36,7 @@ from cnc_tools.runs.graph_nodes import graph_specs
 from cnc_tools.runs.scenario import load_scenario
 
 pytestmark = pytest.mark.nodes
-LAUNCH_FILE = Path(__file__).resolve().parents[1] / "launch" / "contour_graph.launch.py"
+LAUNCH_FILE = Path(__file__).resolve().parents[2] / "cnc_contour_bringup" / "launch" / "contour_graph.launch.py"
 SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "helix_3axis.yaml"
 #: Axis y gets a table friction and a time constant, as nested parameters of the plant.
 SETS = ["plant.axis_overrides.y.time_constant_s=0.06", "plant.axis_overrides.y.friction=table",
@@ -140,7 +140,7 @@ def fake_launch_api(monkeypatch: pytest.MonkeyPatch) -> dict[str, type]:
 
 
 def installed_params_file() -> Path:
-    return LAUNCH_FILE.parents[1] / "config" / load_launch_file().DEFAULT_PARAMS_FILE
+    return Path(__file__).resolve().parents[1] / "config" / load_launch_file().DEFAULT_PARAMS_FILE
 
 
 def test_the_launch_file_starts_every_node_of_one_file_and_shuts_down_when_the_plant_exits(

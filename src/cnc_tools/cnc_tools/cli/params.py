@@ -4,7 +4,7 @@ Writes what ``cnc-contour run`` starts its nodes with (one ROS 2 parameters
 file per node, the program, ``graph.yaml`` naming each node's package and
 executable), in the configs' own units, for::
 
-    ros2 launch cnc_contour_control contour_graph.launch.py params_dir:=DIR
+    ros2 launch cnc_contour_bringup contour_graph.launch.py params_dir:=DIR
 """
 from __future__ import annotations
 
@@ -41,5 +41,5 @@ def params(args: argparse.Namespace) -> int:
     nodes = graph_nodes(scenario, out, args.extra_subscribers, args.input_timeout_s)
     write_params_dir(nodes, out, args.namespace)
     print(f"{out}: {', '.join(spec.name for spec in nodes)}")
-    print(f"ros2 launch cnc_contour_control contour_graph.launch.py params_dir:={out}")
+    print(f"ros2 launch cnc_contour_bringup contour_graph.launch.py params_dir:={out}")
     return 0
