@@ -26,11 +26,7 @@ def _fresh_namespace(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 def _call(probe: TopicProbe, srv_type: type, name: str, request: Any) -> Any:
-    client = probe.node.create_client(srv_type, f"{NS}/interpolator/{name}")
-    probe.wait_for(client.service_is_ready, 20.0, f"service {name}")
-    future = client.call_async(request)
-    probe.wait_for(future.done, 10.0, f"answer of {name}")
-    return future.result()
+    return probe.call(srv_type, f"{NS}/interpolator/{name}", request)
 
 
 def _state(probe: TopicProbe) -> str:

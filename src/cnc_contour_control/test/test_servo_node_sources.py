@@ -42,11 +42,7 @@ def trajectory() -> JointTrajectory:
 
 
 def call(probe: TopicProbe, srv_type: type, name: str, request: Any) -> Any:
-    client = probe.node.create_client(srv_type, name)
-    probe.wait_for(client.service_is_ready, 20.0, f"service {name}")
-    future = client.call_async(request)
-    probe.wait_for(future.done, 10.0, f"answer of {name}")
-    return future.result()
+    return probe.call(srv_type, name, request)
 
 
 def test_a_joint_trajectory_is_sampled_at_each_ticks_stamp_and_held_after_its_end() -> None:

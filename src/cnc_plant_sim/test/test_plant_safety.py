@@ -31,11 +31,7 @@ def command(stamp_ns: int, value: float) -> AxisCommand:
 
 def call(probe: TopicProbe, srv_type: type, name: str, request: Any) -> Any:
     """Call a service of the plant from the probe's node and wait for the answer."""
-    client = probe.node.create_client(srv_type, name)
-    probe.wait_for(client.service_is_ready, 20.0, f"service {name}")
-    future = client.call_async(request)
-    probe.wait_for(future.done, 10.0, f"answer of {name}")
-    return future.result()
+    return probe.call(srv_type, name, request)
 
 
 def run_ticks(probe: TopicProbe, pub: Any, first: int, last: int, value: float) -> list[float]:

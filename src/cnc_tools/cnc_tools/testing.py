@@ -89,6 +89,15 @@ class TopicProbe(_BackgroundNode):
             time.sleep(0.01)
         raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
 
+    def call(self, srv_type: type, name: str, request: Any, timeout_s: float = 10.0) -> Any:
+        """Call service ``name`` from the probe's node once it is there; its answer (AssertionError after
+        ``timeout_s`` without one)."""
+        client = self.node.create_client(srv_type, name)
+        self.wait_for(client.service_is_ready, 2 * timeout_s, f"service {name}")
+        future = client.call_async(request)
+        self.wait_for(future.done, timeout_s, f"answer of {name}")
+        return future.result()
+
 
 def udp_sockets(pid: int) -> list[tuple[str, int]]:
     """(local address, port) of every UDP socket process ``pid`` holds (IPv4 and IPv6)."""

@@ -129,3 +129,22 @@ def require_config(law: str, config: Any, config_class: type) -> Any:
     if not isinstance(config, config_class):
         raise ConfigError(f"{law} law needs a {config_class.__name__} to retune, got {type(config).__name__}")
     return config
+
+
+def spindle_redesign(law_name: str, config: Any, spindle_rpm: float) -> Any | None:
+    """``config`` redesigned for ``spindle_rpm`` (a dataclass with a ``spindle_rpm`` field), None for the same speed.
+
+    The new config is built (and so designed and validated) before anything
+    changes; a refused speed raises a :class:`ConfigError` naming the law and
+    both speeds, and the caller keeps its last valid design.
+    """
+    from dataclasses import replace
+
+    if spindle_rpm == config.spindle_rpm:
+        return None
+    try:
+        return replace(config, spindle_rpm=spindle_rpm)
+    except ConfigError as err:
+        raise ConfigError(f"{law_name}: no design for spindle_rpm {spindle_rpm:g}, keeping the one for "
+                          f"{config.spindle_rpm:g} rpm: {err}") from err
+

@@ -24,7 +24,7 @@ speed it commands (:class:`~cnc_contour_control.laws.base.SpindleFollowing`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 from cnc_contour_control.config import require_choice, require_finite
 from cnc_contour_control.disturbance.design import (
@@ -39,7 +39,7 @@ from cnc_contour_control.disturbance.design import (
 )
 from cnc_contour_control.disturbance.filters import FirFilter, IirFilter
 from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.laws.base import LawOutput, LawSample, require_config
+from cnc_contour_control.laws.base import LawOutput, LawSample, require_config, spindle_redesign
 from cnc_contour_control.params import check_ranges, param
 from cnc_contour_control.velocity_models import PAPER002_MODELS, DiscreteVelocityModel
 
@@ -253,14 +253,11 @@ class DisturbanceLaw:
         (and so designed) before anything changes: a refused speed raises its
         :class:`ConfigError` and the law keeps its last valid design.
         """
-        config = self.config
-        if not isinstance(config, PdcConfig) or spindle_rpm == config.spindle_rpm:
+        if not isinstance(self.config, PdcConfig):
             return False
-        try:
-            redesigned = replace(config, spindle_rpm=spindle_rpm)
-        except ConfigError as err:
-            raise ConfigError(f"{self.NAME}: no design for spindle_rpm {spindle_rpm:g}, keeping the one for "
-                              f"{config.spindle_rpm:g} rpm: {err}") from err
+        redesigned = spindle_redesign(self.NAME, self.config, spindle_rpm)
+        if redesigned is None:
+            return False
         self.retune(redesigned)
         return True
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 from cnc_contour_control.config import require_choice, require_finite
@@ -41,7 +41,7 @@ from cnc_contour_control.disturbance.design import (
 )
 from cnc_contour_control.disturbance.filters import FirFilter, IirFilter
 from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.laws.base import LawOutput, LawSample, require_config
+from cnc_contour_control.laws.base import LawOutput, LawSample, require_config, spindle_redesign
 from cnc_contour_control.laws.disturbance import PERIOD_TOLERANCE, PdcConfig
 from cnc_contour_control.laws.fuzzy import FuzzyConfig, FuzzyLaw
 from cnc_contour_control.laws.pid import PidConfig, PidLaw
@@ -166,14 +166,9 @@ class PdcStackLaw:
     def set_spindle_rpm(self, spindle_rpm: float) -> bool:
         """Redesign for ``spindle_rpm`` [rpm] if it differs (see :class:`~cnc_contour_control.laws.base.
         SpindleFollowing`); a refused speed raises its :class:`ConfigError` and nothing changes."""
-        config = self.config
-        if spindle_rpm == config.spindle_rpm:
+        redesigned = spindle_redesign(self.NAME, self.config, spindle_rpm)
+        if redesigned is None:
             return False
-        try:
-            redesigned = replace(config, spindle_rpm=spindle_rpm)
-        except ConfigError as err:
-            raise ConfigError(f"{self.NAME}: no design for spindle_rpm {spindle_rpm:g}, keeping the one for "
-                              f"{config.spindle_rpm:g} rpm: {err}") from err
         self.retune(redesigned)
         return True
 
