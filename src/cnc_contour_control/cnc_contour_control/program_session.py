@@ -17,6 +17,13 @@ ramp stops the reference on the path within the acceleration limits). The
 program ends when its reference is at rest, at the end (completed) or on the
 path after a cancel (canceled), plus ``settle_time_s`` during which the
 following error is still scored; then the session holds the last reference.
+
+When the machine stops under a program (an e-stop, a following-error trip:
+:meth:`ProgramSession.machine_stopped`) the program ends at once as faulted
+with the cause, and until :meth:`ProgramSession.machine_running` the hold
+follows the measured position (LinuxCNC: while the machine is off the
+commanded position tracks the feedback), so the reference stands where the
+machine came to rest; a goal is refused with the cause meanwhile.
 """
 from __future__ import annotations
 
@@ -205,6 +212,7 @@ class ProgramSession:
         self._run: _Run | None = None
         self._started: _Run | None = None
         self._outcome: ProgramOutcome | None = None
+        self.stop_cause = ""  # why the machine is stopped ("" while it runs)
 
     @property
     def busy(self) -> bool:
@@ -217,6 +225,8 @@ class ProgramSession:
             raise ProgramError(f"busy: program {self._run.program.name!r} is running; cancel it or wait for its end")
         if self.hold_position_m is None:
             raise ProgramError("no joint_states yet: the machine's position is unknown")
+        if self.stop_cause:
+            raise ProgramError(f"the machine is stopped: {self.stop_cause}; reset and enable it first")
         program = goal_program(goal, self.axes, self.hold_position_m, mm_to_m(self.params.start_tolerance_mm))
         config = self.interpolator_config
         if goal.path_tolerance_mm > 0.0:
@@ -241,11 +251,23 @@ class ProgramSession:
         if self._run is not None:
             self._finish(self._run, "faulted", reason)
 
+    def machine_stopped(self, cause: str) -> None:
+        """The machine stopped (``cause``): a running program ends as faulted; the hold follows the machine."""
+        self.stop_cause = cause or "the machine stopped"
+        if self._run is not None:
+            self._finish(self._run, "faulted", f"machine stopped: {self.stop_cause}")
+
+    def machine_running(self) -> None:
+        """The machine runs again (reset and enabled): the hold stays where the machine stands; goals welcome."""
+        self.stop_cause = ""
+
     def step(self, stamp_ns: int, position_m: Sequence[float], requested_ratio: float = 1.0) -> ReferenceSample:
         """The reference of the tick at ``stamp_ns`` [ns] given the measured ``position_m`` [m, (n_axes,)]."""
         measured = np.asarray(position_m, dtype=float)
-        if self.hold_position_m is None:
+        if self.hold_position_m is None or self.stop_cause:
             self.hold_position_m = measured.copy()
+        if self.stop_cause and self._run is not None:  # started while the machine stopped: it cannot move
+            self.machine_stopped(self.stop_cause)
         run = self._run
         if run is None:
             return self._hold_sample(self.hold_position_m)

@@ -18,6 +18,19 @@ refused with the cause. After a reset the machine is off until enabled again.
 A fault (LinuxCNC's ``fault_in``: a partner node lost) latches the same way
 without setting the input (:meth:`EstopLatch.trip`).
 
+What a trip does (``ferror_action``, :class:`FollowingErrorGuard`): ``fault``
+(the default, and the runner's and the engine's) raises the
+:class:`FaultError`, the servo faults and exits. ``latch`` is LinuxCNC's "a
+following error turns the machine off": the servo's own latch trips with the
+cause (axis, error, bound, tick), the servo e-stops the machine (the e-stop
+input true, then false: the cause is gone once the axis stands, so a reset is
+allowed) and stays up; reset and enable resume it.
+
+The machine as a program sees it (:class:`MachineWatch`): the plant and the
+servos report their latch on ``/diagnostics`` (``enabled``,
+``estop_latched``, ``estop_cause``); the machine runs while none of them
+blocks, and the first one that blocks names the cause.
+
 Lost partners: a node waiting for a lockstep input watches the input's
 publishers in the ROS graph (:class:`PartnerWatch`). A topic that had
 publishers and has none while a tick waits for it will never complete the
@@ -25,14 +38,18 @@ tick: the node stops the machine and faults naming the nodes that left.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
+from cnc_contour_control.config import require_choice
 from cnc_contour_control.errors import FaultError
 from cnc_contour_control.lockstep import NS_PER_S
+from cnc_contour_control.params import check_ranges, param
 
-__all__ = ["EstopLatch", "FollowingErrorLimit", "LatchAnswer", "PartnerWatch", "check_following_error", "limit_of"]
+__all__ = ["EstopLatch", "FERROR_ACTIONS", "FerrorActionParams", "FerrorTrip", "FollowingErrorGuard",
+           "FollowingErrorLimit", "LatchAnswer", "MachineWatch", "PartnerWatch", "check_following_error",
+           "following_error_trip", "limit_of"]
 
 
 class FerrorFields(Protocol):
@@ -92,10 +109,61 @@ def limit_of(config: FerrorFields) -> FollowingErrorLimit:
                                float(config.ferror_velocity_m_s))
 
 
+@dataclass(frozen=True)
+class FerrorTrip:
+    """One following-error trip: the axis, the error and the bound [m], the tick's stamp [ns] and the message."""
+
+    axis_name: str
+    error_m: float
+    bound_m: float
+    stamp_ns: int
+    message: str
+
+    def values(self) -> dict[str, str]:
+        """The trip as diagnostic key/values."""
+        return {"axis": self.axis_name, "following_error_m": f"{self.error_m:.9g}",
+                "ferror_bound_m": f"{self.bound_m:.9g}", "stamp_ns": str(self.stamp_ns)}
+
+
+def following_error_trip(limit: FollowingErrorLimit, error_m: float, velocity_m_s: float,
+                         stamp_ns: int) -> FerrorTrip | None:
+    """The trip when ``limit`` trips on ``error_m`` [m] at the reference velocity ``velocity_m_s`` [m/s]; else None."""
+    if not limit.tripped(error_m, velocity_m_s):
+        return None
+    return FerrorTrip(limit.axis_name, float(error_m), limit.bound_m(velocity_m_s), int(stamp_ns),
+                      limit.message(error_m, velocity_m_s, stamp_ns))
+
+
 def check_following_error(limit: FollowingErrorLimit, error_m: float, velocity_m_s: float, stamp_ns: int) -> None:
     """Raise :class:`FaultError` (:meth:`FollowingErrorLimit.message`) when ``limit`` trips."""
-    if limit.tripped(error_m, velocity_m_s):
-        raise FaultError(limit.message(error_m, velocity_m_s, stamp_ns))
+    trip = following_error_trip(limit, error_m, velocity_m_s, stamp_ns)
+    if trip is not None:
+        raise FaultError(trip.message)
+
+
+#: What a following-error trip does: ``fault`` the servo faults and exits; ``latch`` it latches and e-stops the
+#: machine, which a reset and an enable resume (see the module docstring).
+FERROR_ACTIONS = ("fault", "latch")
+
+
+@dataclass(frozen=True)
+class FerrorActionParams:
+    """What a servo node does on a following-error trip (a run parameter of the servo node).
+
+    Parameters
+    ----------
+    ferror_action : str
+        One of :data:`FERROR_ACTIONS`.
+    """
+
+    ferror_action: str = param("fault", read_only=True,
+                               description="on a following-error trip: fault (the servo faults and exits) or "
+                                           "latch (the servo latches and e-stops the machine; reset and enable "
+                                           "resume it)")
+
+    def __post_init__(self) -> None:
+        require_choice("ferror_action", self.ferror_action, FERROR_ACTIONS)
+        check_ranges(self)
 
 
 @dataclass(frozen=True)
@@ -209,3 +277,92 @@ class PartnerWatch:
             return None
         return (f"{', '.join(lost)} left the graph: {topic} has 0 publishers (had {len(lost)}) "
                 f"at t={stamp_ns / NS_PER_S:.6f} s")
+
+
+def _raise_fault(latch: EstopLatch, trip: FerrorTrip) -> None:
+    raise FaultError(trip.message)
+
+
+def _latch_machine(latch: EstopLatch, trip: FerrorTrip) -> None:
+    latch.trip(trip.message)
+
+
+#: ``ferror_action`` -> what a trip does to the servo's latch (or raises).
+_FERROR_RESPONSES: dict[str, Callable[[EstopLatch, FerrorTrip], None]] = {
+    "fault": _raise_fault,
+    "latch": _latch_machine,
+}
+
+
+class FollowingErrorGuard:
+    """A servo's following-error trip and what it does (``action``, one of :data:`FERROR_ACTIONS`).
+
+    Parameters
+    ----------
+    action : str
+        ``fault``: :meth:`check` raises the :class:`FaultError`. ``latch``:
+        :meth:`check` trips ``latch`` with the trip's message and returns the trip.
+    latch : EstopLatch
+        The servo's own latch.
+    """
+
+    def __init__(self, action: str, latch: EstopLatch) -> None:
+        self.respond = _FERROR_RESPONSES[require_choice("ferror_action", action, FERROR_ACTIONS)]
+        self.action, self.latch = action, latch
+        self.trips = 0
+
+    def check(self, limit: FollowingErrorLimit, error_m: float, velocity_m_s: float,
+              stamp_ns: int) -> FerrorTrip | None:
+        """The trip of this sample (``error_m`` [m], reference ``velocity_m_s`` [m/s]) after its response; else None."""
+        trip = following_error_trip(limit, error_m, velocity_m_s, stamp_ns)
+        if trip is not None:
+            self.trips += 1
+            self.respond(self.latch, trip)
+        return trip
+
+
+#: The diagnostic keys of a latch's state (:meth:`EstopLatch.state`) that :class:`MachineWatch` reads.
+LATCH_KEYS = ("enabled", "estop_latched", "estop_cause")
+
+
+class MachineWatch:
+    """The machine's state from its nodes' latch reports: running, or stopped naming the first cause.
+
+    A node reports its latch (:meth:`EstopLatch.state` as key/values); it blocks
+    while latched or disabled. The machine is stopped while any node blocks;
+    its cause is that of the first node that blocked (a following-error trip
+    names the axis; the nodes it e-stopped name the e-stop topic).
+    """
+
+    def __init__(self) -> None:
+        self._blocking: dict[str, str] = {}  # node -> cause, in the order they blocked
+
+    @staticmethod
+    def reports_latch(values: Mapping[str, str]) -> bool:
+        """True when ``values`` carry a latch's state."""
+        return all(key in values for key in LATCH_KEYS)
+
+    def observe(self, node: str, values: Mapping[str, str]) -> None:
+        """Note ``node``'s latch state (``values`` with :data:`LATCH_KEYS`); other reports are ignored."""
+        if not self.reports_latch(values):
+            return
+        latched, enabled = values["estop_latched"] == "true", values["enabled"] == "true"
+        if not latched and enabled:
+            self._blocking.pop(node, None)
+        else:  # a node keeps its place (the first to block names the stop), its cause is its latest
+            self._blocking[node] = f"{node}: " + (f"e-stop latched ({values['estop_cause']})" if latched
+                                                   else "disabled (~/enable false)")
+
+    @property
+    def stopped(self) -> bool:
+        """True while some node blocks its commands."""
+        return bool(self._blocking)
+
+    @property
+    def cause(self) -> str:
+        """Why the machine is stopped: the first blocking node and its cause ("" while it runs)."""
+        return next(iter(self._blocking.values()), "")
+
+    def blocking(self) -> tuple[str, ...]:
+        """The nodes that block now, in the order they blocked."""
+        return tuple(self._blocking)

@@ -19,6 +19,12 @@ so the law starts at zero error where the axis stands and the gap closes
 smoothly over ``resume_ramp_s``; afterwards the servo is the plain
 :class:`~cnc_contour_control.servo.ServoController`, bit for bit. The
 following-error trip sees the re-based error during the ramp.
+
+The trip (:class:`~cnc_contour_control.safety.FollowingErrorGuard`) is checked
+after each allowed sample: with ``ferror_action`` ``fault`` it raises, as the
+engine does; with ``latch`` it trips the latch, the sample's command is
+already 0 (the drive is off from the tripping tick on) and the trip waits in
+:meth:`HeldServo.take_trip` for the node to report it and e-stop the machine.
 """
 from __future__ import annotations
 
@@ -26,7 +32,7 @@ from dataclasses import dataclass
 
 from cnc_contour_control.lockstep import NS_PER_S
 from cnc_contour_control.params import check_ranges, param
-from cnc_contour_control.safety import EstopLatch
+from cnc_contour_control.safety import EstopLatch, FerrorTrip, FollowingErrorGuard, limit_of
 from cnc_contour_control.servo import ServoController, ServoOutput
 
 __all__ = ["HeldServo", "HoldParams"]
@@ -55,35 +61,57 @@ class HeldServo:
         The machine's latch; commands flow while ``latch.commands_allowed``.
     params : HoldParams
         The resume ramp.
+    ferror_action : str
+        What a following-error trip does (:data:`~cnc_contour_control.safety.FERROR_ACTIONS`).
     """
 
-    def __init__(self, controller: ServoController, latch: EstopLatch, params: HoldParams | None = None) -> None:
+    def __init__(self, controller: ServoController, latch: EstopLatch, params: HoldParams | None = None,
+                 ferror_action: str = "fault") -> None:
         self.controller, self.latch = controller, latch
         self.ramp_s = (params or HoldParams()).resume_ramp_s
+        self.guard = FollowingErrorGuard(ferror_action, latch)
         self.held = False
         self.held_samples = 0
         self._gap_m = 0.0
         self._resumed_ns: int | None = None
+        self._trip: FerrorTrip | None = None
 
     def step(self, stamp_ns: int, dt_s: float, ref_position_m: float, ref_velocity_m_s: float,
              ref_acceleration_m_s2: float, position_m: float, velocity_m_s: float,
              compensation: float) -> ServoOutput:
-        """One sample at ``stamp_ns`` [ns] (arguments as :meth:`ServoController.step`): held, resuming or plain."""
+        """One sample at ``stamp_ns`` [ns] (arguments as :meth:`ServoController.step`): held, resuming or plain.
+
+        Then the following-error trip on the sample's (re-based) error at ``ref_velocity_m_s``: with
+        ``ferror_action`` ``fault`` a :class:`~cnc_contour_control.errors.FaultError`, with ``latch`` the latch
+        trips and the sample is held (command 0).
+        """
         if not self.latch.commands_allowed:
-            self.held = True
-            self.held_samples += 1
-            return ServoOutput(0.0, 0.0, 0.0, 0.0, 0.0, False, ref_position_m - position_m)
+            return self._hold(ref_position_m, position_m)
         if self.held:
             self.held = False
             self.controller.reset()
             self._gap_m, self._resumed_ns = position_m - ref_position_m, int(stamp_ns)
+        law_ref = (ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2)
         if self._resumed_ns is not None:
             offset = self.offset(stamp_ns)
-            ref_position_m += offset[0]
-            ref_velocity_m_s += offset[1]
-            ref_acceleration_m_s2 += offset[2]
-        return self.controller.step(dt_s, ref_position_m, ref_velocity_m_s, ref_acceleration_m_s2, position_m,
-                                    velocity_m_s, compensation)
+            law_ref = (ref_position_m + offset[0], ref_velocity_m_s + offset[1], ref_acceleration_m_s2 + offset[2])
+        output = self.controller.step(dt_s, *law_ref, position_m, velocity_m_s, compensation)
+        trip = self.guard.check(limit_of(self.controller.config), output.error_m, ref_velocity_m_s, stamp_ns)
+        if trip is None:
+            return output
+        self._trip = trip
+        return self._hold(ref_position_m, position_m)
+
+    def _hold(self, ref_position_m: float, position_m: float) -> ServoOutput:
+        """A held sample: command 0, the law not stepped."""
+        self.held = True
+        self.held_samples += 1
+        return ServoOutput(0.0, 0.0, 0.0, 0.0, 0.0, False, ref_position_m - position_m)
+
+    def take_trip(self) -> FerrorTrip | None:
+        """Once per trip (``ferror_action`` ``latch``): the trip of the last sample; else None."""
+        trip, self._trip = self._trip, None
+        return trip
 
     @property
     def resuming(self) -> bool:

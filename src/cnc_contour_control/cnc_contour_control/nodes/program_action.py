@@ -6,6 +6,13 @@ machine: rejected, the reason logged and reported WARN on ``/diagnostics``),
 so a rejection never disturbs the running program. The execute callback is a
 coroutine awaiting the outcome, which the tick callback resolves: it works on
 the node's single-threaded executor (events or single).
+
+The machine's state comes from ``/diagnostics``: the plant's and the servos'
+latch reports of this namespace (:class:`~cnc_contour_control.safety.MachineWatch`).
+When the machine stops (an e-stop, a following-error trip) the running goal
+ends FAULTED naming the first node that stopped and its cause, the reference
+holds where the machine stands, and goals are rejected with the cause until
+every node is reset and enabled.
 """
 from __future__ import annotations
 
@@ -13,7 +20,7 @@ from collections.abc import Callable
 from typing import Any
 
 from cnc_contour_interfaces.action import RunProgram
-from diagnostic_msgs.msg import DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.task import Future
@@ -23,6 +30,8 @@ from cnc_contour_control.feed_override import LiveReference
 from cnc_contour_control.geometry import Program
 from cnc_contour_control.program_goal import ProgramGoal, SegmentSpec
 from cnc_contour_control.program_session import OUTCOMES, ProgramFeedback, ProgramOutcome, ProgramSession
+from cnc_contour_control.safety import MachineWatch
+from cnc_contour_control.topics import RUN_ID_KEY
 
 #: The action's name, in the node's namespace.
 ACTION_NAME = "run_program"
@@ -73,6 +82,25 @@ class ProgramActionServer:
         self.server = ActionServer(node, RunProgram, ACTION_NAME, self._execute, goal_callback=self._judge,
                                    cancel_callback=self._cancel)
         node.create_timer(feedback_period_s, self._publish_feedback)
+        self.machine = MachineWatch()
+        node.create_subscription(DiagnosticArray, "/diagnostics", node.guarded(self._on_diagnostics), 100)
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        """The latch reports of this namespace's nodes: the machine stopped (the goal faults) or runs again."""
+        namespace, own = self.node.get_namespace(), self.node.get_fully_qualified_name()
+        for status in msg.status:
+            values = {kv.key: kv.value for kv in status.values}
+            if values.get(RUN_ID_KEY) == namespace and status.name != own:
+                self.machine.observe(status.name, values)
+        if self.machine.stopped and self.machine.cause != self.session.stop_cause:
+            first = not self.session.stop_cause
+            self.session.machine_stopped(self.machine.cause)
+            self.after_tick()  # a running goal's outcome (faulted) to its client now
+            if first:
+                self.node.get_logger().warning(f"machine stopped: {self.machine.cause}")
+        elif not self.machine.stopped and self.session.stop_cause:
+            self.session.machine_running()
+            self.node.get_logger().info("machine running again: goals are accepted")
 
     def _judge(self, goal: Any) -> GoalResponse:
         """Accept a goal the session can run now; reject (and say why) any other."""

@@ -3,7 +3,9 @@
 The logic is :class:`~cnc_contour_control.safety.EstopLatch` and
 :class:`~cnc_contour_control.tick_stats.TickStats`; this module only wires
 them to ROS: ``estop`` (std_msgs/Bool, true = e-stop), ``~/enable``
-(std_srvs/SetBool), ``~/reset`` (std_srvs/Trigger). Every change of the latch
+(std_srvs/SetBool), ``~/reset`` (std_srvs/Trigger). A node that may trip the
+machine (``trips_machine``: a servo with ``ferror_action: latch``) also
+publishes ``estop`` (:meth:`SafetyInterface.trip_machine`). Every change of the latch
 and every closed statistics window is a status on ``/diagnostics`` stamped in
 the run's time, so the recorder puts it in the bag. :class:`PartnerMonitor`
 feeds the publishers of a node's lockstep inputs to
@@ -18,7 +20,7 @@ from std_msgs.msg import Bool
 from std_srvs.srv import SetBool, Trigger
 
 from cnc_contour_control.nodes.common import SuiteNode
-from cnc_contour_control.safety import EstopLatch, LatchAnswer, PartnerWatch
+from cnc_contour_control.safety import EstopLatch, FerrorTrip, LatchAnswer, PartnerWatch
 from cnc_contour_control.tick_stats import TickStats
 from cnc_contour_control.topics import qualify
 
@@ -27,12 +29,17 @@ RUNNING = "running"
 
 
 class SafetyInterface:
-    """Serves ``latch`` on ``node``; ``stamp_ns`` gives the run's current stamp for the statuses."""
+    """Serves ``latch`` on ``node``; ``stamp_ns`` gives the run's current stamp for the statuses.
 
-    def __init__(self, node: SuiteNode, latch: EstopLatch, stamp_ns: Callable[[], int]) -> None:
+    With ``trips_machine`` the node can e-stop the whole machine (:meth:`trip_machine`).
+    """
+
+    def __init__(self, node: SuiteNode, latch: EstopLatch, stamp_ns: Callable[[], int],
+                 trips_machine: bool = False) -> None:
         self.node, self.latch, self.stamp_ns = node, latch, stamp_ns
         self.stats = TickStats()
         node.create_subscription(Bool, "estop", node.guarded(self._on_estop), 10)
+        self._estop_pub = node.create_publisher(Bool, "estop", 10) if trips_machine else None
         node.create_service(SetBool, "~/enable", self._on_enable)
         node.create_service(Trigger, "~/reset", self._on_reset)
 
@@ -50,6 +57,18 @@ class SafetyInterface:
         """Log and report that the latch was set by ``cause`` (the e-stop input, or a fault the node tripped)."""
         self.node.get_logger().warning(f"e-stop latched: {cause}")
         self._report(DiagnosticStatus.WARN, f"e-stop latched: {cause}")
+
+    def trip_machine(self, trip: FerrorTrip) -> None:
+        """A following-error trip latched this node: ERROR on /diagnostics, then the machine's e-stop.
+
+        The e-stop goes true, then false (LinuxCNC: the error turns the machine off; the cause is gone once the
+        axis stands, so a reset is allowed). The status goes first, so who watches both learns the cause first.
+        """
+        self.node.get_logger().error(f"machine stopped: {trip.message}")
+        self._report(DiagnosticStatus.ERROR, f"machine stopped: {trip.message}", trip.values())
+        if self._estop_pub is not None:
+            self._estop_pub.publish(Bool(data=True))
+            self._estop_pub.publish(Bool(data=False))
 
     def _on_enable(self, request: SetBool.Request, response: SetBool.Response) -> SetBool.Response:
         """``~/enable``: on refused while latched, with the cause."""

@@ -3,6 +3,7 @@
 The reference is the Reference topic's, or a trajectory_msgs/JointTrajectory's sampled at each tick
 (``reference_source``, cnc_contour_control.trajectory_reference). The law is frozen while the e-stop latch
 blocks commands (cnc_contour_control.servo_hold); an input's publisher leaving mid-tick is a fault naming it.
+A following-error trip faults (``ferror_action: fault``) or latches and e-stops the machine (``latch``).
 """
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ from cnc_contour_control.nodes.parameters import ConfigParameters, Section, decl
 from cnc_contour_control.nodes.safety_io import PartnerMonitor, SafetyInterface
 from cnc_contour_control.nodes.spindle_parameter import watch_spindle_rpm
 from cnc_contour_control.nodes.trajectory_io import subscribe_trajectory
-from cnc_contour_control.safety import EstopLatch, check_following_error, limit_of
+from cnc_contour_control.safety import EstopLatch, FerrorActionParams
 from cnc_contour_control.servo import ServoConfig, ServoController
 from cnc_contour_control.servo_hold import HeldServo, HoldParams
 from cnc_contour_control.spindle_override import law_receiver
@@ -87,8 +88,10 @@ class ServoNode(SuiteNode):
             self._subscribe(Compensation, "compensation")
         self.watch_inputs(self.matcher, f"servo {self.axis}")
         self.latch = EstopLatch()  # estop, ~/enable, ~/reset: the law is frozen while commands are blocked
-        self.held = HeldServo(self.controller, self.latch, declare_config(self, HoldParams))
-        self.diagnostics = SafetyInterface(self, self.latch, self._stamp_ns)  # every second: saturation, peak error
+        action = declare_config(self, FerrorActionParams).ferror_action
+        self.held = HeldServo(self.controller, self.latch, declare_config(self, HoldParams), action)
+        self.diagnostics = SafetyInterface(self, self.latch, self._stamp_ns,  # every second: saturation, peak error
+                                           trips_machine=action == "latch")
         self.partners = PartnerMonitor(self, inputs[1:], lambda: self.matcher.pending_count > 0,
                                        lambda lost: self.fault(f"servo {self.axis}: {lost}"), self._stamp_ns)
 
@@ -130,12 +133,14 @@ class ServoNode(SuiteNode):
         if refused is not None:
             self.report(DiagnosticStatus.WARN, f"servo {self.axis}: {refused}",
                         {"stamp_ns": str(stamp_ns), "spindle_rpm": str(self.controller.spindle.commanded_rpm)})
+        # the following-error trip is checked in there, while enabled (LinuxCNC), as the engine checks it
         output = self.held.step(stamp_ns, dt_ns / NS_PER_S, ref[0], ref[1], ref[2], position_m, velocity_m_s,
                                 correction)
         self.last_stamp_ns = stamp_ns
         config = self.controller.config
-        if not self.held.held:  # LinuxCNC checks the following error only while enabled
-            check_following_error(limit_of(config), output.error_m, ref[1], stamp_ns)  # trips as the engine does
+        trip = self.held.take_trip()  # ferror_action latch: the command is already 0
+        if trip is not None:
+            self.diagnostics.trip_machine(trip)
         self.diagnostics.account(stamp_ns, wall_time_s(), {"saturated": (int(output.saturated), 1)},
                                  {"peak_following_error_m": output.error_m})
         self.command_pub.publish(command_to_msg(output, self.axis, config.law, config.command_unit, stamp_ns))

@@ -6,7 +6,8 @@ T = 1 ms, six nodes and the recorder):
 
 1. lockstep: the engine and the node graph recorded with ``--compose none``
    (seven processes), ``loop`` (the six loop nodes in one process, the
-   recorder apart) and ``all`` (one process). Each round runs the four in a
+   recorder apart), ``all`` (one process) and ``all-dds`` (``all`` with the
+   local bus off: every message over DDS, as before the bus). Each round runs the four in a
    rotated order, so all see the same machine load; the figures are the
    medians over the rounds of the wall time per tick (the plant's summary:
    first tick to last, start-up excluded), the real-time factor and the
@@ -14,7 +15,7 @@ T = 1 ms, six nodes and the recorder):
    system) of the run's processes per tick, less that of a 2-tick run of the
    same side (start-up and shut-down). Goal: the composed loop at least
    :data:`RTF_GOAL` times real time.
-2. real time: the graph recorded with ``--compose none`` and ``loop``; the
+2. real time: the graph recorded with ``--compose none``, ``loop`` and ``all``; the
    share of late commands (the plant's ``late_commands`` / (ticks · axes),
    goal <= :data:`LATE_SHARE_GOAL`) and the period error (the recorded
    ``joint_states`` stamps advance by the measured period: p50 and p99 of
@@ -26,7 +27,10 @@ is shared and absolute figures swing; the ratios are measured in one run.
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -48,8 +52,32 @@ RTF_GOAL = 1.0
 #: Goal: in real time, at most this share of the commands is late.
 LATE_SHARE_GOAL = 0.01
 #: Lockstep sides: the engine, then the graph's compose modes.
-LOCKSTEP_SIDES = ("engine", "none", "loop", "all")
-REALTIME_SIDES = ("none", "loop")
+LOCKSTEP_SIDES = ("engine", "none", "loop", "all", "all-dds")
+REALTIME_SIDES = ("none", "loop", "all")
+#: Graph side -> (compose mode, local bus on): ``all-dds`` is ``all`` with every message over DDS (``CNC_LOCAL_BUS=0``).
+GRAPH_SIDES: dict[str, tuple[str, bool]] = {
+    "none": ("none", True), "loop": ("loop", True), "all": ("all", True), "all-dds": ("all", False)}
+
+
+@contextmanager
+def local_bus_env(on: bool) -> Iterator[None]:
+    """``CNC_LOCAL_BUS`` for the composed host the runner starts (inherited), restored afterwards."""
+    before = os.environ.get("CNC_LOCAL_BUS")
+    os.environ["CNC_LOCAL_BUS"] = "1" if on else "0"
+    try:
+        yield
+    finally:
+        if before is None:
+            os.environ.pop("CNC_LOCAL_BUS")
+        else:
+            os.environ["CNC_LOCAL_BUS"] = before
+
+
+def graph_run(side: str, scenario: Scenario, run_dir: Path, timeout_s: float) -> Any:
+    """The recorded graph run of ``side`` (its compose mode, with or without the local bus)."""
+    mode, bus = GRAPH_SIDES[side]
+    with local_bus_env(bus):
+        return run_graph(scenario, run_dir, record=True, compose=mode, timeout_s=timeout_s)
 
 
 @dataclass(frozen=True)
@@ -103,7 +131,7 @@ def lockstep_run(side: str, run_dir: Path, duration_s: float | None) -> Lockstep
     if side == "engine":
         summary = run_engine(scenario).summary
     else:
-        summary = run_graph(scenario, run_dir, record=True, compose=side, timeout_s=1800.0).summary
+        summary = graph_run(side, scenario, run_dir, 1800.0).summary
         if summary.get("faults"):
             raise CncError(f"bench compose: the {side} run faulted: {summary['faults']}")
     return LockstepFigures(side, int(summary["ticks"]), float(summary["wall_time_s"]),
@@ -119,7 +147,7 @@ def realtime_run(side: str, run_dir: Path, duration_s: float) -> RealtimeFigures
     """One real-time run; a run that faults is reported with what it reached, not raised."""
     scenario = bench_scenario(run_dir, "realtime", duration_s)
     try:
-        result = run_graph(scenario, run_dir, record=True, compose=side, timeout_s=600.0)
+        result = graph_run(side, scenario, run_dir, 600.0)
         summary, status = result.summary, "faulted" if result.faults else "finished"
     except CncError as err:
         return RealtimeFigures(side, f"died: {err}", 0, float("nan"), None, None)

@@ -4,6 +4,7 @@ from __future__ import annotations
 from cnc_tools.cli import bench, check, circular, identify_friction, params, replay, run, score, tune
 from cnc_tools.cli import config_files
 from cnc_tools.cli import send_program
+from cnc_tools.cli import machine
 from cnc_tools.cli.common import Subcommand
 
 #: Subcommands by name, in the order ``--help`` lists them.
@@ -20,6 +21,8 @@ COMMANDS: dict[str, Subcommand] = {
     "replay": Subcommand(replay.configure, replay.replay, "republish a bag with its recorded timing"),
     "send-program": Subcommand(send_program.configure, send_program.send_program,
                                "run a part program on a running interpolator (RunProgram action; Ctrl-C cancels)"),
+    "machine": Subcommand(machine.configure, machine.machine,
+                          "e-stop, release, reset, enable or disable a running graph's plant and servos"),
     "identify-friction": Subcommand(identify_friction.configure, identify_friction.identify_friction,
                                     "identify an axis's friction-velocity curve (paper 000)"),
     "bench": Subcommand(bench.configure, bench.bench, "speed benchmarks and paper reproductions"),

@@ -6,6 +6,12 @@ class (:mod:`cnc_tools.nodes.composable`) with the ROS arguments its own process
 would get (``__ns``, ``__node``, the run's remaps, ``--params-file``) and spins
 them all on one executor (:func:`~cnc_contour_control.nodes.common.make_executor`).
 
+Messages between members go through a process-local bus
+(:mod:`cnc_contour_control.nodes.local_bus`; ``CNC_LOCAL_BUS=0`` turns it off):
+the spin loop drains its queue in batches between the executor's turns (timers,
+DDS events) and, every :data:`OUTSIDE_POLL_S`, connects members to publishers
+outside the process.
+
 Each member ends as its process would: finished (exit code 0), faulted
 (:data:`~cnc_contour_control.nodes.common.EXIT_FAULT`) or raised (1, the
 exception named by the node whose callback raised it); the host then removes
@@ -16,9 +22,10 @@ closes its bag, the plant writes its summary).
 """
 from __future__ import annotations
 
+import os
 import sys
 import traceback
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from types import TracebackType
 from typing import Any
@@ -27,12 +34,20 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 
 from cnc_contour_control.errors import CncError
-from cnc_contour_control.nodes.common import EXIT_FAULT, SuiteNode, flush_and_destroy, make_executor
+from cnc_contour_control.nodes import local_bus
+from cnc_contour_control.nodes.common import EXIT_FAULT, SuiteNode, flush_and_destroy, make_executor, wall_time_s
 from cnc_tools.nodes.composable import node_class
-from cnc_tools.runs.compose import MemberExit, read_host_spec, write_exits
+from cnc_tools.runs.compose import HOST, MemberExit, read_host_spec, write_exits
 
 #: Exit code of a member whose callback raised an error that is not the suite's (Python's own for a traceback).
 EXIT_RAISED = 1
+#: Wall seconds between two looks at the graph for publishers outside the process (``LocalBus.connect_outside``).
+OUTSIDE_POLL_S = 0.25
+
+
+def make_bus() -> local_bus.LocalBus | None:
+    """The host's local bus, unless ``CNC_LOCAL_BUS=0`` (every message over DDS, as before the bus)."""
+    return None if os.environ.get("CNC_LOCAL_BUS", "1") == "0" else local_bus.LocalBus()
 
 
 def culprit(trace: TracebackType | None, nodes: dict[str, Any]) -> str | None:
@@ -52,7 +67,11 @@ class ComposedHost:
     def __init__(self, context: Any, exits_file: Path | None) -> None:
         self.context, self.exits_file = context, exits_file
         self.executor = make_executor(context)
+        self.bus = make_bus()
+        if self.bus is not None:
+            local_bus.attach(context, self.bus)
         self.live: dict[str, SuiteNode] = {}
+        self.ended: dict[str, SuiteNode] = {}  # members removed: the events executor may still run one queued callback
         self.exits: dict[str, MemberExit] = {}
 
     def add(self, name: str, cls: type[SuiteNode], arguments: Sequence[str]) -> None:
@@ -68,11 +87,13 @@ class ComposedHost:
         self.live[name] = node
         self.executor.add_node(node)
 
-    def spin(self) -> None:
-        """Spin until every member ended or the context is shut down (a signal)."""
-        while self.live and self.context.ok():
+    def spin(self, until: Callable[[], bool] | None = None) -> None:
+        """Spin until every member ended, the context is shut down (a signal) or ``until()`` holds."""
+        next_poll_s = 0.0
+        while self.live and self.context.ok() and not (until is not None and until()):
             try:
-                self.executor.spin_once(timeout_sec=0.1)
+                next_poll_s = self._bus_turn(next_poll_s)
+                self.executor.spin_once(timeout_sec=0.0 if self.bus is not None and self.bus.pending else 0.1)
             except (KeyboardInterrupt, ExternalShutdownException):
                 return
             except Exception as err:  # noqa: BLE001 - attributed to the member that raised it, or re-raised
@@ -82,9 +103,21 @@ class ComposedHost:
                 self.end(name, EXIT_FAULT if node.fault_message else 0,
                          f"FAULT: {node.fault_message}" if node.fault_message else "finished")
 
+    def _bus_turn(self, next_poll_s: float) -> float:
+        """One batch of local deliveries, and the look for outside publishers when due; the next look's time."""
+        if self.bus is None:
+            return next_poll_s
+        self.bus.drain()
+        if wall_time_s() < next_poll_s:
+            return next_poll_s
+        self.bus.connect_outside()
+        return wall_time_s() + OUTSIDE_POLL_S
+
     def _raised(self, err: Exception) -> None:
         """End the member whose callback raised ``err`` (a suite error: a fault); an unknown origin ends the host."""
         name = culprit(err.__traceback__, dict(self.live))
+        if name is None and culprit(err.__traceback__, self.ended) is not None:
+            return  # a callback of a member that already ended (its end is noted): nothing more to do
         if name is None:
             raise err
         if isinstance(err, CncError):
@@ -95,7 +128,10 @@ class ComposedHost:
     def end(self, name: str, code: int, message: str, err: BaseException | None = None) -> None:
         """Remove, flush and destroy one member, and note its end."""
         node = self.live.pop(name)
+        self.ended[name] = node
         self.executor.remove_node(node)
+        if self.bus is not None:
+            self.bus.forget(node)
         try:
             flush_and_destroy(node)
         finally:
@@ -113,8 +149,14 @@ class ComposedHost:
         """Destroy every member still live (after a signal: no flush; the plant notes ``interrupted``)."""
         for name, node in list(self.live.items()):
             del self.live[name]
+            if self.bus is not None:
+                self.bus.forget(node)
             flush_and_destroy(node)
         self.executor.shutdown()
+        if self.bus is not None:
+            local_bus.detach(self.context)
+            print(f"[{HOST}] local bus: {self.bus.delivered} deliveries in process; topics connected to outside "
+                  f"publishers: {sorted(set(self.bus.connected)) or 'none'}", file=sys.stderr, flush=True)
 
 
 def run_host(spec_file: Path, args: Sequence[str] | None = None) -> int:
