@@ -77,7 +77,8 @@ def test_estop_mid_run_latches_stops_the_axes_and_is_in_the_bag(tmp_path: Path) 
         sent: list[int] = []
 
         def press_once_running() -> None:
-            if not sent and len(probe.received(f"{ns}/joint_states")) > 40 and estop.get_subscription_count() > 0:
+            # plant and both servos latch: press once all three read the e-stop (volatile: none may miss it)
+            if not sent and len(probe.received(f"{ns}/joint_states")) > 40 and estop.get_subscription_count() >= 3:
                 estop.publish(Bool(data=True))
                 sent.append(len(probe.received(f"{ns}/joint_states")))
 

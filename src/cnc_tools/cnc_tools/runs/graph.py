@@ -153,14 +153,23 @@ class GraphRun:
             if poll is not None:
                 poll()
             codes = self.exit_codes()
+            died = self._died(codes, main, may_finish)
             if codes[main] is not None:
+                if died is not None and codes[main] != 0:
+                    raise died  # the plant stopped because a partner died: the partner is the cause
                 return codes
-            for name, code in codes.items():
-                if name != main and code is not None and not (name in may_finish and code == 0):
-                    raise NodeDied(name, f"node {name} ({self._where(name)}) exited with code {code} "
-                                         f"during the run; last output: {self.last_output(name)!r}")
+            if died is not None:
+                raise died
             time.sleep(POLL_S)
         raise FaultError(f"run did not finish within {timeout_s} s")
+
+    def _died(self, codes: Mapping[str, int | None], main: str, may_finish: Sequence[str]) -> NodeDied | None:
+        """The first node but ``main`` that has exited, unless it may finish and did so with code 0."""
+        for name, code in codes.items():
+            if name != main and code is not None and not (name in may_finish and code == 0):
+                return NodeDied(name, f"node {name} ({self._where(name)}) exited with code {code} "
+                                      f"during the run; last output: {self.last_output(name)!r}")
+        return None
 
     def wait_exit(self, name: str, timeout_s: float, poll: Callable[[], None] | None = None) -> int:
         """Wait for ``name`` to exit by itself; :class:`NodeDied` if it fails, FaultError if it hangs."""
