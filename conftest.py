@@ -1,11 +1,11 @@
-"""Session-wide test setup: DDS on loopback, a fresh random ROS domain per test session, and the two lanes.
+"""Session-wide test setup: DDS on loopback, a fresh random ROS domain per test session, and the work units.
 
-With pytest-xdist (``-n 2``, pytest.ini) every worker is a
-session of its own: the controller draws a random domain and each worker takes
-the next ones (``gw0`` the first after it, ...), so no two workers share one.
-The whole-graph tests (``tests/e2e``) run one at a time in one lane, so two
-graphs never share the two cores; the rest are spread over the workers beside
-them.
+With pytest-xdist (``-n 2``, pytest.ini) every worker is a session of its
+own: the controller draws a random domain and each worker takes the next ones
+(``gw0`` the first after it, ...), so no two workers share one. A whole-graph
+test file (``tests/e2e/*.py``) is one work unit: its tests run one after the
+other on one worker (they share module fixtures and namespaces), so a worker
+runs at most one graph at a time; the other tests are spread one by one.
 """
 from __future__ import annotations
 
@@ -15,8 +15,6 @@ import pytest
 
 #: Where the controller leaves its domain for the workers it starts.
 DOMAIN_BASE_KEY = "CNC_TEST_DOMAIN_BASE"
-#: The xdist work unit of the whole-graph tests: one worker runs them all, one after the other.
-GRAPH_LANE = "graph"
 #: Where the whole-graph tests live (node ids as the controller sees them).
 GRAPH_TESTS = "tests/e2e/"
 
@@ -41,15 +39,15 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def graph_lane_scope(nodeid: str) -> str:
-    """The xdist work unit of a test: the one graph lane for the whole-graph tests, the test itself else."""
-    return GRAPH_LANE if nodeid.startswith(GRAPH_TESTS) else nodeid
+    """The xdist work unit of a test: its file for a whole-graph test, the test itself else."""
+    return nodeid.split("::", 1)[0] if nodeid.startswith(GRAPH_TESTS) else nodeid
 
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
     """Scope scheduling with :func:`graph_lane_scope` (xdist's own ``loadgroup`` misses pytest 9's node ids).
 
-    The graph lane is the largest unit, so it goes out first and runs beside the rest from the start.
+    The graph files are the largest units, so they go out first and run beside the rest from the start.
     """
     from xdist.scheduler import LoadScopeScheduling
 

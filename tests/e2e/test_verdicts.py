@@ -80,6 +80,10 @@ def test_a_signal_to_cnc_contour_run_stops_and_reaps_every_node(tmp_path: Path, 
         assert f"interrupted by {signal.Signals(sig).name}" in err and "Traceback" not in err
     summary = _summary(run_dir)
     assert summary["status"] == "interrupted" and summary.get("reason"), summary
+    if sig != signal.SIGTERM:  # the bag is judged the same whatever the signal; the CLI is run once, below
+        _, verdict = judge_bag(run_dir / "bag")
+        assert verdict.status == "partial" and "did not finish" in verdict.describe(), verdict.describe()
+        return
     refused = _score(run_dir / "bag")
     assert refused.returncode == 1 and "PARTIAL" in refused.stderr and "Traceback" not in refused.stderr
     scored = _score(run_dir / "bag", "--allow-partial")

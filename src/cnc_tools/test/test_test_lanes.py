@@ -1,4 +1,4 @@
-"""The test session's lanes (root conftest.py): each xdist worker on its own ROS domain, graph tests in one lane."""
+"""The test session's work units (root conftest.py): each xdist worker on its own ROS domain, a graph file on one."""
 from __future__ import annotations
 
 import json
@@ -27,14 +27,16 @@ def test_plain(i):
     note(f"plain{i}")
 '''
 GRAPH = PLAIN.replace("plain", "graph").replace("range(6)", "range(4)")
+OTHER_GRAPH = GRAPH.replace("graph", "other")
 
 
-def test_two_workers_take_two_domains_and_one_lane_takes_every_graph_test(tmp_path: Path) -> None:
+def test_two_workers_take_two_domains_and_one_worker_takes_each_graph_file_whole(tmp_path: Path) -> None:
     (tmp_path / "pytest.ini").write_text("[pytest]\n")
     (tmp_path / "probe_note.py").write_text(NOTE)
     (tmp_path / "test_plain.py").write_text(PLAIN)
     (tmp_path / "tests" / "e2e").mkdir(parents=True)
     (tmp_path / "tests" / "e2e" / "test_graph.py").write_text(GRAPH)
+    (tmp_path / "tests" / "e2e" / "test_other.py").write_text(OTHER_GRAPH)
     out = tmp_path / "out"
     out.mkdir()
     path = os.pathsep.join([str(ROOT), str(tmp_path), os.environ.get("PYTHONPATH", "")])
@@ -42,11 +44,11 @@ def test_two_workers_take_two_domains_and_one_lane_takes_every_graph_test(tmp_pa
     env.pop("PYTEST_XDIST_WORKER", None)
     env.pop("CNC_TEST_DOMAIN_BASE", None)
     done = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "conftest", "-p", "no:cacheprovider", "-n", "2",
-                           "--import-mode=importlib", "test_plain.py", "tests/e2e/test_graph.py"],
+                           "--import-mode=importlib", "test_plain.py", "tests/e2e/test_graph.py", "tests/e2e/test_other.py"],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
     facts = {p.stem: json.loads(p.read_text()) for p in out.glob("*.json")}
-    assert len(facts) == 10
+    assert len(facts) == 14
     base = {f["CNC_TEST_DOMAIN_BASE"] for f in facts.values()}
     assert len(base) == 1
     base_id = int(base.pop())
@@ -55,5 +57,6 @@ def test_two_workers_take_two_domains_and_one_lane_takes_every_graph_test(tmp_pa
     for worker, domain in by_worker.items():
         assert domain == 1 + (base_id + int(worker[2:])) % 100 and domain != base_id
     assert all(f["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "LOCALHOST" for f in facts.values())
-    graph_lanes = {facts[f"graph{i}"]["PYTEST_XDIST_WORKER"] for i in range(4)}
-    assert len(graph_lanes) == 1, graph_lanes
+    for name in ("graph", "other"):
+        workers = {facts[f"{name}{i}"]["PYTEST_XDIST_WORKER"] for i in range(4)}
+        assert len(workers) == 1, (name, workers)
