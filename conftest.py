@@ -2,10 +2,10 @@
 
 With pytest-xdist (``-n 2``, pytest.ini) every worker is a session of its
 own: the controller draws a random domain and each worker takes the next ones
-(``gw0`` the first after it, ...), so no two workers share one. A whole-graph
-test file (``tests/e2e/*.py``) is one work unit: its tests run one after the
-other on one worker (they share module fixtures and namespaces), so a worker
-runs at most one graph at a time; the other tests are spread one by one.
+(``gw0`` the first after it, ...), so no two workers share one. A test file is
+one work unit: its tests run one after the other on one worker, so a module
+fixture (a bench's runs, a recorded bag) is made once, and a worker runs at
+most one whole graph (``tests/e2e``) at a time.
 """
 from __future__ import annotations
 
@@ -15,8 +15,6 @@ import pytest
 
 #: Where the controller leaves its domain for the workers it starts.
 DOMAIN_BASE_KEY = "CNC_TEST_DOMAIN_BASE"
-#: Where the whole-graph tests live (node ids as the controller sees them).
-GRAPH_TESTS = "tests/e2e/"
 
 
 def session_domain_id(environ: dict[str, str] | os._Environ[str], draw: int) -> int:
@@ -39,15 +37,15 @@ def pytest_configure(config: pytest.Config) -> None:
 
 
 def graph_lane_scope(nodeid: str) -> str:
-    """The xdist work unit of a test: its file for a whole-graph test, the test itself else."""
-    return nodeid.split("::", 1)[0] if nodeid.startswith(GRAPH_TESTS) else nodeid
+    """The xdist work unit of a test: its file (module fixtures are made once per worker that runs them)."""
+    return nodeid.split("::", 1)[0]
 
 
 @pytest.hookimpl(optionalhook=True)
 def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
     """Scope scheduling with :func:`graph_lane_scope` (xdist's own ``loadgroup`` misses pytest 9's node ids).
 
-    The graph files are the largest units, so they go out first and run beside the rest from the start.
+    Units go out largest first (most tests), then one at a time to whichever worker is free.
     """
     from xdist.scheduler import LoadScopeScheduling
 
