@@ -45,12 +45,25 @@ def graph_lane_scope(nodeid: str) -> str:
 def pytest_xdist_make_scheduler(config: pytest.Config, log: object) -> object:
     """Scope scheduling with :func:`graph_lane_scope` (xdist's own ``loadgroup`` misses pytest 9's node ids).
 
-    Units go out largest first (most tests), then one at a time to whichever worker is free.
+    Units go out in collection order, the whole-graph files first (the longest ones), each to whichever worker is
+    free.
     """
     from xdist.scheduler import LoadScopeScheduling
+
+    config.option.loadscopereorder = False  # collection order (the graph files first), not the test count
 
     class GraphLaneScheduling(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
             return graph_lane_scope(nodeid)
 
     return GraphLaneScheduling(config, log)
+
+
+#: The whole-graph tests (node ids as the controller sees them): the longest files, run first.
+GRAPH_TESTS = "tests/e2e/"
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """The whole-graph files first, so no long graph test is left for the end of a run on two workers."""
+    items.sort(key=lambda item: not item.nodeid.startswith(GRAPH_TESTS))
+

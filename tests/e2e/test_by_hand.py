@@ -13,7 +13,6 @@ from __future__ import annotations
 import os
 import re
 import shlex
-import signal
 import subprocess
 from pathlib import Path
 
@@ -23,6 +22,7 @@ import pytest
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.outputs import judge_bag
 from cnc_tools.runs.scenario import load_scenario
+from cnc_tools.testing import stop_processes
 
 ROOT = Path(__file__).resolve().parents[2]
 README_BAG = "/tmp/by_hand_bag"
@@ -61,15 +61,7 @@ def test_the_readmes_by_hand_start_runs_the_runners_graph(tmp_path: Path) -> Non
         assert processes["1_plant"].wait(timeout=180) == 0, (tmp_path / "1_plant.log").read_text()
         assert processes["0_recorder"].wait(timeout=60) == 0, (tmp_path / "0_recorder.log").read_text()
     finally:
-        for process in processes.values():
-            if process.poll() is None:
-                process.send_signal(signal.SIGINT)
-        for process in processes.values():
-            try:
-                process.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                process.kill()
-                process.wait()
+        stop_processes(processes.values())
     recorded, verdict = judge_bag(bag)
     assert verdict.complete, verdict.describe()
     engine = run_engine(load_scenario(ROOT / "scenarios" / "paper000_circle_high.yaml"))

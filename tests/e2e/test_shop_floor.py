@@ -23,7 +23,6 @@ machine`` (the README's commands), the refusals through the services.
 from __future__ import annotations
 
 import math
-import signal
 import subprocess
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -44,7 +43,7 @@ from std_srvs.srv import SetBool, Trigger
 from cnc_contour_control.nodes.common import stamp_to_ns
 from cnc_tools.cli.main import main as cli
 from cnc_tools.runs.graph import find_executable
-from cnc_tools.testing import TopicProbe
+from cnc_tools.testing import TopicProbe, stop_processes
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "paper000_circle_high.yaml"
@@ -90,20 +89,7 @@ def nodes_by_hand(folder: Path) -> Iterator[dict[str, subprocess.Popen[bytes]]]:
                 processes[name] = subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT)
         yield processes
     finally:
-        stop_all(processes)
-
-
-def stop_all(processes: dict[str, subprocess.Popen[bytes]]) -> None:
-    """SIGINT to every process still running, then wait; kill (by pid) what does not stop."""
-    for process in processes.values():
-        if process.poll() is None:
-            process.send_signal(signal.SIGINT)
-    for process in processes.values():
-        try:
-            process.wait(timeout=10)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
+        stop_processes(processes.values())
 
 
 class Operator:
@@ -186,6 +172,12 @@ def assert_scored(result: Any, bound_m: float) -> None:
 
 def run_override_and_hold(op: Operator, probe: TopicProbe) -> tuple[Any, int]:
     """Program 2: 50 % from a fifth of the path, a hold from half of it, 100 % again; its result and start."""
+    def at_rest_at_the_end_of_program_1() -> bool:  # the probe's copy of the references lags under load
+        refs = references(probe)
+        return bool(refs) and refs[-1].position_m[1] == pytest.approx(Y_PATH_M, abs=1e-12) \
+            and not any(refs[-1].velocity_m_s)
+
+    op.wait(at_rest_at_the_end_of_program_1, 10.0, "the probe to see program 1's end")
     start_ns = stamp_to_ns(references(probe)[-1].header.stamp)
     handle = op.send(SECOND)
     assert handle.accepted

@@ -5,6 +5,8 @@ Used by the suite's own tests and by integrators testing their stack against our
 from __future__ import annotations
 
 import os
+import signal
+import subprocess
 import threading
 import time
 from collections import defaultdict
@@ -169,3 +171,18 @@ class InProcessNode(_BackgroundNode):
         rclpy.init(context=context)
         overrides = [Parameter(name, value=value) for name, value in parameters.items()]
         self._attach(context, factory(context=context, namespace=namespace, parameter_overrides=overrides))
+
+
+def stop_processes(processes: Iterable[subprocess.Popen[Any]], timeout_s: float = 10.0) -> None:
+    """SIGINT to every process still running (nodes started by a test), then wait; kill by pid what does not stop."""
+    processes = list(processes)
+    for process in processes:
+        if process.poll() is None:
+            process.send_signal(signal.SIGINT)
+    for process in processes:
+        try:
+            process.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
