@@ -168,7 +168,7 @@ def run_host(spec_file: Path, args: Sequence[str] | None = None) -> int:
         host = ComposedHost(rclpy.get_default_context(), Path(spec["exits_file"]) if spec.get("exits_file") else None)
         for entry in spec["nodes"]:
             host.add(entry["name"], node_class(entry["package"], entry["executable"]), entry["arguments"])
-        host.spin()
+        _spin_profiled(host) if os.environ.get("CNC_PROFILE_OUT") else host.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
@@ -176,6 +176,16 @@ def run_host(spec_file: Path, args: Sequence[str] | None = None) -> int:
             host.close()
         rclpy.try_shutdown()
     return 0
+
+
+def _spin_profiled(host: ComposedHost) -> None:
+    """Spin under cProfile (wall clock) and write the statistics to ``$CNC_PROFILE_OUT`` (a developer's aid)."""
+    import cProfile
+    profile = cProfile.Profile()
+    try:
+        profile.runcall(host.spin)
+    finally:
+        profile.dump_stats(os.environ["CNC_PROFILE_OUT"])
 
 
 def main(args: list[str] | None = None) -> None:
