@@ -4,6 +4,7 @@ Expected centres and directions are worked out by hand in the comments.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -15,6 +16,7 @@ from cnc_contour_control.gcode import parse_gcode
 from cnc_contour_control.geometry import ArcSegment
 from cnc_contour_control.interpolation import AxisLimits, Interpolator
 from cnc_contour_control.program import load_program
+from cnc_contour_control.program_goal import ProgramGoal
 
 XY = ("x", "y")
 
@@ -165,11 +167,23 @@ def test_path_tolerance_is_carried_on_the_program(text: str, tolerance_m: float 
 @pytest.mark.parametrize("text, message", [
     ("G64\nG1 X1 F100", r"line 1: G64 without P \(the path tolerance\); use G61 for exact stop"),
     ("G64 P0", r"line 1: P0: the path tolerance P must be > 0, got 0"),
+    ("G1 X1 F100\nG64 P-0.01", r"line 2: P-0.01: the path tolerance P must be > 0, got -0.01"),
+    ("G64 Pinf\nG1 X1 F100", r"line 1: cannot read 'Pinf'"),
     ("G64 P0.01\nG1 X1 F100\nG61", r"line 3: G61 changes the path tolerance set on line 1 \(0.01 mm\) to 0 mm"),
 ])
 def test_bad_path_control_is_refused(text: str, message: str) -> None:
     with pytest.raises(ProgramError, match=message):
         parse_gcode(text, axes=XY)
+
+
+@pytest.mark.parametrize("value", [-1e-6, math.nan, math.inf])
+def test_a_tolerance_below_zero_or_not_finite_is_refused_by_the_program_and_a_goal(value: float) -> None:
+    """The other ways in besides G64 P (the interpolator's path_tolerance_mm: test_blending.py)."""
+    program = parse_gcode("G1 X1 F100", axes=XY)
+    with pytest.raises(ProgramError, match=rf"path_tolerance_m must be finite and >= 0, got {value}"):
+        dataclasses.replace(program, path_tolerance_m=value)
+    with pytest.raises(ProgramError, match=rf"path_tolerance_mm must be finite and >= 0, got {value * 1e3}"):
+        ProgramGoal(gcode="G1 X1 F100", path_tolerance_mm=value * 1e3).check_options()
 
 
 # ----------------------------------------------------------------------------------------------- G90.1 / G91.1

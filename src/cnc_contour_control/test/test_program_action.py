@@ -129,7 +129,8 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
         probe.wait_for(lambda: len(paths) >= 3, 10.0, "a latched path per program")
         part = tmp_path / "part.ngc"
         part.write_text("G1 X2\n")
-        assert cli(["send-program", str(part), "--feed-mm-min", "1200"]) == 0, "the CLI client: completed"
+        assert cli(["send-program", str(part), "--feed-mm-min", "1200", "--path-tolerance-mm", "0.02"]) == 0, \
+            "the CLI client: completed"
     assert "part: completed" in capsys.readouterr().out
 
     assert [r.outcome for r in (result1, result2, result3)] == [RunProgram.Result.COMPLETED,
@@ -147,6 +148,7 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
     assert np.all(np.diff(stamps) == T_NS), "one reference per tick, stamps increasing across programs"
     starts = [stamp_to_ns(p.header.stamp) for p in paths]
     assert [p.program_name for p in paths] == ["gcode"] * 3 + ["part"] and starts == sorted(starts)
+    assert [p.path_tolerance_m for p in paths] == [0.0] * 3 + [pytest.approx(2e-5)], "the goal's tolerance"
     cancelled = references_between(probe, starts[1], starts[2])
     assert np.all(cancelled[:, 1] == pytest.approx(5e-3, abs=1e-12)), "stopped on the path (y = 5 mm)"
     assert -0.02 < cancelled[-1, 0] < 0.01 - 0.4 * 0.03

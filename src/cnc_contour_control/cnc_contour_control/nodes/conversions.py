@@ -1,6 +1,7 @@
 """Messages to arrays and back for the control nodes (the package's one conversions module)."""
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import NoReturn
 
@@ -110,7 +111,7 @@ def command_to_msg(output: ServoOutput, axis: str, law: str, unit: str, stamp_ns
 
 
 def program_to_path(program: Program, stamp_ns: int, frame_id: str, duration_s: float) -> Path:
-    """A core program to a Path message."""
+    """A core program to a Path message; its ``path_tolerance_m`` (None: NaN, not known) as the message's."""
     msg = Path()
     msg.header.stamp = ns_to_stamp(stamp_ns)
     msg.header.frame_id = frame_id
@@ -119,6 +120,7 @@ def program_to_path(program: Program, stamp_ns: int, frame_id: str, duration_s: 
     msg.segments = [_segment_msg(segment) for segment in program.segments]
     msg.total_length_m = float(program.total_length_m)
     msg.planned_duration_s = float(duration_s)
+    msg.path_tolerance_m = math.nan if program.path_tolerance_m is None else float(program.path_tolerance_m)
     return msg
 
 

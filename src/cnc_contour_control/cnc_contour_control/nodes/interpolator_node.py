@@ -23,7 +23,13 @@ from sensor_msgs.msg import JointState
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.feed_override import LiveReference, OverrideConfig, OverrideInbox, check_source
 from cnc_contour_control.geometry import Program
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig, ReferenceSample
+from cnc_contour_control.interpolation import (
+    AxisLimits,
+    Interpolator,
+    InterpolatorConfig,
+    ReferenceSample,
+    with_planning_tolerance,
+)
 from cnc_contour_control.lockstep import StampMatcher, ns_to_s, stamp_horizon_ns
 from cnc_contour_control.nodes.common import (
     LATCHED_QOS,
@@ -68,11 +74,10 @@ class InterpolatorNode(SuiteNode):
         self.reference_pub = self.gated_publisher(Reference, "reference", 1)
         self.path_pub = self.create_publisher(Path, "path", LATCHED_QOS)
         if self.session is None:  # the program as written: the scorer measures the blends' deviation as contour error
-            self.path_pub.publish(program_to_path(
-                self.interpolator.programmed_program, 0, self.frame_id, self.interpolator.duration_s))
+            self._publish_path(self.interpolator.programmed_program, self.interpolator, 0)
         else:
             self.action = ProgramActionServer(self, self.session, session_params.bag_path,
-                                              session_params.feedback_period_s, self._publish_path)
+                                              session_params.feedback_period_s, self._publish_started)
         # A joint state is answered at once (previous_tick: once feed_override(k-1) is in, watched by a timer);
         # the matcher checks stamps (from t = 0).
         self.matcher = StampMatcher(("joint_states",), math.inf, max_ahead_ns=stamp_horizon_ns())
@@ -180,9 +185,14 @@ class InterpolatorNode(SuiteNode):
         if self.action is not None:
             self.action.after_tick()
 
-    def _publish_path(self, program: Program, live: LiveReference, stamp_ns: int) -> None:
+    def _publish_started(self, program: Program, live: LiveReference, stamp_ns: int) -> None:
         """Each program of the action mode on the latched ``path``, stamped at its first tick."""
-        self.path_pub.publish(program_to_path(program, stamp_ns, self.frame_id, live.interpolator.duration_s))
+        self._publish_path(program, live.interpolator, stamp_ns)
+
+    def _publish_path(self, program: Program, interpolator: Interpolator, stamp_ns: int) -> None:
+        """``program`` as written on the latched ``path``, with the tolerance it is planned with (as the engine's)."""
+        self.path_pub.publish(program_to_path(with_planning_tolerance(program, interpolator.config), stamp_ns,
+                                              self.frame_id, interpolator.duration_s))
 
     def fault(self, message: str) -> None:
         """Fault as every node does; a running goal ends as faulted with the reason."""

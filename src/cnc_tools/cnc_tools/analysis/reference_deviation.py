@@ -7,10 +7,12 @@ programmed path, so it holds that deviation too; this part of the score
 tells them apart: the exact distance of every reference sample from the
 programmed path (``Program.contour_distance``), its largest value and RMS
 (``metrics`` ``max`` and ``rms``), and the tolerance the record carries
-(``RunRecord.program.path_tolerance_m``: the program's G64 P / G61, or the
-interpolator's tolerance as the engine records it; None when the record does
-not say, as in a bag, whose ``Path`` message has no tolerance). A deviation
-over the tolerance (beyond 1 nm of rounding) is a verdict line of the score.
+(``RunRecord.program.path_tolerance_m``: the tolerance the interpolator
+planned with, the program's G64 P / G61 or else its ``path_tolerance_mm``, as
+the engine records it and as a bag's ``Path`` message carries it; None when the
+record does not say: a bag recorded before ``Path`` had the field, or a NaN
+there). A deviation over the tolerance (beyond 1 nm of rounding) is a verdict
+line of the score.
 """
 from __future__ import annotations
 

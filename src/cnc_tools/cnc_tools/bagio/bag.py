@@ -16,6 +16,7 @@ This module decodes the raw messages into a :class:`RecordedRun`
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -384,15 +385,20 @@ _SEGMENT_KINDS: dict[int, tuple[Callable[[object, bool], LineSegment | ArcSegmen
 
 
 def program_from_path(message: object) -> Program:
-    """Build the program geometry from a deserialised ``cnc_contour_interfaces/msg/Path``."""
+    """Build the program geometry from a deserialised ``cnc_contour_interfaces/msg/Path``.
+
+    Its ``path_tolerance_m`` is the message's; None when the message says NaN (not known) or was recorded
+    with a ``Path`` definition that lacks the field (the bag's own schema, before the field existed).
+    """
     segments = []
     for index, seg in enumerate(message.segments):  # type: ignore[attr-defined]
         if seg.kind not in _SEGMENT_KINDS:
             raise BagError(f"path segment {index}: kind {seg.kind} is not one of {sorted(_SEGMENT_KINDS)}")
         build, clockwise = _SEGMENT_KINDS[seg.kind]
         segments.append(build(seg, clockwise))
+    tolerance_m = float(getattr(message, "path_tolerance_m", math.nan))
     return Program(name=message.program_name, axis_names=tuple(message.axis_names),  # type: ignore[attr-defined]
-                   segments=segments)
+                   segments=segments, path_tolerance_m=None if math.isnan(tolerance_m) else tolerance_m)
 
 
 def _program(raw: RawBag, topic: str) -> Program:

@@ -1,12 +1,14 @@
 """Synthetic programs, runs and bags with known errors: for tests, benchmarks and demonstrations (ROS-free)."""
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
+from rosbags.typesys.store import Typestore
 
 from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
 from cnc_tools.bagio.bag import BagIntegrity, BagWriter, JointStateSeries, RecordedRun, ReferenceSeries
@@ -82,7 +84,8 @@ def path_message(program: Program) -> object:
             feed_m_s=float(seg.feed_m_s), length_m=float(seg.length_m)))
     return types["cnc_contour_interfaces/msg/Path"](
         header=header(0, "machine"), program_name=program.name, axis_names=list(program.axis_names),
-        segments=segments, total_length_m=float(program.total_length_m), planned_duration_s=1.0)
+        segments=segments, total_length_m=float(program.total_length_m), planned_duration_s=1.0,
+        path_tolerance_m=math.nan if program.path_tolerance_m is None else float(program.path_tolerance_m))
 
 
 def header(stamp_ns: int, frame_id: str) -> object:
@@ -115,8 +118,13 @@ def axis_command(stamp_ns: int, axis: str, command: float, error_m: float) -> ob
 
 
 def write_run_bag(path: Path, program: Program, traj: Trajectory, *, commands: bool = True,
-                  joint_names: Sequence[str] | None = None, with_path: bool = True) -> Path:
-    """Record a synthetic run in a bag: path, joint_states, reference, clock, and per-axis commands."""
+                  joint_names: Sequence[str] | None = None, with_path: bool = True,
+                  typestore: Typestore | None = None) -> Path:
+    """Record a synthetic run in a bag: path, joint_states, reference, clock, and per-axis commands.
+
+    ``typestore`` gives the schemas the bag records (default the project's): another one writes a bag as an
+    older or newer suite would have (fields it lacks are left out).
+    """
     axes = list(program.axis_names)
     names = list(joint_names) if joint_names is not None else axes
     topics = dict(TOPICS)
@@ -125,7 +133,7 @@ def write_run_bag(path: Path, program: Program, traj: Trajectory, *, commands: b
     if commands:
         topics.update({f"{NS}/servo/{a}/command": COMMAND_TYPE for a in axes})
     clock_type = project_typestore().types["rosgraph_msgs/msg/Clock"]
-    with BagWriter(path, topics) as writer:
+    with BagWriter(path, topics, typestore=typestore) as writer:
         if with_path:
             writer.write_message(f"{NS}/path", 0, path_message(program))
         for k, stamp in enumerate(traj.stamp_ns.tolist()):
