@@ -29,6 +29,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
+import numpy as np
+
 from cnc_contour_control.config import build_config
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.params import check_ranges, config_values, param
@@ -40,50 +42,81 @@ MAX_AMPLITUDE = 1.0e6
 
 
 @dataclass(frozen=True)
-class PeriodicLoadConfig:
+class SpindleFields:
+    """The spindle's speed over a run: the fields every plant section with a spindle declares, and their check.
+
+    A base of :class:`PeriodicLoadConfig` and of the velocity-loop plants'
+    ``VelocityLoopOptions``: one declaration, one validator, one schedule.
+
+    Parameters
+    ----------
+    spindle_rpm : float
+        Spindle speed from t = 0 [rpm], in [0, 1e6].
+    flutes : int
+        Cutting edges (flutes) of the tool, in [1, 1000].
+    spindle_schedule_t_s : tuple of float
+        Times the spindle speed changes [s], > 0, strictly increasing.
+    spindle_schedule_rpm : tuple of float
+        The speed from each of those times on [rpm], > 0, one per time.
+    """
+
+    spindle_rpm: float = param(1500.0, unit="rpm", low=0.0, high=1.0e6, read_only=True,
+                               description="spindle speed from t = 0 (f_d = rpm * flutes / 60)")
+    flutes: int = param(2, low=1, high=1000, read_only=True, description="cutting edges (flutes) of the tool")
+    spindle_schedule_t_s: tuple[float, ...] = param((), unit="s", read_only=True,
+                                                    description="times the spindle speed changes, increasing")
+    spindle_schedule_rpm: tuple[float, ...] = param((), unit="rpm", read_only=True,
+                                                    description="spindle speed from each schedule time on")
+
+    def check_fields(self, context: str) -> None:
+        """Check every field (``flutes`` an integer, the ranges, the schedule), errors prefixed ``context.``.
+
+        The schedule's lists are stored as float tuples, ``flutes`` as an int.
+        """
+        if isinstance(self.flutes, bool) or not isinstance(self.flutes, (int, np.integer)):
+            raise ConfigError(f"{context}.flutes must be an integer in [1, 1000], got {self.flutes!r}")
+        check_ranges(self, context)
+        try:
+            times, rpms = spindle_schedule(self.spindle_schedule_t_s, self.spindle_schedule_rpm)
+        except ConfigError as err:
+            raise ConfigError(f"{context}.{err}") from err
+        if times and times[0] <= 0.0:
+            raise ConfigError(f"{context}.spindle_schedule_t_s[0] must be > 0, got {times[0]:g}")
+        object.__setattr__(self, "flutes", int(self.flutes))
+        object.__setattr__(self, "spindle_schedule_t_s", times)
+        object.__setattr__(self, "spindle_schedule_rpm", rpms)
+
+    def schedule(self) -> SpindleSchedule:
+        """The spindle speed over the run (f_d = rpm · flutes / 60 and its phase)."""
+        return SpindleSchedule.from_rpm(self.spindle_rpm, self.flutes, self.spindle_schedule_t_s,
+                                        self.spindle_schedule_rpm)
+
+
+@dataclass(frozen=True)
+class PeriodicLoadConfig(SpindleFields):
     """The ``plant.periodic_load`` section: a sinusoidal load at the plant input at the tooth-passing frequency.
 
     Parameters
     ----------
+    spindle_rpm, flutes, spindle_schedule_t_s, spindle_schedule_rpm
+        The spindle (:class:`SpindleFields`).
     amplitude : float
         A [command unit: DAC, N, m/s], in [0, 1e6]; 0: no load (the plant is not wrapped).
     phases_rad : tuple of float
         θ per axis in command order [rad], each in [-2π, 2π]; empty: 0 on every axis (a shorter list: 0 after it).
-    spindle_rpm : float
-        Spindle speed from t = 0 [rpm], in [0, 1e6].
-    flutes : int
-        Cutting edges of the tool, in [1, 1000].
-    spindle_schedule_t_s : tuple of float
-        Times the spindle speed changes [s], > 0, increasing.
-    spindle_schedule_rpm : tuple of float
-        The speed from each of those times on [rpm], > 0, one per time.
     """
 
     amplitude: float = param(0.0, unit="command", low=0.0, high=MAX_AMPLITUDE, read_only=True,
                              description="load amplitude A in the plant's command unit (0: no load)")
     phases_rad: tuple[float, ...] = param((), unit="rad", read_only=True,
                                           description="load phase theta per axis (empty: 0)")
-    spindle_rpm: float = param(1500.0, unit="rpm", low=0.0, high=1.0e6, read_only=True,
-                               description="spindle speed from t = 0 (f_d = rpm * flutes / 60)")
-    flutes: int = param(2, low=1, high=1000, read_only=True, description="cutting edges of the tool")
-    spindle_schedule_t_s: tuple[float, ...] = param((), unit="s", read_only=True,
-                                                    description="times the spindle speed changes, increasing")
-    spindle_schedule_rpm: tuple[float, ...] = param((), unit="rpm", read_only=True,
-                                                    description="spindle speed from each schedule time on")
 
     def __post_init__(self) -> None:
-        if isinstance(self.flutes, bool) or not isinstance(self.flutes, int):
-            raise ConfigError(f"periodic_load.flutes must be an integer in [1, 1000], got {self.flutes!r}")
-        check_ranges(self, "periodic_load")
+        self.check_fields("periodic_load")
         try:
-            times, rpms = spindle_schedule(self.spindle_schedule_t_s, self.spindle_schedule_rpm)
             phases = _phases(self.phases_rad)
         except ConfigError as err:
             raise ConfigError(f"periodic_load.{err}") from err
-        if times and times[0] <= 0.0:
-            raise ConfigError(f"periodic_load.spindle_schedule_t_s[0] must be > 0, got {times[0]:g}")
-        object.__setattr__(self, "spindle_schedule_t_s", times)
-        object.__setattr__(self, "spindle_schedule_rpm", rpms)
         object.__setattr__(self, "phases_rad", phases)
 
     @classmethod
@@ -97,11 +130,6 @@ class PeriodicLoadConfig:
     def active(self) -> bool:
         """True when the load is on (amplitude > 0)."""
         return self.amplitude > 0.0
-
-    def schedule(self) -> SpindleSchedule:
-        """The spindle speed over the run (f_d and its phase)."""
-        return SpindleSchedule.from_rpm(self.spindle_rpm, int(self.flutes), self.spindle_schedule_t_s,
-                                        self.spindle_schedule_rpm)
 
     def phase_rad(self, index: int) -> float:
         """θ of axis ``index`` [rad] (0 beyond the list)."""

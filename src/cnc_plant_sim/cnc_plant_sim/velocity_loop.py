@@ -53,7 +53,6 @@ from scipy.linalg import expm
 from cnc_contour_control.config import build_config, require_choice
 from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.params import check_ranges, config_values, param
-from cnc_contour_control.spindle import SpindleSchedule
 from cnc_contour_control.units import M_PER_MM, M_PER_PULSE_PAPER002
 from cnc_contour_control.velocity_models import (
     PAPER002_MODELS,
@@ -62,7 +61,7 @@ from cnc_contour_control.velocity_models import (
     PiVelocityLoop,
 )
 
-from cnc_plant_sim.periodic_load import require_below_nyquist_rpm, schedule_from
+from cnc_plant_sim.periodic_load import SpindleFields, require_below_nyquist_rpm, schedule_from
 from cnc_plant_sim.step_checks import check_length, check_step, is_finite_number
 
 #: Paper 003's table, "standard" column: K1 = K_si [Nm/rad], K2 = K_sp [Nm s/rad].
@@ -74,63 +73,23 @@ _DIST_RANGE_MM_S = (0.0, 1.0e6)
 
 
 @dataclass(frozen=True)
-class VelocityLoopOptions:
+class VelocityLoopOptions(SpindleFields):
     """Model-wide options of the velocity-loop plants (the ``velocity_loop`` section of a plant config).
 
     Parameters
     ----------
-    spindle_rpm : float
-        Spindle speed w_s from t = 0 [rpm], in [0, 1e6].
-    flutes : int
-        Number of flutes l of the tool, >= 1.
-    spindle_schedule_t_s : tuple of float
-        Times of spindle-speed changes [s], strictly increasing, > 0.
-    spindle_schedule_rpm : tuple of float
-        The spindle speed from each of those times on [rpm], one per time.
+    spindle_rpm, flutes, spindle_schedule_t_s, spindle_schedule_rpm
+        The spindle speed w_s over the run and the tool's flutes l
+        (:class:`~cnc_plant_sim.periodic_load.SpindleFields`).
     encoder_pulse_m : float
         Encoder resolution [m] (0: positions not quantised), in [0, 1e-3].
     """
 
-    spindle_rpm: float = param(1500.0, unit="rpm", low=0.0, high=1.0e6, read_only=True,
-                               description="spindle speed from t = 0 (f_d = rpm * flutes / 60)")
-    flutes: int = param(2, low=1, high=1000, read_only=True, description="flutes of the tool")
-    spindle_schedule_t_s: tuple[float, ...] = param((), unit="s", read_only=True,
-                                                    description="times of spindle-speed changes, increasing")
-    spindle_schedule_rpm: tuple[float, ...] = param((), unit="rpm", read_only=True,
-                                                    description="spindle speed from each schedule time on")
     encoder_pulse_m: float = param(M_PER_PULSE_PAPER002, unit="m", low=0.0, high=1.0e-3, read_only=True,
                                    description="encoder resolution (0: off; paper 002: 1/2.4 um)")
 
     def __post_init__(self) -> None:
-        if isinstance(self.flutes, bool) or not isinstance(self.flutes, (int, np.integer)):
-            raise ConfigError(f"velocity_loop.flutes must be an integer >= 1, got {self.flutes!r}")
-        check_ranges(self, "velocity_loop")
-        times = _float_tuple("spindle_schedule_t_s", self.spindle_schedule_t_s)
-        rpms = _float_tuple("spindle_schedule_rpm", self.spindle_schedule_rpm)
-        if len(times) != len(rpms):
-            raise ConfigError(f"velocity_loop.spindle_schedule_rpm must have one entry per "
-                              f"spindle_schedule_t_s ({len(times)}), got {len(rpms)}")
-        for i, (t, rpm) in enumerate(zip(times, rpms)):
-            if not (t > (times[i - 1] if i else 0.0)):
-                raise ConfigError(f"velocity_loop.spindle_schedule_t_s[{i}] must be > "
-                                  f"{times[i - 1] if i else 0.0}, got {t}")
-            if not 0.0 <= rpm <= 1.0e6:
-                raise ConfigError(f"velocity_loop.spindle_schedule_rpm[{i}] must be in [0, 1e6], got {rpm}")
-        object.__setattr__(self, "spindle_schedule_t_s", times)
-        object.__setattr__(self, "spindle_schedule_rpm", rpms)
-
-    def schedule(self) -> SpindleSchedule:
-        """The spindle speed over time."""
-        return SpindleSchedule.from_rpm(self.spindle_rpm, self.flutes, self.spindle_schedule_t_s,
-                                        self.spindle_schedule_rpm)
-
-
-def _float_tuple(name: str, values: Any) -> tuple[float, ...]:
-    if isinstance(values, (str, bytes)) or not isinstance(values, Sequence):
-        raise ConfigError(f"velocity_loop.{name} must be a list of numbers, got {values!r}")
-    if not all(is_finite_number(v) and not isinstance(v, bool) for v in values):
-        raise ConfigError(f"velocity_loop.{name} must hold finite numbers, got {list(values)!r}")
-    return tuple(float(v) for v in values)
+        self.check_fields("velocity_loop")
 
 
 @dataclass(frozen=True)

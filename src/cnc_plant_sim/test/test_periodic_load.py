@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 from cnc_contour_control.errors import ConfigError
-from cnc_plant_sim.periodic_load import PeriodicLoadConfig, PeriodicLoadPlant, schedule_from, set_spindle_rpm
+from cnc_plant_sim.periodic_load import (PeriodicLoadConfig, PeriodicLoadPlant, SpindleFields, schedule_from,
+                                         set_spindle_rpm)
 from cnc_plant_sim.plant import PlantConfig, make_plant
-from cnc_plant_sim.velocity_loop import VelocityLoopPlant
+from cnc_plant_sim.velocity_loop import VelocityLoopOptions, VelocityLoopPlant
 
 DT_S = 0.01
 LOAD = {"amplitude": 60.0, "spindle_rpm": 300.0, "flutes": 2, "phases_rad": [0.0, 1.0]}
@@ -86,3 +87,29 @@ def test_a_velocity_loop_plant_follows_the_live_speed_too_and_a_plant_without_a_
 def test_a_bad_section_is_refused_naming_the_option_the_bound_and_the_value(values: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
         PlantConfig.from_mapping({"model": "paper000", "periodic_load": values})
+
+
+@pytest.mark.parametrize("config, context", [(PeriodicLoadConfig, "periodic_load"),
+                                             (VelocityLoopOptions, "velocity_loop")])
+@pytest.mark.parametrize(("values", "message"), [
+    ({"flutes": 2.5}, r"{}.flutes must be an integer in \[1, 1000\], got 2.5"),
+    ({"flutes": 0}, r"{}.flutes must be in \[1, 1000\], got 0"),
+    ({"spindle_schedule_t_s": [0.0], "spindle_schedule_rpm": [100.0]}, r"{}.spindle_schedule_t_s\[0\] must be > 0"),
+    ({"spindle_schedule_t_s": [1.0, 0.5], "spindle_schedule_rpm": [1, 2]},
+     r"{}.spindle_schedule_t_s\[1\] must be > 1, got 0.5"),
+    ({"spindle_schedule_t_s": [1.0], "spindle_schedule_rpm": [0.0]}, r"{}.spindle_schedule_rpm\[0\] must be > 0"),
+])
+def test_both_spindle_sections_share_one_declaration_and_one_check(config: type, context: str, values: dict,
+                                                                   message: str) -> None:
+    assert issubclass(config, SpindleFields)
+    with pytest.raises(ConfigError, match=message.format(context)):
+        config(**values)
+
+
+def test_the_shared_fields_build_the_same_schedule_in_both_sections() -> None:
+    fields = {"spindle_rpm": 900, "flutes": np.int64(3), "spindle_schedule_t_s": [0.5], "spindle_schedule_rpm": [1200]}
+    load, loop = PeriodicLoadConfig(**fields), VelocityLoopOptions(**fields)
+    assert load.flutes == loop.flutes == 3 and type(loop.flutes) is int
+    for schedule in (load.schedule(), loop.schedule()):
+        assert (schedule.start_times_s, schedule.frequencies_hz) == ((0.0, 0.5), (45.0, 60.0))
+    assert loop.schedule().frequency_hz(0.6) == pytest.approx(1200 * 3 / 60)

@@ -180,7 +180,7 @@ def test_disturbance_at_or_above_nyquist_is_refused(options: dict, message: str)
     ({"velocity_loop": {"flutes": 0}}, r"velocity_loop.flutes must be in \[1, 1000\], got 0"),
     ({"velocity_loop": {"spindle_rpm": -1}}, r"velocity_loop.spindle_rpm must be in \[0.0, 1000000.0\], got -1"),
     ({"velocity_loop": {"spindle_schedule_t_s": [1.0, 0.5], "spindle_schedule_rpm": [1, 2]}},
-     r"spindle_schedule_t_s\[1\] must be > 1.0, got 0.5"),
+     r"velocity_loop.spindle_schedule_t_s\[1\] must be > 1, got 0.5"),
     ({"velocity_loop": {"spindle_schedule_t_s": [1.0], "spindle_schedule_rpm": []}},
      r"spindle_schedule_rpm must have one entry per spindle_schedule_t_s \(1\), got 0"),
     ({"axis_overrides": {"x": {"loop": "pid"}}}, r"axis_overrides.x.*loop.*pid"),

@@ -6,7 +6,9 @@ package's ``conversions`` module and call the ROS-free core.
 from __future__ import annotations
 
 import importlib
+import signal
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -20,6 +22,7 @@ from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
 
 from cnc_contour_control.errors import CncError, FaultError
 from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, join_ns, split_ns
@@ -341,7 +344,7 @@ class SuiteNode(ManagedNode):
         """Wrap a callback so a suite error becomes a fault, not a traceback."""
 
         def run(*args: Any) -> None:
-            if self.finished:
+            if self.finished or StopSignals.stopping():  # a stopping process only winds down (no late faults)
                 return
             try:
                 callback(*args)
@@ -386,41 +389,98 @@ def wall_time_s() -> float:
     return time.monotonic()
 
 
+class StopSignals:
+    """SIGINT and SIGTERM noted, not raised, while in the ``with`` block (main thread only; elsewhere rclpy's).
+
+    rclpy's own handlers shut the context down at once, in the middle of
+    whatever callback runs: its next publish raises "publisher's context is
+    invalid" (a traceback on Ctrl-C). Noted instead, the signal ends the spin
+    loop at its next turn, and the node is destroyed with its context alive.
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+    #: The process's installed instance, while its ``with`` block runs.
+    active: StopSignals | None = None
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self.installed = threading.current_thread() is threading.main_thread()
+        self._previous: dict[int, Any] = {}
+
+    def __enter__(self) -> StopSignals:
+        if self.installed:
+            self._previous = {signum: signal.signal(signum, self._note) for signum in self.SIGNALS}
+            StopSignals.active = self
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if StopSignals.active is self:
+            StopSignals.active = None
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+
+    def _note(self, signum: int, frame: object) -> None:
+        self.signum = self.signum or signum  # the first one counts; later ones while stopping are ignored
+
+    @property
+    def requested(self) -> bool:
+        """True once a stop signal came."""
+        return self.signum is not None
+
+    @classmethod
+    def stopping(cls) -> bool:
+        """True once a signal came to the process's active instance (its guarded callbacks then do nothing)."""
+        return cls.active is not None and cls.active.requested
+
+    def init_ros(self, args: Sequence[str] | None) -> None:
+        """``rclpy.init`` without rclpy's signal handlers when ours are installed."""
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if self.installed else None)
+
+
 def spin_node(factory: Callable[[], SuiteNode], args: Sequence[str] | None = None) -> int:
-    """Run a node until it finishes, faults or is interrupted; return the exit code."""
-    rclpy.init(args=args)
+    """Run a node until it finishes, faults or is stopped; return the exit code.
+
+    0 when it finished or was stopped (SIGINT, SIGTERM: no traceback, the
+    node destroyed: the plant writes ``interrupted``, the recorder closes its
+    bag), :data:`EXIT_FAULT` after a fault.
+    """
     node: SuiteNode | None = None
     code = 0
-    try:
-        node = factory()
-        executor = make_executor(node.context)
-        executor.add_node(node)
-        while rclpy.ok() and not node.finished:
-            executor.spin_once(timeout_sec=0.1)
-        code = EXIT_FAULT if node.fault_message else 0
-    except (KeyboardInterrupt, ExternalShutdownException):
-        code = 0
-    except CncError as err:
-        print(f"FAULT: {err}", file=sys.stderr, flush=True)
-        code = EXIT_FAULT
-    finally:
-        if node is not None:
-            flush_and_destroy(node)
-        rclpy.try_shutdown()
+    with StopSignals() as stop:
+        stop.init_ros(args)
+        try:
+            node = factory()
+            executor = make_executor(node.context)
+            executor.add_node(node)
+            while rclpy.ok() and not node.finished and not stop.requested:
+                executor.spin_once(timeout_sec=0.1)
+            code = EXIT_FAULT if node.fault_message else 0
+        except (KeyboardInterrupt, ExternalShutdownException):
+            code = 0
+        except CncError as err:
+            print(f"FAULT: {err}", file=sys.stderr, flush=True)
+            code = EXIT_FAULT
+        finally:
+            if node is not None:
+                flush_and_destroy(node, flush=not stop.requested)
+            rclpy.try_shutdown()
     return code
 
 
-def flush_and_destroy(node: SuiteNode) -> None:
-    """Wait (bounded) until every reader acknowledged what this node published, then destroy it (a node's exit)."""
+def flush_and_destroy(node: SuiteNode, flush: bool = True) -> None:
+    """Wait (bounded) until every reader acknowledged what this node published, then destroy it (a node's exit).
+
+    ``flush=False`` (stopped by a signal): destroy at once, as the partners are stopping too.
+    """
     if node.fault_message:
         print(f"FAULT: {node.fault_message}", file=sys.stderr, flush=True)
     # After a fault, readers may be gone: wait briefly so the diagnostic still leaves.
     timeout = Duration(seconds=0.3 if node.fault_message else 2.0)
     try:
-        if node.context.ok():  # after SIGINT/SIGTERM the context is gone and nothing can be flushed
+        if flush and node.context.ok():  # a context shut down from outside flushes nothing
             for publisher in list(node.publishers):
                 publisher.wait_for_all_acked(timeout)
-    except RuntimeError:  # rclpy's RCLError: a signal shut the context down meanwhile
+    except RuntimeError:  # rclpy's RCLError: the context was shut down meanwhile
         pass
     finally:
         node.destroy_node()  # always: the recorder closes its bag here

@@ -35,7 +35,8 @@ from rclpy.executors import ExternalShutdownException
 
 from cnc_contour_control.errors import CncError
 from cnc_contour_control.nodes import local_bus
-from cnc_contour_control.nodes.common import EXIT_FAULT, SuiteNode, flush_and_destroy, make_executor, wall_time_s
+from cnc_contour_control.nodes.common import (EXIT_FAULT, StopSignals, SuiteNode, flush_and_destroy, make_executor,
+                                              wall_time_s)
 from cnc_tools.nodes.composable import node_class
 from cnc_tools.runs.compose import HOST, MemberExit, read_host_spec, write_exits
 
@@ -64,8 +65,9 @@ def culprit(trace: TracebackType | None, nodes: dict[str, Any]) -> str | None:
 class ComposedHost:
     """Members by name, one executor, and the ends noted in ``exits_file``."""
 
-    def __init__(self, context: Any, exits_file: Path | None) -> None:
+    def __init__(self, context: Any, exits_file: Path | None, stop: StopSignals | None = None) -> None:
         self.context, self.exits_file = context, exits_file
+        self.stop = stop  # SIGINT/SIGTERM noted by run_host: the spin loop ends at its next turn
         self.executor = make_executor(context)
         self.bus = make_bus()
         if self.bus is not None:
@@ -88,9 +90,9 @@ class ComposedHost:
         self.executor.add_node(node)
 
     def spin(self, until: Callable[[], bool] | None = None) -> None:
-        """Spin until every member ended, the context is shut down (a signal) or ``until()`` holds."""
+        """Spin until every member ended, a signal came, the context is shut down or ``until()`` holds."""
         next_poll_s = 0.0
-        while self.live and self.context.ok() and not (until is not None and until()):
+        while self.live and self.context.ok() and not self.stopped and not (until is not None and until()):
             try:
                 next_poll_s = self._bus_turn(next_poll_s)
                 self.executor.spin_once(timeout_sec=0.0 if self.bus is not None and self.bus.pending else 0.1)
@@ -102,6 +104,11 @@ class ComposedHost:
                 node = self.live[name]
                 self.end(name, EXIT_FAULT if node.fault_message else 0,
                          f"FAULT: {node.fault_message}" if node.fault_message else "finished")
+
+    @property
+    def stopped(self) -> bool:
+        """True once SIGINT or SIGTERM came."""
+        return self.stop is not None and self.stop.requested
 
     def _bus_turn(self, next_poll_s: float) -> float:
         """One batch of local deliveries, and the look for outside publishers when due; the next look's time."""
@@ -151,7 +158,7 @@ class ComposedHost:
             del self.live[name]
             if self.bus is not None:
                 self.bus.forget(node)
-            flush_and_destroy(node)
+            flush_and_destroy(node, flush=not self.stopped)
         self.executor.shutdown()
         if self.bus is not None:
             local_bus.detach(self.context)
@@ -162,19 +169,21 @@ class ComposedHost:
 def run_host(spec_file: Path, args: Sequence[str] | None = None) -> int:
     """Build the spec's members, spin them until they end; the host's exit code (0 unless the host itself failed)."""
     spec = read_host_spec(spec_file)
-    rclpy.init(args=args)
     host: ComposedHost | None = None
-    try:
-        host = ComposedHost(rclpy.get_default_context(), Path(spec["exits_file"]) if spec.get("exits_file") else None)
-        for entry in spec["nodes"]:
-            host.add(entry["name"], node_class(entry["package"], entry["executable"]), entry["arguments"])
-        _spin_profiled(host) if os.environ.get("CNC_PROFILE_OUT") else host.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if host is not None:
-            host.close()
-        rclpy.try_shutdown()
+    with StopSignals() as stop:  # SIGINT/SIGTERM: members destroyed in a live context, no traceback, exit code 0
+        stop.init_ros(args)
+        try:
+            host = ComposedHost(rclpy.get_default_context(),
+                                Path(spec["exits_file"]) if spec.get("exits_file") else None, stop)
+            for entry in spec["nodes"]:
+                host.add(entry["name"], node_class(entry["package"], entry["executable"]), entry["arguments"])
+            _spin_profiled(host) if os.environ.get("CNC_PROFILE_OUT") else host.spin()
+        except (KeyboardInterrupt, ExternalShutdownException):
+            pass
+        finally:
+            if host is not None:
+                host.close()
+            rclpy.try_shutdown()
     return 0
 
 
