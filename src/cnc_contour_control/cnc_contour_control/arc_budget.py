@@ -12,6 +12,14 @@ tangential acceleration may be ``sqrt(amax_j² - (v² κ)²) / ρ`` at speeds up
 other valid bound; each axis takes the larger of the two. An out-of-plane
 (helix) axis has ``K_j = 0`` and ``|a_t| |T_j| <= amax_j``. The planner keeps
 the speed on a segment at most its cruise speed, which is the ``v`` used here.
+
+Both bounds fall as ``v`` rises, so the budget at the top of a speed interval
+holds over the whole interval: :func:`speed_bands` splits ``[0, V]`` at
+``V sqrt(i / n)`` into ``n`` bands, each with the budget at its highest speed
+(the planner accelerates through them in turn: a tangential acceleration that
+grows as the speed drops, constant within a band, so every sample stays
+closed-form). With ``f`` = 0.8 the time from rest to ``V`` is 1.53 times the
+continuous budget's with one band, 1.06 with four, 1.026 with eight.
 """
 from __future__ import annotations
 
@@ -83,3 +91,31 @@ def combined_tangential_rows(kappa_per_m: FloatArray, rate: FloatArray, in_plane
     out_of_plane = np.divide(limit, max_abs_tangent, out=np.full(used.shape, np.inf), where=used)
     bounds = np.where(in_plane, np.maximum(np.maximum(split, combined), 0.0), out_of_plane)
     return bounds.min(axis=1)
+
+
+def band_edges_m_s(cruise_m_s: FloatArray, n_bands: int) -> FloatArray:
+    """Speed band edges ``V sqrt(i / n)``, i = 0..n, of every row, m/s, shape ``(M, n_bands + 1)``."""
+    return np.asarray(cruise_m_s, dtype=float)[:, None] * np.sqrt(np.arange(n_bands + 1) / n_bands)[None, :]
+
+
+def speed_bands(kappa_per_m: FloatArray, rate: FloatArray, in_plane: NDArray[np.bool_], cruise_m_s: FloatArray,
+                max_acceleration_m_s2: FloatArray, max_abs_tangent: FloatArray,
+                max_abs_curvature_per_m: FloatArray, n_bands: int) -> tuple[FloatArray, FloatArray]:
+    """Speed bands of many arcs and the tangential acceleration that holds over each (the budget at its top).
+
+    Parameters are those of :func:`combined_tangential_rows` (``cruise_m_s``: each arc's cruise speed), and
+    ``n_bands`` (>= 1) the number of bands.
+
+    Returns
+    -------
+    edges_m_s : ndarray, shape (M, n_bands + 1)
+        Band edges from 0 to the cruise speed, m/s (:func:`band_edges_m_s`).
+    accel_m_s2 : ndarray, shape (M, n_bands)
+        Tangential acceleration in each band, m/s²; the last band's is :func:`combined_tangential_rows` at the
+        cruise speed, the others are larger or equal.
+    """
+    edges = band_edges_m_s(cruise_m_s, n_bands)
+    rows = np.repeat(np.arange(edges.shape[0]), n_bands)
+    accel = combined_tangential_rows(kappa_per_m[rows], rate[rows], in_plane[rows], edges[:, 1:].ravel(),
+                                     max_acceleration_m_s2, max_abs_tangent[rows], max_abs_curvature_per_m[rows])
+    return edges, accel.reshape(edges.shape[0], n_bands)

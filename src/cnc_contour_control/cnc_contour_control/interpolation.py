@@ -20,6 +20,13 @@ finite-difference acceleration can exceed the limits. The default tolerance
 (1e-4 deg, 1.7 µrad) only absorbs rounding in exactly tangent geometry; raise
 it for G-code with few decimals, knowing the step it allows.
 
+With ``arc_combined_budget`` an arc's speed range is split into
+``arc_speed_bands`` bands, each with the budget at its highest speed
+(:func:`cnc_contour_control.arc_budget.speed_bands`): its accelerate and
+decelerate phases are one constant-acceleration phase per band crossed.
+``look_ahead_segments`` caps each junction's speed so that the segments in
+that window can brake to rest (:func:`~cnc_contour_control.plan_arrays.look_ahead_caps_m_s`).
+
 With a path tolerance (``path_tolerance_mm``, or the program's G64 P) the
 profile is planned over the blended program (:mod:`cnc_contour_control.blending`:
 line-line corners rounded by tangent arcs): :attr:`Interpolator.program` is
@@ -43,7 +50,8 @@ from cnc_contour_control.config import build_config, require_non_negative, requi
 from cnc_contour_control.errors import ConfigError, ProgramError
 from cnc_contour_control.geometry import Program, Segment
 from cnc_contour_control.params import check_ranges, param
-from cnc_contour_control.plan_arrays import junction_speeds_m_s, plan_limits, profile_phases
+from cnc_contour_control.plan_arrays import (SpeedBands, banded_junction_speeds_m_s, banded_phases,
+                                             look_ahead_caps_m_s, plan_banded_limits, profile_phases)
 from cnc_contour_control.segment_tangents import junction_turns_rad
 
 FloatArray = NDArray[np.float64]
@@ -109,6 +117,18 @@ class InterpolatorConfig:
         centripetal one, ``sqrt(a_t**2 + (v**2 κ)**2) <= amax`` per axis
         (:mod:`cnc_contour_control.arc_budget`), instead of only the split
         ``(1 - f) amax``: faster speed changes on arcs, same limits.
+    arc_speed_bands : int
+        With ``arc_combined_budget``: bands of speed on each arc, in [1, 64],
+        each with the budget at its highest speed
+        (:func:`cnc_contour_control.arc_budget.speed_bands`), so that an arc
+        speeds up and brakes harder the slower it goes. 1: one constant
+        tangential acceleration per arc (the budget at its cruise speed).
+    look_ahead_segments : int
+        Segments the planner sees ahead of each junction, in [1, 1e9]: the
+        speed there must allow a stop at the end of the last one (a look-ahead
+        buffer; :func:`cnc_contour_control.plan_arrays.look_ahead_caps_m_s`).
+        The default (1e6) is longer than any braking distance of today's
+        programs: their plan is unchanged.
     path_tolerance_mm : float
         Largest distance of a corner blend from the programmed corner, mm, in
         [0, 1000] (G64 P; :mod:`cnc_contour_control.blending`). 0 plans the
@@ -131,6 +151,13 @@ class InterpolatorConfig:
     arc_combined_budget: bool = param(
         False, read_only=True,
         description="bound an arc's tangential and centripetal acceleration together (faster speed changes on arcs)")
+    arc_speed_bands: int = param(
+        8, low=1, high=64, read_only=True,
+        description="with arc_combined_budget: speed bands per arc, each with the acceleration budget at its top "
+                    "speed")
+    look_ahead_segments: int = param(
+        1_000_000, low=1, high=1.0e9, read_only=True,
+        description="segments planned ahead of each junction; the speed there allows a stop at the last one's end")
     path_tolerance_mm: float = param(
         0.0, unit="mm", low=0.0, high=1000.0, read_only=True,
         description="largest deviation of corner blends from the programmed path (G64 P; 0: no blending, the "
@@ -147,6 +174,11 @@ class InterpolatorConfig:
         for name in ("clamp_feed", "arc_combined_budget"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        for name in ("arc_speed_bands", "look_ahead_segments"):
+            value = getattr(self, name)
+            if isinstance(value, float) and not value.is_integer():
+                raise ConfigError(f"{name} must be a whole number, got {value!r}")
+            object.__setattr__(self, name, int(value))
 
 
 @dataclass(frozen=True)
@@ -200,14 +232,15 @@ def segment_limits(index: int, segment: Segment, limits: AxisLimits, config: Int
     ProgramError
         If the programmed feed exceeds the axis velocity limits and ``config.clamp_feed`` is False.
     """
-    speed, accel = _plan_limits([segment], limits, config, index)
+    speed, accel, _ = _plan_limits([segment], limits, config, index)
     return SegmentLimits(float(speed[0]), float(accel[0]))
 
 
 def _plan_limits(segments: Sequence[Segment], limits: AxisLimits, config: InterpolatorConfig,
-                 first_index: int = 0) -> tuple[FloatArray, FloatArray]:
-    return plan_limits(segments, np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
-                       config.arc_centripetal_fraction, config.arc_combined_budget, config.clamp_feed, first_index)
+                 first_index: int = 0) -> tuple[FloatArray, FloatArray, SpeedBands]:
+    return plan_banded_limits(segments, np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
+                              config.arc_centripetal_fraction, config.arc_combined_budget, config.clamp_feed,
+                              first_index, config.arc_speed_bands)
 
 
 def planning_tolerance_m(program: Program, config: InterpolatorConfig) -> float:
@@ -231,15 +264,19 @@ def with_planning_tolerance(program: Program, config: InterpolatorConfig) -> Pro
 
 def junction_speeds(program: Program, plans: list[SegmentLimits], tolerance_rad: float) -> FloatArray:
     """Speed at every junction (m/s, shape ``(n_segments + 1,)``), reachable both ways."""
-    return _junction_speeds(program, np.array([plan.speed_m_s for plan in plans]),
-                            np.array([plan.acceleration_m_s2 for plan in plans]), tolerance_rad)
+    cruise = np.array([plan.speed_m_s for plan in plans])
+    return _junction_speeds(program, cruise, SpeedBands.single(cruise, np.array([p.acceleration_m_s2 for p in plans])),
+                            tolerance_rad)
 
 
-def _junction_speeds(program: Program, cruise_m_s: FloatArray, accel_m_s2: FloatArray,
-                     tolerance_rad: float) -> FloatArray:
+def _junction_speeds(program: Program, cruise_m_s: FloatArray, bands: SpeedBands, tolerance_rad: float,
+                     look_ahead_segments: int | None = None) -> FloatArray:
     smooth = (junction_turns_rad(program.segments) <= tolerance_rad) & (program.junction_dwell_s[1:-1] == 0.0)
     lengths = np.array([segment.length_m for segment in program.segments])
-    return junction_speeds_m_s(cruise_m_s, accel_m_s2, lengths, smooth)
+    window = None
+    if look_ahead_segments is not None and look_ahead_segments < len(lengths):
+        window = look_ahead_caps_m_s(bands.accel_m_s2[:, -1], lengths, look_ahead_segments)
+    return banded_junction_speeds_m_s(cruise_m_s, bands, lengths, smooth, window)
 
 
 def segment_phases(length_m: float, entry_m_s: float, exit_m_s: float,
@@ -290,9 +327,10 @@ class Interpolator:
             raise ConfigError(
                 f"limits must have one entry per program axis ({program.n_axes}: {list(program.axis_names)}), "
                 f"got {limits.n_axes}")
-        self.cruise_speed_m_s, self.tangential_acceleration_m_s2 = _plan_limits(program.segments, limits, self.config)
-        self.junction_speeds_m_s = _junction_speeds(program, self.cruise_speed_m_s, self.tangential_acceleration_m_s2,
-                                                    tolerance_rad)
+        self.cruise_speed_m_s, self.tangential_acceleration_m_s2, self.speed_bands = _plan_limits(
+            program.segments, limits, self.config)
+        self.junction_speeds_m_s = _junction_speeds(program, self.cruise_speed_m_s, self.speed_bands, tolerance_rad,
+                                                    self.config.look_ahead_segments)
         self._build_phases()
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
         self._profile_time_s = 0.0
@@ -307,8 +345,8 @@ class Interpolator:
     def _build_phases(self) -> None:
         speeds = self.junction_speeds_m_s
         lengths = np.array([segment.length_m for segment in self.program.segments])
-        self._phases = phases = profile_phases(lengths, speeds[:-1], speeds[1:], self.cruise_speed_m_s,
-                                               self.tangential_acceleration_m_s2, self.program.junction_dwell_s)
+        self._phases = phases = banded_phases(lengths, speeds[:-1], speeds[1:], self.cruise_speed_m_s,
+                                              self.speed_bands, self.program.junction_dwell_s)
         self._phase_start_s = phases.start_s[:-1].tolist()
         self._phase_s0_m, self._phase_v0_m_s = phases.s0_m.tolist(), phases.v0_m_s.tolist()
         self._phase_accel_m_s2, self._phase_segment = phases.accel_m_s2.tolist(), phases.segment.tolist()

@@ -6,6 +6,10 @@ constructors, each segment's limits from its own ``max_abs_tangent`` /
 ``max_abs_curvature_per_m`` and the per-axis arc budget, the junction speeds
 and the trapezoid phases by loops. The planner must agree with it to 1e-12
 on short programs of every kind (lines, arcs, helices, dwells, 2 and 3 axes).
+The reference also plans the arcs' speed bands (``arc_speed_bands``, combined
+budget): each band's acceleration from the per-axis loop at its top speed,
+junction speeds by summing band distances, each segment's peak speed by
+bisection (not the planner's closed form) and one phase per band crossed.
 """
 from __future__ import annotations
 
@@ -28,6 +32,9 @@ LIMITS = {2: _BLENDING.LIMITS_2, 3: _BLENDING.LIMITS_3}
 CONFIGS = {
     "combined 0.01 mm": InterpolatorConfig(path_tolerance_mm=0.01, arc_combined_budget=True,
                                            arc_centripetal_fraction=0.8),
+    "combined 1 band": InterpolatorConfig(path_tolerance_mm=0.01, arc_combined_budget=True,
+                                          arc_centripetal_fraction=0.8, arc_speed_bands=1),
+    "combined 3 bands 0.1 mm": InterpolatorConfig(path_tolerance_mm=0.1, arc_combined_budget=True, arc_speed_bands=3),
     "split 0.1 mm": InterpolatorConfig(path_tolerance_mm=0.1),
     "exact stop": InterpolatorConfig(),
 }
@@ -64,16 +71,11 @@ def _min_ratio(budget: np.ndarray, usage: np.ndarray) -> float:
     return float(np.divide(budget, usage, out=np.full(budget.shape, math.inf), where=used).min())
 
 
-def reference_limits(segment: Segment, limits: AxisLimits, config: InterpolatorConfig) -> tuple[float, float]:
-    """Cruise speed and tangential acceleration of one segment, from its own methods, axis by axis."""
-    velocity, acceleration = np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2)
-    tangent, curvature = segment.max_abs_tangent(), segment.max_abs_curvature_per_m()
-    axis_speed = _min_ratio(velocity, tangent)
-    fraction = config.arc_centripetal_fraction if curvature.any() else 0.0
-    centripetal = math.sqrt(_min_ratio(fraction * acceleration, curvature)) if fraction else math.inf
-    speed = min(segment.feed_m_s, axis_speed, centripetal)
-    if not (config.arc_combined_budget and isinstance(segment, ArcSegment)):
-        return speed, _min_ratio((1.0 - fraction) * acceleration, tangent)
+Band = tuple[float, float, float]  # (lowest speed m/s, highest speed m/s, tangential acceleration m/s^2)
+
+
+def _arc_accel(segment: ArcSegment, acceleration: np.ndarray, tangent: np.ndarray, curvature: np.ndarray,
+               speed: float) -> float:
     kappa = segment.radius_m * (segment.sweep_rad / segment.length_m) ** 2
     rate = segment.radius_m * segment.sweep_rad / segment.length_m
     bounds = []
@@ -83,33 +85,80 @@ def reference_limits(segment: Segment, limits: AxisLimits, config: InterpolatorC
             bounds.append(max(split, math.sqrt(max(limit ** 2 - (speed ** 2 * kappa) ** 2, 0.0)) / rate, 0.0))
         elif tangent[j] > 1e-12:
             bounds.append(limit / tangent[j])
-    return speed, min(bounds) if bounds else math.inf
+    return min(bounds) if bounds else math.inf
 
 
-def reference_speeds(program: Program, plans: list[tuple[float, float]], tolerance_rad: float) -> np.ndarray:
+def reference_limits(segment: Segment, limits: AxisLimits, config: InterpolatorConfig) -> tuple[float, list[Band]]:
+    """Cruise speed and speed bands of one segment, from its own methods, axis by axis."""
+    velocity, acceleration = np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2)
+    tangent, curvature = segment.max_abs_tangent(), segment.max_abs_curvature_per_m()
+    axis_speed = _min_ratio(velocity, tangent)
+    fraction = config.arc_centripetal_fraction if curvature.any() else 0.0
+    centripetal = math.sqrt(_min_ratio(fraction * acceleration, curvature)) if fraction else math.inf
+    speed = min(segment.feed_m_s, axis_speed, centripetal)
+    if not (config.arc_combined_budget and isinstance(segment, ArcSegment)):
+        return speed, [(0.0, speed, _min_ratio((1.0 - fraction) * acceleration, tangent))]
+    n = config.arc_speed_bands
+    edges = [speed * math.sqrt(i / n) for i in range(n + 1)]
+    return speed, [(edges[i], edges[i + 1], _arc_accel(segment, acceleration, tangent, curvature, edges[i + 1]))
+                   for i in range(n)]
+
+
+def band_distance(bands: list[Band], low: float, high: float) -> float:
+    """Distance to change speed between ``low`` and ``high`` through the bands, m."""
+    return sum((min(max(high, lo), hi) ** 2 - min(max(low, lo), hi) ** 2) / (2.0 * a) for lo, hi, a in bands)
+
+
+def band_reach(bands: list[Band], speed: float, length: float) -> float:
+    """Speed reached from ``speed`` over ``length`` (the last band extended above the cruise speed)."""
+    distance = band_distance(bands, 0.0, speed) + length
+    for lo, hi, a in bands:
+        if distance <= (hi ** 2 - lo ** 2) / (2.0 * a) or (lo, hi, a) == bands[-1]:
+            return math.sqrt(lo ** 2 + 2.0 * a * distance)
+        distance -= (hi ** 2 - lo ** 2) / (2.0 * a)
+    raise AssertionError("no bands")
+
+
+def reference_speeds(program: Program, plans: list[tuple[float, list[Band]]], tolerance_rad: float) -> np.ndarray:
     smooth = (junction_turns_rad(program.segments) <= tolerance_rad) & (program.junction_dwell_s[1:-1] == 0.0)
     cruise = [v for v, _ in plans]
     speeds = [0.0] + [min(cruise[k], cruise[k + 1]) if smooth[k] else 0.0 for k in range(len(cruise) - 1)] + [0.0]
-    reach = [2.0 * a * segment.length_m for (_, a), segment in zip(plans, program.segments)]
-    for k in range(len(reach) - 1, -1, -1):
-        speeds[k] = min(speeds[k], math.sqrt(speeds[k + 1] ** 2 + reach[k]))
-    for k in range(len(reach)):
-        speeds[k + 1] = min(speeds[k + 1], math.sqrt(speeds[k] ** 2 + reach[k]))
+    for k in range(len(plans) - 1, -1, -1):
+        speeds[k] = min(speeds[k], band_reach(plans[k][1], speeds[k + 1], program.segments[k].length_m))
+    for k in range(len(plans)):
+        speeds[k + 1] = min(speeds[k + 1], band_reach(plans[k][1], speeds[k], program.segments[k].length_m))
     return np.array(speeds)
 
 
-def reference_phases(program: Program, plans: list[tuple[float, float]], speeds: np.ndarray) -> list[tuple]:
+def peak_speed(bands: list[Band], cruise: float, length: float, entry: float, exit_: float) -> float:
+    """Highest speed of a segment, by bisection on ``up + down <= length``."""
+    low, high = max(entry, exit_), cruise
+    if band_distance(bands, entry, high) + band_distance(bands, exit_, high) <= length:
+        return high
+    for _ in range(200):
+        middle = 0.5 * (low + high)
+        fits = band_distance(bands, entry, middle) + band_distance(bands, exit_, middle) <= length
+        low, high = (middle, high) if fits else (low, middle)
+    return low
+
+
+def reference_phases(program: Program, plans: list[tuple[float, list[Band]]], speeds: np.ndarray) -> list[tuple]:
     """(start time, segment, s0, v0, acceleration) of every phase, and the end time last."""
     phases, t = [], 0.0
     dwell = program.junction_dwell_s
-    for k, (segment, (cruise, accel)) in enumerate(zip(program.segments, plans)):
+    for k, (segment, (cruise, bands)) in enumerate(zip(program.segments, plans)):
         entry, exit_ = speeds[k], speeds[k + 1]
-        peak = max(math.sqrt(min(cruise ** 2, accel * segment.length_m + 0.5 * (entry ** 2 + exit_ ** 2))),
-                   entry, exit_)
-        up, down = (peak ** 2 - entry ** 2) / (2 * accel), (peak ** 2 - exit_ ** 2) / (2 * accel)
+        peak = peak_speed(bands, cruise, segment.length_m, entry, exit_)
+        up, down = band_distance(bands, entry, peak), band_distance(bands, exit_, peak)
         flat = max(segment.length_m - up - down, 0.0)
-        rows = [(0.0, 0.0, 0.0, dwell[k]), (0.0, entry, accel, (peak - entry) / accel), (up, peak, 0.0, flat / peak),
-                (up + flat, peak, -accel, (peak - exit_) / accel)]
+        rows = [(0.0, 0.0, 0.0, dwell[k])]
+        for lo, hi, a in bands:
+            v0, v1 = min(max(entry, lo), hi), min(max(peak, lo), hi)
+            rows.append((band_distance(bands, entry, v0), v0, a, (v1 - v0) / a))
+        rows.append((up, peak, 0.0, flat / peak))
+        for lo, hi, a in reversed(bands):
+            v0, v1 = min(max(peak, lo), hi), min(max(exit_, lo), hi)
+            rows.append((up + flat + band_distance(bands, v0, peak), v0, -a, (v0 - v1) / a))
         for s0, v0, a, duration in rows:
             if duration > 0.0:
                 phases.append((t, k, s0, v0, a))
@@ -163,7 +212,8 @@ def test_plan_equals_the_per_segment_plan(program_name: str, config_name: str) -
     assert_allclose([s.length_m for s in planned], [s.length_m for s in reference], rtol=1e-12, atol=0.0)
     plans = [reference_limits(segment, limits, config) for segment in reference]
     assert_allclose(interpolator.cruise_speed_m_s, [v for v, _ in plans], rtol=1e-12, atol=0.0)
-    assert_allclose(interpolator.tangential_acceleration_m_s2, [a for _, a in plans], rtol=1e-12, atol=0.0)
+    assert_allclose(interpolator.tangential_acceleration_m_s2, [bands[-1][2] for _, bands in plans],
+                    rtol=1e-12, atol=0.0)
     speeds = reference_speeds(interpolator.program, plans, math.radians(config.corner_angle_tolerance_deg))
     assert_allclose(interpolator.junction_speeds_m_s, speeds, rtol=1e-12, atol=1e-15)
     phases = reference_phases(interpolator.program, plans, speeds)

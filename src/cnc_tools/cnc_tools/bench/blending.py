@@ -2,8 +2,8 @@
 
 Per program of :mod:`cnc_tools.bench.blending_corpus`, at ``path_tolerance_mm``
 0.01, paper 000's limits (2000 mm/min, 250 mm/s² per axis) and arcs planned with the
-combined acceleration budget (``arc_combined_budget``, centripetal fraction 0.8;
-:mod:`cnc_contour_control.arc_budget`):
+combined acceleration budget (``arc_combined_budget``, centripetal fraction 0.8,
+the default 8 speed bands per arc: ``arc_speed_bands``; :mod:`cnc_contour_control.arc_budget`):
 
 - worst velocity and acceleration ratio per axis, analytic and finite
   difference of the sampled positions (goal <= 1 + 1e-9);
@@ -127,7 +127,8 @@ def blending_bench(options: argparse.Namespace) -> int:
     arc_s = Interpolator(true_circle(), limits_for(true_circle()), bench_config(0.0)).duration_s
     figures = [program_figures(make(), spacing_m) for make, in_quick in CORPUS.values() if in_quick or not quick]
     print(f"blending at {TOLERANCE_MM} mm, {MAX_VELOCITY_M_S * 60000:.0f} mm/min and {MAX_ACCELERATION_M_S2 * 1e3:.0f} "
-          f"mm/s^2 per axis; arcs: combined budget, centripetal fraction {CENTRIPETAL_FRACTION}; true arc R 20 mm: "
+          f"mm/s^2 per axis; arcs: combined budget, centripetal fraction {CENTRIPETAL_FRACTION}, "
+          f"{bench_config().arc_speed_bands} speed bands; true arc R 20 mm: "
           f"{arc_s:.3f} s; toppra grid {spacing_m * 1e3:g} mm")
     print(format_table(["program", "segs", "blends", "stops", "stop s", "cycle s", "toppra s", "/toppra", "/arc",
                         "v ratio per axis", "a ratio per axis", "dev um", "limits+tol", "time 10 %"],
