@@ -3,7 +3,8 @@
 A bag is a folder ``<name>/`` holding ``metadata.yaml`` (rosbag2 version 9 with
 the per-topic message counts) and ``<name>.mcap`` (ros2 profile, ``ros2msg``
 schemas, CDR messages in CRC-checked 64 KiB chunks, message indexes and a summary), written by
-``rosbags.rosbag2.Writer`` on the ``mcap`` library's writer (:mod:`cnc_tools.bagio.mcap_storage`);
+``rosbags.rosbag2.Writer`` on :mod:`cnc_tools.bagio.mcap_storage` (the ``mcap`` library's bytes, written by
+:mod:`cnc_tools.bagio.mcap_writer`; each message goes straight to it, rosbags' counts are kept here);
 ``ros2 bag``, Foxglove, ``rosbags`` and ``mcap`` read it.
 
 Reading (:mod:`cnc_tools.bagio.raw_bag`) goes through ``rosbags``' ``AnyReader`` (the
@@ -20,6 +21,7 @@ import math
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 from types import TracebackType
 
 import numpy as np
@@ -92,6 +94,9 @@ class BagWriter:
         Topics recorded with a transient-local QoS profile; default: those of type ``Path``.
     """
 
+    #: The rosbags writer class (its MCAP storage: :class:`CheckedMcapStorage`).
+    _ROSBAG_WRITER: type[Writer] = _CheckedWriter
+
     def __init__(self, path: str | Path, topics: Mapping[str, str], *, typestore: Typestore | None = None,
                  transient_local_topics: Collection[str] | None = None) -> None:
         self.path = Path(path)
@@ -105,9 +110,11 @@ class BagWriter:
             raise BagError(f"bag {self.path}: unknown message types {unknown}; not in the Jazzy typestore "
                            "nor in cnc_contour_interfaces")
         self._latched = transient_local_topics
-        self._writer: Writer | None = _CheckedWriter(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
+        self._writer: Writer | None = self._ROSBAG_WRITER(self.path, version=9, storage_plugin=StoragePlugin.MCAP)
         self._connections: dict[str, Connection] = {}
         self._closed_counts: dict[str, int] = {}
+        self._direct: dict[str, tuple[Callable[..., None], int, list[int]]] = {}  # topic -> write, channel, [count]
+        self._min_ns, self._max_ns = 2**63 - 1, 0
         self.topics: dict[str, str] = {}
         try:
             self._writer.open()
@@ -126,20 +133,32 @@ class BagWriter:
         latched = topic in self._latched if self._latched is not None else type_name == PATH_TYPE
         qos = TRANSIENT_LOCAL_QOS if latched else STATUS_QOS if type_name == _DIAGNOSTICS_TYPE else LOCKSTEP_QOS
         try:
-            self._connections[topic] = self._writer.add_connection(
+            self._connections[topic] = connection = self._writer.add_connection(
                 topic, type_name, typestore=self._store, offered_qos_profiles=[qos])
         except WriterError as err:
             raise BagError(f"bag {self.path}: cannot add topic {topic!r}: {err}") from err
         self.topics[topic] = type_name
+        storage = cast(CheckedMcapStorage, self._writer.storage)
+        self._direct[topic] = (storage.write_channel, storage.channel_id(connection), [0])
 
     def write(self, topic: str, timestamp_ns: int, cdr_bytes: bytes | memoryview) -> None:
-        """Append one serialised message; ``timestamp_ns`` is the log time (ns)."""
-        if self._writer is None:
-            raise BagError(f"bag {self.path} is closed; cannot write {topic}")
-        connection = self._connections.get(topic)
-        if connection is None:
-            raise BagError(f"bag {self.path}: topic {topic!r} was not declared; declared: {sorted(self._connections)}")
-        self._writer.write(connection, int(timestamp_ns), cdr_bytes)
+        """Append one serialised message; ``timestamp_ns`` is the log time (ns).
+
+        Straight to the storage's writer: rosbags' counts and time range are
+        kept here and handed to rosbags at :meth:`close` (same ``metadata.yaml``).
+        """
+        direct = self._direct.get(topic)
+        if direct is None or self._writer is None:
+            raise BagError(f"bag {self.path} is closed; cannot write {topic}" if self._writer is None else
+                           f"bag {self.path}: topic {topic!r} was not declared; declared: {sorted(self._connections)}")
+        write, channel_id, count = direct
+        stamp_ns = int(timestamp_ns)
+        write(channel_id, stamp_ns, cdr_bytes, stamp_ns)
+        count[0] += 1
+        if stamp_ns < self._min_ns:
+            self._min_ns = stamp_ns
+        if stamp_ns > self._max_ns:
+            self._max_ns = stamp_ns
 
     def write_message(self, topic: str, timestamp_ns: int, message: object) -> None:
         """Serialise ``message`` (a typestore message object) to CDR and append it."""
@@ -150,7 +169,7 @@ class BagWriter:
         """Messages written so far, per topic."""
         if self._writer is None:
             return dict(self._closed_counts)
-        return {topic: self._writer.counts[conn.id] for topic, conn in self._connections.items()}
+        return {topic: direct[2][0] for topic, direct in self._direct.items()}
 
     def flush(self) -> None:
         """Write the messages buffered so far to the file as a complete chunk, and hand them to the OS.
@@ -173,6 +192,10 @@ class BagWriter:
             return
         self._closed_counts = self.message_counts
         writer, self._writer = self._writer, None
+        for topic, connection in self._connections.items():  # rosbags' bookkeeping, skipped per message
+            writer.counts[connection.id] = self._closed_counts[topic]
+        writer.min_timestamp = min(writer.min_timestamp, self._min_ns)
+        writer.max_timestamp = max(writer.max_timestamp, self._max_ns)
         try:
             writer.close()
             metadata_path = self.path / "metadata.yaml"  # rosbags writes ros_distro: rosbags

@@ -1,8 +1,10 @@
-"""MCAP storage for ``rosbags.rosbag2.Writer`` written by the ``mcap`` library: chunk CRCs and small chunks.
+"""MCAP storage for ``rosbags.rosbag2.Writer``: chunk CRCs and small chunks, a cheap per-message step.
 
 rosbags' own MCAP storage writes every chunk with CRC 0 (a flipped byte goes
 unnoticed) and closes a chunk only past 1 MiB (a killed writer loses all of
-it). This storage hands the same records to ``mcap.writer.Writer`` with its
+it). This storage writes the file :class:`cnc_tools.bagio.mcap_writer.McapWriter`
+writes, byte-identical to ``mcap.writer.Writer`` (the old path, kept as
+:class:`LibraryMcapStorage` for the ``bag-write`` bench) with its
 ``enable_crcs`` (the CRC of each chunk's records, which both ``rosbags``' reader
 and the salvage scan check, and of the summary), ``enable_data_crcs`` (one CRC of
 the whole data section, message indexes included, checked by
@@ -16,6 +18,8 @@ from io import StringIO
 from pathlib import Path
 from typing import cast
 
+from typing import BinaryIO, Protocol
+
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapFileWriter
 from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefinitionFormat
@@ -23,9 +27,12 @@ from rosbags.rosbag2.enums import CompressionMode
 from ruamel.yaml import YAML
 
 from cnc_contour_control.errors import BagError
+from cnc_tools.bagio.mcap_writer import McapWriter
 
 #: Largest chunk before it is closed [bytes]: about 100 ticks of a 2-axis run (1 s at T = 10 ms; was 1 MiB).
 CHUNK_SIZE_BYTES = 64 * 1024
+#: The ``library`` field of the MCAP header.
+LIBRARY = "cnc_tools (mcap)"
 #: The ROS distribution the suite records for (``ros_distro`` of ``metadata.yaml``).
 ROS_DISTRO = "jazzy"
 
@@ -42,8 +49,36 @@ def with_ros_distro(metadata_text: str) -> str:
     return out.getvalue()
 
 
+class _FileWriter(Protocol):
+    """What the storage calls on an MCAP writer (ours or the ``mcap`` library's)."""
+
+    def start(self, profile: str, library: str) -> None: ...
+    def register_schema(self, name: str, encoding: str, data: bytes) -> int: ...
+    def register_channel(self, topic: str, message_encoding: str, schema_id: int,
+                         metadata: dict[str, str]) -> int: ...
+    def add_message(self, channel_id: int, log_time: int, data: bytes, publish_time: int) -> None: ...
+    def add_metadata(self, name: str, data: dict[str, str]) -> None: ...
+    def flush(self) -> None: ...
+    def finish(self) -> None: ...
+
+
+def _our_writer(stream: BinaryIO) -> _FileWriter:
+    """:class:`McapWriter` in 64 KiB chunks."""
+    return McapWriter(stream, CHUNK_SIZE_BYTES)  # type: ignore[return-value]
+
+
+def _library_writer(stream: BinaryIO) -> _FileWriter:
+    """``mcap.writer.Writer`` with the same options (uncompressed 64 KiB chunks, chunk and data CRCs)."""
+    return McapFileWriter(stream, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.NONE,  # type: ignore[return-value]
+                          enable_crcs=True, enable_data_crcs=True)
+
+
 class CheckedMcapStorage:
-    """A rosbags storage writer (``StorageWriter`` protocol) on ``mcap.writer.Writer`` with chunk CRCs."""
+    """A rosbags storage writer (``StorageWriter`` protocol) on :class:`McapWriter` with chunk CRCs.
+
+    Besides the protocol, :meth:`channel_id` and :meth:`write_channel` let
+    ``BagWriter`` append a message without rosbags' per-message bookkeeping.
+    """
 
     def __init__(self, path: Path, compression: CompressionMode) -> None:
         if compression != CompressionMode.NONE:
@@ -51,11 +86,14 @@ class CheckedMcapStorage:
                              f"got {compression.name.lower()}")
         self.path = path / f"{path.name}.mcap"
         self._file = self.path.open("xb")
-        self._mcap = McapFileWriter(self._file, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.NONE,
-                                    enable_crcs=True, enable_data_crcs=True)
-        self._mcap.start(profile="ros2", library="cnc_tools (mcap)")
+        self._mcap = self._make_writer(self._file)
+        self._mcap.start(profile="ros2", library=LIBRARY)
         self._schemas: dict[str, int] = {}
         self._channels: dict[int, int] = {}
+        self.write_channel = self._mcap.add_message
+        """Append one message: ``write_channel(channel_id, log_time_ns, data, publish_time_ns)``."""
+
+    _make_writer = staticmethod(_our_writer)
 
     def add_msgtype(self, connection: Connection) -> None:
         """Register the schema of ``connection``'s message type."""
@@ -69,6 +107,10 @@ class CheckedMcapStorage:
         self._channels[connection.id] = self._mcap.register_channel(
             connection.topic, ext.serialization_format, self._schemas[connection.msgtype],
             {"offered_qos_profiles": offered_qos_profiles})
+
+    def channel_id(self, connection: Connection) -> int:
+        """The MCAP channel id of a registered connection."""
+        return self._channels[connection.id]
 
     def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
         """Append one message; log and publish time are ``timestamp`` [ns]."""
@@ -88,3 +130,9 @@ class CheckedMcapStorage:
     def abort(self) -> None:
         """Close without summary."""
         self._file.close()
+
+
+class LibraryMcapStorage(CheckedMcapStorage):
+    """The same storage on ``mcap.writer.Writer`` (the path before :class:`McapWriter`; bench and tests)."""
+
+    _make_writer = staticmethod(_library_writer)

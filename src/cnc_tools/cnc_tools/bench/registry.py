@@ -5,6 +5,7 @@ import argparse
 from collections.abc import Callable
 
 from cnc_contour_control.config import require_choice
+from cnc_tools.bench.bag_write import bag_write_bench
 from cnc_tools.bench.cross_axis import cross_axis_bench
 from cnc_tools.bench.blending import blending_bench
 from cnc_tools.bench.compensator import compensator_bench
@@ -39,6 +40,7 @@ BENCHES: dict[str, Bench] = {
     "graph": graph_bench,
     "cross-axis": cross_axis_bench,
     "compose": compose_bench,
+    "bag-write": bag_write_bench,
     "scoring": scoring,
     "sweep": sweep_bench,
     "tune": tune_bench,
