@@ -182,15 +182,20 @@ def require_same_messages(root: Path, commit: str) -> None:
     """The other commit's nodes use this tree's messages: refuse if a ``.msg`` file the core graph exchanges differs.
 
     Messages only the optional stages exchange (``ContourError``,
-    ``Compensation``, ...) may differ: the core graph never sends them.
+    ``Compensation``, ...) may differ: the core graph never sends them. Fields
+    this tree added (lines only added, none removed or changed, e.g. ``Path``'s
+    ``path_tolerance_m``) are allowed: the other commit's nodes leave them at
+    their defaults.
     """
-    diff = subprocess.run(["git", "-C", str(root), "diff", "--stat", commit, "--", *graph_messages(root)],
+    diff = subprocess.run(["git", "-C", str(root), "diff", "-U0", commit, "--", *graph_messages(root)],
                           capture_output=True, text=True, check=False)
     if diff.returncode != 0:
         raise CncError(f"--against {commit!r}: git cannot compare its messages ({diff.stderr.strip()})")
-    if diff.stdout.strip():
-        raise CncError(f"--against {commit!r}: its messages differ from this tree's ({diff.stdout.strip()!r}); "
-                       "build that commit with colcon to compare graphs")
+    changed = [line for line in diff.stdout.splitlines()
+               if line.startswith("-") and not line.startswith("---") and line[1:].split("#", 1)[0].strip()]
+    if changed:
+        raise CncError(f"--against {commit!r}: its messages differ from this tree's (lines {changed!r} "
+                       "removed or changed); build that commit with colcon to compare graphs")
 
 
 def run_side(side: Side, run_dir: Path, record: bool, plan: Plan) -> dict[str, Any]:
