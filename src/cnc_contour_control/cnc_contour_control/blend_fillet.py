@@ -11,9 +11,14 @@ toward the inside of the turn, meet:
 Its tangent points ``T1``, ``T2`` are the centre's feet on the curves; the
 fillet runs from ``T1`` to ``T2`` in the turn's direction, tangent to both. Its
 deviation from the programmed path is measured, not bounded: the largest over
-the fillet of the smaller exact distance (``Segment.nearest``) to the two
-segments, found on a grid of the fillet angle and refined with
-:func:`scipy.optimize.minimize_scalar`. The radius is the largest found (secant
+the fillet of the smaller exact distance to the two segments. Along the fillet
+the distance to the first segment grows from 0 at ``T1`` and the distance to the
+second falls to 0 at ``T2``, so the largest is where they cross: found on a grid
+of the fillet angle (:class:`Piece`: closed-form distances in the plane) and
+refined with :func:`scipy.optimize.brentq` on their difference; a grid maximum
+away from the crossing is refined with :func:`scipy.optimize.minimize_scalar`.
+:func:`deviation_m` measures the same with ``Segment.nearest`` (the reference,
+~30× slower). The radius is the largest found (secant
 steps on ``r``, deviation nearly proportional to it) whose deviation is at most
 the tolerance and whose trims stay within each neighbour's share. Helices and
 curves outside one common plane are not filleted (the junction stays an exact
@@ -25,7 +30,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import minimize_scalar
+from scipy.optimize import brentq, minimize_scalar
 
 from cnc_contour_control.arc import ArcSegment
 from cnc_contour_control.geometry import LineSegment, Segment
@@ -33,6 +38,8 @@ from cnc_contour_control.points import POSITION_TOLERANCE_M, FloatArray
 
 _AXIS_EPS = 1.0e-12
 _GRID = 33
+#: Grid of the fillet angle of the fast measurement (the crossing is then refined by brentq).
+_FAST_GRID = 17
 _ITERATIONS = 12
 #: A fillet is accepted once its deviation reaches this share of the tolerance (or the trims bind).
 _CLOSE_ENOUGH = 0.98
@@ -233,6 +240,100 @@ def deviation_m(before: Segment, after: Segment, shape: Fillet, plane: tuple[int
 
 
 @dataclass(frozen=True)
+class Piece:
+    """A segment in its plane's 2-D coordinates (m), for exact distances of points of that plane.
+
+    A line (``radius_m`` 0) from ``start`` along the unit ``direction`` for
+    ``length_m``; an arc about ``center`` of ``radius_m`` from
+    ``start_angle_rad`` through ``sweep_rad`` turning ``turn`` (+1
+    counter-clockwise), from ``start`` to ``end``. Planar segments only (the
+    corners :func:`common_plane` accepts), so the in-plane distance is the
+    exact one.
+    """
+
+    start: tuple[float, float]
+    end: tuple[float, float]
+    direction: tuple[float, float]
+    length_m: float
+    center: tuple[float, float]
+    radius_m: float
+    start_angle_rad: float
+    sweep_rad: float
+    turn: float
+
+    @classmethod
+    def of(cls, segment: Segment, plane: tuple[int, int]) -> Piece:
+        """The piece of a line, or of a planar arc, in ``plane``."""
+        a, b = plane
+        start = (float(segment.start_m[a]), float(segment.start_m[b]))
+        end = (float(segment.end_m[a]), float(segment.end_m[b]))
+        if isinstance(segment, ArcSegment):
+            center = (float(segment.center_m[a]), float(segment.center_m[b]))
+            return cls(start, end, (0.0, 0.0), segment.length_m, center, segment.radius_m,
+                       segment.start_angle_rad, segment.sweep_rad, segment.direction)
+        length = math.hypot(end[0] - start[0], end[1] - start[1])
+        direction = ((end[0] - start[0]) / length, (end[1] - start[1]) / length)
+        return cls(start, end, direction, length, start, 0.0, 0.0, 0.0, 0.0)
+
+    def distance_m(self, x: float, y: float) -> float:
+        """Exact distance (m) from the point ``(x, y)`` of the plane to the segment (as ``Segment.nearest``)."""
+        sx, sy = self.start
+        if self.radius_m == 0.0:
+            ux, uy = self.direction
+            along = min(max((x - sx) * ux + (y - sy) * uy, 0.0), self.length_m)
+            return math.hypot(x - sx - along * ux, y - sy - along * uy)
+        cx, cy = self.center
+        angle = (self.turn * (math.atan2(y - cy, x - cx) - self.start_angle_rad)) % (2.0 * math.pi)
+        if angle <= self.sweep_rad:
+            return abs(math.hypot(x - cx, y - cy) - self.radius_m)
+        return min(math.hypot(x - sx, y - sy), math.hypot(x - self.end[0], y - self.end[1]))
+
+
+def _fillet_angles(shape: Fillet, side: float) -> tuple[float, float]:
+    """Angle of the fillet's start about its centre and its sweep (rad, in [0, 2π))."""
+    a0 = math.atan2(float(shape.start[1] - shape.center[1]), float(shape.start[0] - shape.center[0]))
+    a1 = math.atan2(float(shape.end[1] - shape.center[1]), float(shape.end[0] - shape.center[0]))
+    return a0, (side * (a1 - a0)) % (2.0 * math.pi)
+
+
+def _difference(pair: tuple[float, float]) -> float:
+    return pair[0] - pair[1]
+
+
+def measured_deviation_m(first: Piece, second: Piece, shape: Fillet, side: float) -> float:
+    """Largest exact distance (m) of the fillet from the two pieces: :func:`deviation_m`, ~30× faster.
+
+    The smaller of both distances on a grid of the fillet angle; where the
+    distance to ``first`` overtakes the one to ``second`` (the crossing, where
+    the largest is when each is monotonic) refined by :func:`scipy.optimize.brentq`;
+    a grid maximum away from the crossing refined by
+    :func:`scipy.optimize.minimize_scalar`, as :func:`deviation_m` does.
+    """
+    a0, sweep = _fillet_angles(shape, side)
+    cx, cy, r = float(shape.center[0]), float(shape.center[1]), shape.radius_m
+
+    def both(t: float) -> tuple[float, float]:
+        x, y = cx + r * math.cos(a0 + side * t), cy + r * math.sin(a0 + side * t)
+        return first.distance_m(x, y), second.distance_m(x, y)
+
+    grid = [sweep * i / (_FAST_GRID - 1) for i in range(_FAST_GRID)]
+    pairs = [both(t) for t in grid]
+    values = [min(pair) for pair in pairs]
+    best = max(values)
+    i = values.index(best)
+    cross = next((j for j, (d1, d2) in enumerate(pairs) if d1 >= d2), None)
+    if cross is not None and cross > 0:
+        found = brentq(lambda t: _difference(both(t)), grid[cross - 1], grid[cross], xtol=1e-12 * max(sweep, 1e-12))
+        best = max(best, min(both(found)))
+    if cross is None or i not in (cross - 1, cross):
+        low, high = grid[max(i - 1, 0)], grid[min(i + 1, _FAST_GRID - 1)]
+        peak = minimize_scalar(lambda t: -min(both(t)), bounds=(low, high), method="bounded",
+                               options={"xatol": 1e-12 * max(sweep, 1e-12)})
+        best = max(best, -float(peak.fun))
+    return best
+
+
+@dataclass(frozen=True)
 class CornerFillet:
     """A planned fillet: its shape (2-D), plane, turn side (+1 left) and measured deviation (m)."""
 
@@ -270,6 +371,7 @@ def plan_fillet(before: Segment, after: Segment, tolerance_m: float, turn_rad: f
         return None
     high = _MAX_RADIUS_PER_TRIM * max(limits)
     radius, low = min(tolerance_m / (1.0 / math.cos(0.5 * turn_rad) - 1.0), 0.5 * high), 0.0
+    pieces = (Piece.of(before, plane), Piece.of(after, plane))
     best: CornerFillet | None = None
     for _ in range(_ITERATIONS):
         shape = fillet(first, second, corner[list(plane)], side, radius)
@@ -278,7 +380,7 @@ def plan_fillet(before: Segment, after: Segment, tolerance_m: float, turn_rad: f
             high, radius = radius, max(radius * factor, 0.5 * (low + radius))
             continue
         assert shape is not None
-        deviation = deviation_m(before, after, shape, plane, corner, side)
+        deviation = measured_deviation_m(*pieces, shape, side)
         if deviation > tolerance_m:
             high, radius = radius, max(radius * _AIM * tolerance_m / deviation, 0.5 * (low + radius))
             continue
