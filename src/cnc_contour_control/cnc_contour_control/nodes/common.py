@@ -27,7 +27,7 @@ from rclpy.signals import SignalHandlerOptions
 from cnc_contour_control.errors import CncError, FaultError
 from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, join_ns, split_ns
 from cnc_contour_control.nodes.lifecycle import ManagedNode
-from cnc_contour_control.nodes import local_bus
+from cnc_contour_control.nodes import fast_cdr, local_bus
 from cnc_contour_control.topics import RUN_ID_KEY, qualify
 
 #: Lockstep data: reliable and deep, so nothing is dropped while a stage is busy.
@@ -197,7 +197,7 @@ class SuiteNode(ManagedNode):
         publisher = super().create_publisher(msg_type, topic, qos_profile, **kwargs)
         bus = local_bus.bus_of(self.context)
         if bus is None or local_bus.is_latched(qos_profile):
-            return publisher
+            return fast_cdr.fast_publisher(publisher, msg_type)
         return bus.publisher(self, publisher, msg_type)
 
     def create_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any],
@@ -205,14 +205,15 @@ class SuiteNode(ManagedNode):
         """rclpy's subscription; in a composed process with a local bus, served by the bus (see ``local_bus``)."""
         bus = local_bus.bus_of(self.context)
         if bus is None or local_bus.is_latched(qos_profile):
-            return super().create_subscription(msg_type, topic, callback, qos_profile, **kwargs)
+            return self.create_dds_subscription(msg_type, topic, callback, qos_profile, **kwargs)
         raw = bool(kwargs.pop("raw", False))
         return bus.subscribe(local_bus.LocalSubscription(self, self.resolve_topic_name(topic), msg_type, callback,
                                                          qos_profile, raw, kwargs))
 
     def create_dds_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any],
                                 qos_profile: QoSProfile | int, **kwargs: Any) -> Any:
-        """rclpy's own subscription, never the bus (the bus's for a member that an outside publisher reaches)."""
+        """rclpy's own subscription, never the bus; raw bytes decoded by ``fast_cdr`` unless the caller asked for raw."""
+        callback, kwargs = fast_cdr.decoding(msg_type, topic, callback, kwargs, self.fault)
         return super().create_subscription(msg_type, topic, callback, qos_profile, **kwargs)
 
     def gated_publisher(self, msg_type: type, topic: str, default_min: int) -> GatedPublisher:

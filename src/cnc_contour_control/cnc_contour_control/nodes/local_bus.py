@@ -34,6 +34,8 @@ from typing import Any
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from rclpy.serialization import serialize_message
 
+from cnc_contour_control.nodes import fast_cdr
+
 #: Buses by the context their members share (one per composed process).
 _BUSES: dict[int, "LocalBus"] = {}
 #: Deliveries the host makes per turn before it lets the executor run timers and DDS events.
@@ -84,10 +86,13 @@ class LocalSubscription:
         """True while the bus delivers to it (no DDS subscription yet)."""
         return self.active and self.dds is None
 
+    def __post_init__(self) -> None:
+        self.encode = (fast_cdr.encoder(self.msg_type) or serialize_message) if self.raw else None
+
     def deliver(self, msg: Any) -> None:
         """Call the member's callback (serialized CDR for a raw subscription, as DDS would give it)."""
         if self.active:
-            self.callback(serialize_message(msg) if self.raw else msg)
+            self.callback(self.encode(msg) if self.encode is not None else msg)
 
 
 class BusPublisher:
@@ -100,6 +105,7 @@ class BusPublisher:
     def __init__(self, bus: "LocalBus", node: Any, publisher: Any, msg_type: type) -> None:
         self.bus, self.node, self.publisher, self.msg_type = bus, node, publisher, msg_type
         self.topic = publisher.topic_name
+        self.dds = fast_cdr.fast_publisher(publisher, msg_type)
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self.publisher, name)
@@ -108,7 +114,7 @@ class BusPublisher:
         """Queue ``msg`` for the member subscriptions; to DDS when a DDS reader is matched."""
         self.bus.enqueue(self.topic, self.msg_type, msg)
         if self.publisher.get_subscription_count() > 0:
-            self.publisher.publish(msg)
+            self.dds.publish(msg)
 
     def local_readers(self) -> list[str]:
         """Node names of the member subscriptions the bus serves on this topic (the DDS graph does not show them)."""

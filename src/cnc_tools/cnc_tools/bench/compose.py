@@ -7,7 +7,9 @@ T = 1 ms, six nodes and the recorder):
 1. lockstep: the engine and the node graph recorded with ``--compose none``
    (seven processes), ``loop`` (the six loop nodes in one process, the
    recorder apart), ``all`` (one process) and ``all-dds`` (``all`` with the
-   local bus off: every message over DDS, as before the bus). Each round runs the four in a
+   local bus off: every message over DDS, as before the bus), and ``none-rclpy`` and
+   ``all-rclpy`` (messages converted by rclpy's own serialization, ``CNC_FAST_CDR=0``,
+   as before the generated codecs of ``nodes/fast_cdr.py``). Each round runs them in a
    rotated order, so all see the same machine load; the figures are the
    medians over the rounds of the wall time per tick (the plant's summary:
    first tick to last, start-up excluded), the real-time factor and the
@@ -52,31 +54,36 @@ RTF_GOAL = 1.0
 #: Goal: in real time, at most this share of the commands is late.
 LATE_SHARE_GOAL = 0.01
 #: Lockstep sides: the engine, then the graph's compose modes.
-LOCKSTEP_SIDES = ("engine", "none", "loop", "all", "all-dds")
+LOCKSTEP_SIDES = ("engine", "none", "none-rclpy", "loop", "all", "all-rclpy", "all-dds")
 REALTIME_SIDES = ("none", "loop", "all")
-#: Graph side -> (compose mode, local bus on): ``all-dds`` is ``all`` with every message over DDS (``CNC_LOCAL_BUS=0``).
-GRAPH_SIDES: dict[str, tuple[str, bool]] = {
-    "none": ("none", True), "loop": ("loop", True), "all": ("all", True), "all-dds": ("all", False)}
+#: The switches a graph side sets for its processes (inherited from this one): the local bus and the fast CDR codecs.
+SWITCHES = ("CNC_LOCAL_BUS", "CNC_FAST_CDR")
+#: Graph side -> (compose mode, switches off): ``-rclpy`` converts messages with rclpy's own serialization
+#: (``CNC_FAST_CDR=0``), ``all-dds`` sends every message over DDS (``CNC_LOCAL_BUS=0``).
+GRAPH_SIDES: dict[str, tuple[str, tuple[str, ...]]] = {
+    "none": ("none", ()), "none-rclpy": ("none", ("CNC_FAST_CDR",)), "loop": ("loop", ()), "all": ("all", ()),
+    "all-rclpy": ("all", ("CNC_FAST_CDR",)), "all-dds": ("all", ("CNC_LOCAL_BUS",))}
 
 
 @contextmanager
-def local_bus_env(on: bool) -> Iterator[None]:
-    """``CNC_LOCAL_BUS`` for the composed host the runner starts (inherited), restored afterwards."""
-    before = os.environ.get("CNC_LOCAL_BUS")
-    os.environ["CNC_LOCAL_BUS"] = "1" if on else "0"
+def switches_env(off: tuple[str, ...]) -> Iterator[None]:
+    """Every switch of :data:`SWITCHES` on ("1") but those in ``off`` ("0") for the processes started meanwhile."""
+    before = {name: os.environ.get(name) for name in SWITCHES}
+    os.environ.update({name: "0" if name in off else "1" for name in SWITCHES})
     try:
         yield
     finally:
-        if before is None:
-            os.environ.pop("CNC_LOCAL_BUS")
-        else:
-            os.environ["CNC_LOCAL_BUS"] = before
+        for name, value in before.items():
+            if value is None:
+                os.environ.pop(name)
+            else:
+                os.environ[name] = value
 
 
 def graph_run(side: str, scenario: Scenario, run_dir: Path, timeout_s: float) -> Any:
-    """The recorded graph run of ``side`` (its compose mode, with or without the local bus)."""
-    mode, bus = GRAPH_SIDES[side]
-    with local_bus_env(bus):
+    """The recorded graph run of ``side`` (its compose mode and switches)."""
+    mode, off = GRAPH_SIDES[side]
+    with switches_env(off):
         return run_graph(scenario, run_dir, record=True, compose=mode, timeout_s=timeout_s)
 
 
