@@ -153,6 +153,9 @@ class _Generator:
             run = []
             self._field(slot, slot_type, enc, dec)
         self._flush_run(run, enc, dec)
+        if not fields:  # an empty message: rosidl's C struct holds one placeholder byte, and CDR carries it
+            enc.add("buf.append(0)")
+            dec.add("off += 1")
         dec.add("return o, off")
         self.sources.append(f"def enc_{base}(buf, m):\n" + ("\n".join(enc.lines) or "    pass"))
         self.sources.append(f"def dec_{base}(buf, off):\n" + "\n".join(dec.lines))
