@@ -40,6 +40,7 @@ import functools
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -50,9 +51,9 @@ from cnc_contour_control.config import build_config, require_non_negative, requi
 from cnc_contour_control.errors import ConfigError, ProgramError
 from cnc_contour_control.geometry import Program, Segment
 from cnc_contour_control.params import check_ranges, param
-from cnc_contour_control.plan_arrays import (SpeedBands, banded_junction_speeds_m_s, banded_phases,
-                                             look_ahead_caps_m_s, plan_banded_limits, profile_phases)
-from cnc_contour_control.segment_tangents import junction_turns_rad
+from cnc_contour_control.plan_arrays import (SpeedBands, banded_phases, plan_banded_limits,
+                                             program_junction_speeds_m_s)
+from cnc_contour_control.plan_stream import start_stream, whole_plan
 
 FloatArray = NDArray[np.float64]
 
@@ -262,38 +263,6 @@ def with_planning_tolerance(program: Program, config: InterpolatorConfig) -> Pro
     return dataclasses.replace(program, path_tolerance_m=tolerance_m)
 
 
-def junction_speeds(program: Program, plans: list[SegmentLimits], tolerance_rad: float) -> FloatArray:
-    """Speed at every junction (m/s, shape ``(n_segments + 1,)``), reachable both ways."""
-    cruise = np.array([plan.speed_m_s for plan in plans])
-    return _junction_speeds(program, cruise, SpeedBands.single(cruise, np.array([p.acceleration_m_s2 for p in plans])),
-                            tolerance_rad)
-
-
-def _junction_speeds(program: Program, cruise_m_s: FloatArray, bands: SpeedBands, tolerance_rad: float,
-                     look_ahead_segments: int | None = None) -> FloatArray:
-    smooth = (junction_turns_rad(program.segments) <= tolerance_rad) & (program.junction_dwell_s[1:-1] == 0.0)
-    lengths = np.array([segment.length_m for segment in program.segments])
-    window = None
-    if look_ahead_segments is not None and look_ahead_segments < len(lengths):
-        window = look_ahead_caps_m_s(bands.accel_m_s2[:, -1], lengths, look_ahead_segments)
-    return banded_junction_speeds_m_s(cruise_m_s, bands, lengths, smooth, window)
-
-
-def segment_phases(length_m: float, entry_m_s: float, exit_m_s: float,
-                   plan: SegmentLimits) -> list[tuple[float, float, float, float]]:
-    """Accelerate / cruise / decelerate phases of one segment (:func:`plan_arrays.profile_phases`).
-
-    Returns
-    -------
-    list of (start_s_m, start_speed_m_s, acceleration_m_s2, duration_s)
-        Phases with a positive duration, ``start_s_m`` along the segment.
-    """
-    phases = profile_phases(np.array([length_m]), np.array([entry_m_s]), np.array([exit_m_s]),
-                            np.array([plan.speed_m_s]), np.array([plan.acceleration_m_s2]), np.zeros(2))
-    return list(zip(phases.s0_m.tolist(), phases.v0_m_s.tolist(), phases.accel_m_s2.tolist(),
-                    np.diff(phases.start_s).tolist()))
-
-
 class Interpolator:
     """Plans a trapezoidal feed profile over ``program`` and evaluates it analytically.
 
@@ -313,28 +282,51 @@ class Interpolator:
     τ by ``override_ratio * dt_s`` and returns the sample at τ with velocity
     and feed scaled by the ratio and acceleration by its square (the term from
     a changing ratio, ``dk/dt * v``, is left out). Limits hold for ratios <= 1.
+
+    A window (``look_ahead_segments``) shorter than the program plans it streaming
+    (:mod:`cnc_contour_control.plan_stream`): the constructor plans one chunk, :meth:`sample`,
+    :meth:`sample_array` and :meth:`advance` extend the plan as time reaches its end; :attr:`duration_s`,
+    :attr:`junction_speeds_m_s` and the other whole-plan arrays plan to the end on first use, :attr:`program`
+    and :attr:`blended` blend the whole program on first use.
     """
 
     def __init__(self, program: Program, limits: AxisLimits, config: InterpolatorConfig | None = None) -> None:
         self.limits = limits
         self.config = config if config is not None else InterpolatorConfig()
         tolerance_rad = math.radians(self.config.corner_angle_tolerance_deg)
-        self.blended = blend_program(program, planning_tolerance_m(program, self.config), tolerance_rad)
-        #: The program as written; :attr:`program` is the planned one (with blends).
-        self.programmed_program = program
-        self.program = program = self.blended.planned
         if limits.n_axes != program.n_axes:
             raise ConfigError(
                 f"limits must have one entry per program axis ({program.n_axes}: {list(program.axis_names)}), "
                 f"got {limits.n_axes}")
+        #: The program as written; :attr:`program` is the planned one (with blends).
+        self.programmed_program = program
+        self._profile_time_s, self._accel_decel = 0.0, ReferenceFilter(self.config.accel_decel)
+        tolerance_m = planning_tolerance_m(program, self.config)
+        self._stream = start_stream(self, program, limits, tolerance_m)
+        if self._stream is not None:
+            return
+        self.blended = blend_program(program, tolerance_m, tolerance_rad)
+        self.program = self._view = program = self.blended.planned
         self.cruise_speed_m_s, self.tangential_acceleration_m_s2, self.speed_bands = _plan_limits(
             program.segments, limits, self.config)
-        self.junction_speeds_m_s = _junction_speeds(program, self.cruise_speed_m_s, self.speed_bands, tolerance_rad,
-                                                    self.config.look_ahead_segments)
+        self.junction_speeds_m_s = program_junction_speeds_m_s(program, self.cruise_speed_m_s, self.speed_bands,
+                                                               tolerance_rad, self.config.look_ahead_segments)
         self._build_phases()
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
-        self._profile_time_s = 0.0
-        self._accel_decel = ReferenceFilter(self.config.accel_decel)
+
+    def __getattr__(self, name: str) -> Any:
+        """Streaming: the whole plan's attributes, planned to the end on first use (:func:`plan_stream.whole_plan`)."""
+        if name.startswith("__") or self.__dict__.get("_stream") is None:
+            raise AttributeError(name)
+        self.__dict__.update(whole_plan(self, name))
+        return self.__dict__[name]
+
+    def planned_end_s(self, t_s: float) -> float:
+        """The profile's duration (s), or inf while a streaming plan has not reached it after planning past ``t_s``.
+
+        What a per-tick caller (feed override) bounds τ with without finishing a streaming plan (:attr:`duration_s`
+        does)."""
+        return self.duration_s if self._stream is None else self._stream.extend_to(t_s)
 
     @functools.cached_property
     def segment_limits(self) -> list[SegmentLimits]:
@@ -355,7 +347,7 @@ class Interpolator:
     @property
     def phase_count(self) -> int:
         """Number of constant-acceleration phases of the profile."""
-        return len(self._phase_start_s)
+        return len(self._phases.start_s) - 1
 
     def _path_state(self, t_s: float) -> tuple[int, float, float, float]:
         """Segment index, local arc length (m), path speed (m/s) and path acceleration (m/s^2) at ``t_s``."""
@@ -369,26 +361,26 @@ class Interpolator:
 
     def sample(self, t_s: float) -> ReferenceSample:
         """The reference at profile time ``t_s`` (s); before 0 holds the start, after the end holds the end."""
-        if t_s >= self.duration_s:
-            return self._end_sample()
         if math.isnan(t_s):
             raise ConfigError(f"t_s must be a number, got {t_s}")
+        if t_s >= self.planned_end_s(t_s):
+            return self._end_sample()
         index, s_local, speed, accel = self._path_state(t_s)
-        segment = self.program.segments[index]
+        segment = self._view.segments[index]
         s_local = min(max(s_local, 0.0), segment.length_m)
         point, tangent, curvature = segment.frame(s_local)
         return ReferenceSample(
             position_m=point, velocity_m_s=speed * tangent,
             acceleration_m_s2=accel * tangent + (speed * speed) * curvature,
-            path_length_m=float(self.program.segment_start_m[index]) + s_local, segment_index=index,
+            path_length_m=float(self._view.segment_start_m[index]) + s_local, segment_index=index,
             feed_m_s=speed, programmed_feed_m_s=segment.feed_m_s, done=False, profile_time_s=max(t_s, 0.0))
 
     def _end_sample(self) -> ReferenceSample:
-        zeros = np.zeros(self.program.n_axes)
+        view, zeros = self._view, np.zeros(self._view.n_axes)
         return ReferenceSample(
             position_m=self._end_point_m.copy(), velocity_m_s=zeros, acceleration_m_s2=zeros.copy(),
-            path_length_m=self.program.total_length_m, segment_index=len(self.program.segments) - 1,
-            feed_m_s=0.0, programmed_feed_m_s=self.program.segments[-1].feed_m_s, done=True,
+            path_length_m=view.total_length_m, segment_index=len(view.segments) - 1,
+            feed_m_s=0.0, programmed_feed_m_s=view.segments[-1].feed_m_s, done=True,
             profile_time_s=self.duration_s)
 
     def sample_array(self, times_s: ArrayLike) -> ReferenceTrajectory:
@@ -405,28 +397,29 @@ class Interpolator:
             Positions, velocities, accelerations of shape ``(M, n_axes)``.
         """
         t = np.asarray(times_s, dtype=float).reshape(-1)
-        clipped = np.clip(t, 0.0, self.duration_s)
-        phases = self._phases
+        end_s = self.planned_end_s(float(np.max(t, initial=0.0)))
+        clipped = np.clip(t, 0.0, end_s)
+        phases = self._phases if self._stream is None else self._stream.phases()
         k = np.maximum(np.searchsorted(phases.start_s[:-1], clipped, side="right") - 1, 0)
         dt = np.maximum(clipped - phases.start_s[k], 0.0)
         v0, accel = phases.v0_m_s[k], phases.accel_m_s2[k]
         s_local = phases.s0_m[k] + v0 * dt + 0.5 * accel * dt * dt
         speed = np.maximum(v0 + accel * dt, 0.0)
         index = phases.segment[k]
-        done = t >= self.duration_s
+        done = t >= end_s
         speed[done], accel[done | (t < 0.0)] = 0.0, 0.0
         arrays = self._axis_arrays(index, s_local, speed, accel, done)
-        path = self.program.segment_start_m[index] + np.clip(s_local, 0.0, None)
-        path[done] = self.program.total_length_m
+        path = self._view.segment_start_m[index] + np.clip(s_local, 0.0, None)
+        path[done] = self._view.total_length_m
         return ReferenceTrajectory(t, *arrays, path, index, speed, done)
 
     def _axis_arrays(self, index: NDArray[np.intp], s_local: FloatArray, speed: FloatArray,
                      accel: FloatArray, done: NDArray[np.bool_]) -> tuple[FloatArray, FloatArray, FloatArray]:
-        n = self.program.n_axes
+        n = self._view.n_axes
         position, velocity, acceleration = (np.zeros((index.size, n)) for _ in range(3))
         for i in np.unique(index):
             rows = np.flatnonzero(index == i)
-            segment = self.program.segments[int(i)]
+            segment = self._view.segments[int(i)]
             s = np.clip(s_local[rows], 0.0, segment.length_m)
             tangent = segment.tangent(s)
             position[rows] = segment.point(s)
@@ -445,7 +438,7 @@ class Interpolator:
         sample = self.sample(t_s)
         if self.config.accel_decel.kind == "none":
             return sample
-        n = self.program.n_axes
+        n = self._view.n_axes
         flat = self._accel_decel.step(t_s, sample.position_m.tolist() + sample.velocity_m_s.tolist()
                                       + sample.acceleration_m_s2.tolist())
         return dataclasses.replace(sample, position_m=np.array(flat[:n]), velocity_m_s=np.array(flat[n:2 * n]),
@@ -456,7 +449,7 @@ class Interpolator:
         trajectory = self.sample_array(times_s)
         if self.config.accel_decel.kind == "none":
             return trajectory
-        n, accel_decel = self.program.n_axes, ReferenceFilter(self.config.accel_decel)
+        n, accel_decel = self._view.n_axes, ReferenceFilter(self.config.accel_decel)
         rows = np.hstack([trajectory.position_m, trajectory.velocity_m_s, trajectory.acceleration_m_s2]).tolist()
         out = np.array([accel_decel.step(t, row) for t, row in zip(trajectory.time_s.tolist(), rows)], float)
         out = out.reshape(len(rows), 3 * n)
@@ -485,7 +478,8 @@ class Interpolator:
         """
         dt = require_non_negative("dt_s", dt_s)
         ratio = require_non_negative("override_ratio", override_ratio)
-        self._profile_time_s = min(self._profile_time_s + ratio * dt, self.duration_s)
+        tau_s = self._profile_time_s + ratio * dt
+        self._profile_time_s = min(tau_s, self.planned_end_s(tau_s))
         base = self.sample(self._profile_time_s)
         return ReferenceSample(
             position_m=base.position_m, velocity_m_s=ratio * base.velocity_m_s,

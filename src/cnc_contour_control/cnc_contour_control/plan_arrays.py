@@ -32,8 +32,9 @@ from numpy.typing import NDArray
 from cnc_contour_control.arc import ArcSegment
 from cnc_contour_control.arc_budget import combined_tangential_rows, speed_bands
 from cnc_contour_control.errors import ProgramError
-from cnc_contour_control.geometry import Segment, segment_label
+from cnc_contour_control.geometry import Program, Segment, segment_label
 from cnc_contour_control.points import FloatArray
+from cnc_contour_control.segment_tangents import junction_turns_rad
 from cnc_contour_control.units import m_s_to_mm_min
 
 _MIN_TANGENT = 1.0e-12
@@ -214,11 +215,12 @@ class SpeedBands:
 
 
 def junction_caps_m_s(cruise_m_s: FloatArray, smooth: NDArray[np.bool_],
-                      window_cap_m_s: FloatArray | None = None) -> list[float]:
+                      window_cap_m_s: FloatArray | None = None, entry_m_s: float = 0.0) -> list[float]:
     """Largest speed at every junction before the passes (m/s, ``N + 1``): the smaller cruise speed at ``smooth``
-    inner junctions, else 0, and at most ``window_cap_m_s`` (:func:`look_ahead_caps_m_s`) if given."""
+    inner junctions, else 0 (``entry_m_s`` at the first), and at most ``window_cap_m_s``
+    (:func:`look_ahead_caps_m_s`) if given."""
     cruise = np.asarray(cruise_m_s, dtype=float)
-    caps = np.concatenate(([0.0], np.where(smooth, np.minimum(cruise[:-1], cruise[1:]), 0.0), [0.0]))
+    caps = np.concatenate(([entry_m_s], np.where(smooth, np.minimum(cruise[:-1], cruise[1:]), 0.0), [0.0]))
     return (caps if window_cap_m_s is None else np.minimum(caps, window_cap_m_s)).tolist()
 
 
@@ -238,22 +240,28 @@ def look_ahead_caps_m_s(accel_m_s2: FloatArray, length_m: FloatArray, window_seg
 
 
 def junction_speeds_m_s(cruise_m_s: FloatArray, accel_m_s2: FloatArray, length_m: FloatArray,
-                        smooth: NDArray[np.bool_], window_cap_m_s: FloatArray | None = None) -> FloatArray:
+                        smooth: NDArray[np.bool_], window_cap_m_s: FloatArray | None = None,
+                        entry_m_s: float = 0.0) -> FloatArray:
     """Speed at every junction (m/s, ``(N + 1,)``): the caps of :func:`junction_caps_m_s`, lowered so that each
     segment can brake into and accelerate out of it (``v² <= v_next² + 2 a L``).
+
+    The first junction's speed is ``entry_m_s`` (0: a start at rest; a streaming plan's chunk starts at the speed
+    the previous chunk committed, :mod:`cnc_contour_control.plan_stream`); the last one's is a stop.
     """
-    speeds = junction_caps_m_s(cruise_m_s, smooth, window_cap_m_s)
+    speeds = junction_caps_m_s(cruise_m_s, smooth, window_cap_m_s, entry_m_s)
     reach = (2.0 * np.asarray(accel_m_s2, dtype=float) * np.asarray(length_m, dtype=float)).tolist()
     sqrt = math.sqrt
     for k in range(len(reach) - 1, -1, -1):
         speeds[k] = min(speeds[k], sqrt(speeds[k + 1] ** 2 + reach[k]))
+    speeds[0] = entry_m_s
     for k in range(len(reach)):
         speeds[k + 1] = min(speeds[k + 1], sqrt(speeds[k] ** 2 + reach[k]))
     return np.array(speeds)
 
 
 def banded_junction_speeds_m_s(cruise_m_s: FloatArray, bands: SpeedBands, length_m: FloatArray,
-                               smooth: NDArray[np.bool_], window_cap_m_s: FloatArray | None = None) -> FloatArray:
+                               smooth: NDArray[np.bool_], window_cap_m_s: FloatArray | None = None,
+                               entry_m_s: float = 0.0) -> FloatArray:
     """:func:`junction_speeds_m_s` with speed bands: each segment can brake into and accelerate out of its junctions.
 
     Each step first takes the trapezoid's ``sqrt(v_next² + 2 a L)`` with the segment's lowest acceleration (its
@@ -262,18 +270,31 @@ def banded_junction_speeds_m_s(cruise_m_s: FloatArray, bands: SpeedBands, length
     the cap holds.
     """
     if bands.n_bands == 1:
-        return junction_speeds_m_s(cruise_m_s, bands.accel_m_s2[:, 0], length_m, smooth, window_cap_m_s)
+        return junction_speeds_m_s(cruise_m_s, bands.accel_m_s2[:, 0], length_m, smooth, window_cap_m_s, entry_m_s)
     length = np.asarray(length_m, dtype=float)
-    speeds = junction_caps_m_s(cruise_m_s, smooth, window_cap_m_s)
+    speeds = junction_caps_m_s(cruise_m_s, smooth, window_cap_m_s, entry_m_s)
     single = (2.0 * bands.accel_m_s2[:, -1] * length).tolist()
     banded, reach, sqrt = (bands.edges_m_s[:, -2] > 0.0).tolist(), _Reach(bands, length), math.sqrt
     for k in range(len(single) - 1, -1, -1):
         step = sqrt(speeds[k + 1] ** 2 + single[k])
         speeds[k] = min(speeds[k], reach(k, speeds[k + 1]) if step < speeds[k] and banded[k] else step)
+    speeds[0] = entry_m_s
     for k in range(len(single)):
         step = sqrt(speeds[k] ** 2 + single[k])
         speeds[k + 1] = min(speeds[k + 1], reach(k, speeds[k]) if step < speeds[k + 1] and banded[k] else step)
     return np.array(speeds)
+
+
+def program_junction_speeds_m_s(program: Program, cruise_m_s: FloatArray, bands: SpeedBands, tolerance_rad: float,
+                                look_ahead_segments: int | None = None) -> FloatArray:
+    """:func:`banded_junction_speeds_m_s` over ``program``: stops at dwells and at turns over ``tolerance_rad``,
+    the look-ahead caps of a window of ``look_ahead_segments`` if shorter than the program; ``(N + 1,)``, m/s."""
+    smooth = (junction_turns_rad(program.segments) <= tolerance_rad) & (program.junction_dwell_s[1:-1] == 0.0)
+    lengths = np.array([segment.length_m for segment in program.segments])
+    window = None
+    if look_ahead_segments is not None and look_ahead_segments < len(lengths):
+        window = look_ahead_caps_m_s(bands.accel_m_s2[:, -1], lengths, look_ahead_segments)
+    return banded_junction_speeds_m_s(cruise_m_s, bands, lengths, smooth, window)
 
 
 class _Reach:

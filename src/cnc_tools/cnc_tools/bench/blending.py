@@ -17,11 +17,15 @@ the default 8 speed bands per arc: ``arc_speed_bands``; :mod:`cnc_contour_contro
 - planning time per segment against program length (polygons of 0.2 mm sides;
   CPU time, so that other processes' load does not count, beside the 1-minute load
   average; planning is NumPy over whole programs: :mod:`cnc_contour_control.plan_arrays`,
-  :mod:`cnc_contour_control.blend_assembly`, :mod:`cnc_contour_control.segment_batch`).
+  :mod:`cnc_contour_control.blend_assembly`, :mod:`cnc_contour_control.segment_batch`), whole and streaming
+  (a window of ``STREAM_WINDOW`` segments, :mod:`cnc_contour_control.plan_stream`): CPU time to the first
+  sample beside the CPU time of the whole plan.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import gc
 import os
 import time
 from typing import Any
@@ -45,6 +49,8 @@ MAX_ACCELERATION_M_S2 = 0.25
 SAMPLE_S = 1e-3
 LIMIT_GOAL = 1.0 + 1e-9
 TIME_GOAL = 1.10
+#: The streaming planner's window in the planning-cost table, planned segments.
+STREAM_WINDOW = 200
 PLAN_SIZES = (1_000, 10_000, 200_000)
 
 
@@ -107,16 +113,30 @@ def _row(f: dict[str, Any], arc_s: float) -> list[object]:
             goal_text(f["cycle_s"] <= TIME_GOAL * f["toppra_s"] and (to_arc == "" or to_arc <= TIME_GOAL))]
 
 
-def planning_cost(sizes: tuple[int, ...]) -> list[dict[str, float]]:
-    """Plan time per programmed segment for polygons of 0.2 mm sides with ``sizes`` sides."""
+def planning_cost(sizes: tuple[int, ...], windows: tuple[int | None, ...] = (None,)) -> list[dict[str, float]]:
+    """Plan time per programmed segment for polygons of 0.2 mm sides with ``sizes`` sides, per look-ahead window.
+
+    Per size and window (None: the default window, the whole program planned at construction; a window shorter
+    than the program streams, :mod:`cnc_contour_control.plan_stream`): CPU time to the first sample (construction
+    and ``sample(0)``), CPU and wall time to the whole plan (streaming: planned to the end by ``duration_s``).
+    """
     rows = []
     for sides in sizes:
         program = polygon(sides, radius_m=sides * 2e-4 / (2 * np.pi))
-        started, started_cpu = time.perf_counter(), time.process_time()
-        Interpolator(program, limits_for(program), bench_config())
-        elapsed, cpu = time.perf_counter() - started, time.process_time() - started_cpu
-        rows.append({"segments": sides, "plan_s": elapsed, "plan_cpu_s": cpu, "us_per_segment": cpu / sides * 1e6,
-                     "load_1min": os.getloadavg()[0]})
+        for window in windows:
+            config = bench_config() if window is None else dataclasses.replace(bench_config(),
+                                                                               look_ahead_segments=window)
+            gc.collect()  # the previous plan's objects are not this one's cost
+            started, started_cpu = time.perf_counter(), time.process_time()
+            interpolator = Interpolator(program, limits_for(program), config)
+            interpolator.sample(0.0)
+            first_cpu = time.process_time() - started_cpu
+            _ = interpolator.duration_s  # streaming: plans to the end
+            elapsed, cpu = time.perf_counter() - started, time.process_time() - started_cpu
+            del interpolator
+            rows.append({"segments": sides, "window": window or config.look_ahead_segments,
+                         "streaming": window is not None, "first_sample_cpu_s": first_cpu, "plan_s": elapsed,
+                         "plan_cpu_s": cpu, "us_per_segment": cpu / sides * 1e6, "load_1min": os.getloadavg()[0]})
     return rows
 
 
@@ -133,10 +153,12 @@ def blending_bench(options: argparse.Namespace) -> int:
     print(format_table(["program", "segs", "blends", "stops", "stop s", "cycle s", "toppra s", "/toppra", "/arc",
                         "v ratio per axis", "a ratio per axis", "dev um", "limits+tol", "time 10 %"],
                        [_row(f, arc_s) for f in figures]))
-    cost = planning_cost(PLAN_SIZES[:2] if quick else PLAN_SIZES)
-    print(format_table(["segments", "plan wall s", "plan CPU s", "CPU us/segment", "load (1 min)"],
-                       [[c["segments"], round(c["plan_s"], 2), round(c["plan_cpu_s"], 2), round(c["us_per_segment"], 1),
-                         round(c["load_1min"], 1)] for c in cost]))
+    cost = planning_cost(PLAN_SIZES[:2] if quick else PLAN_SIZES, (None, STREAM_WINDOW))
+    print(format_table(["segments", "plan", "first sample CPU s", "plan wall s", "plan CPU s", "CPU us/segment",
+                        "load (1 min)"],
+                       [[c["segments"], f"stream W={c['window']}" if c["streaming"] else "whole",
+                         round(c["first_sample_cpu_s"], 3), round(c["plan_s"], 2), round(c["plan_cpu_s"], 2),
+                         round(c["us_per_segment"], 1), round(c["load_1min"], 1)] for c in cost]))
     write_json(options.json, {"bench": "blending", "tolerance_mm": TOLERANCE_MM, "arc_s": arc_s,
                               "programs": figures, "planning": cost, "machine": machine()})
     return 0
