@@ -142,8 +142,9 @@ class OverrideFollower:
     def __init__(self, interpolator: Interpolator, limits: AxisLimits, config: OverrideConfig | None = None) -> None:
         self.interpolator = interpolator
         self.config = config if config is not None else OverrideConfig()
-        if limits.n_axes != interpolator.program.n_axes:
-            raise ConfigError(f"limits must have one entry per program axis ({interpolator.program.n_axes}), "
+        n_axes = interpolator.programmed_program.n_axes  # not .program: that would blend a streaming plan whole
+        if limits.n_axes != n_axes:
+            raise ConfigError(f"limits must have one entry per program axis ({n_axes}), "
                               f"got {limits.n_axes}")
         self._v_max = np.asarray(limits.max_velocity_m_s, dtype=float)
         self._a_max = np.asarray(limits.max_acceleration_m_s2, dtype=float) * self.config.acceleration_share
@@ -161,7 +162,8 @@ class OverrideFollower:
 
     def _scaled(self, ratio: float, dt_s: float) -> tuple[ReferenceSample, bool]:
         """The sample one tick ahead at ``ratio`` and whether it keeps the limits."""
-        tau = min(self.profile_time_s + ratio * dt_s, self.interpolator.duration_s)
+        tau = self.profile_time_s + ratio * dt_s
+        tau = min(tau, self.interpolator.planned_end_s(tau))  # a streaming plan is extended, not finished
         base = self.interpolator.sample(tau)
         rate = (ratio - self.ratio) / dt_s
         velocity = ratio * base.velocity_m_s

@@ -149,3 +149,20 @@ def test_a_feed_over_the_limit_is_refused_when_the_stream_reaches_it(monkeypatch
         streamed.sample(1e3)
     assert str(streamed_error.value) == str(whole_error.value)
     assert "feed_mm_min must be <=" in str(streamed_error.value)
+
+
+def test_a_feed_override_follows_a_streaming_plan_without_finishing_it(monkeypatch: pytest.MonkeyPatch) -> None:
+    from cnc_contour_control.feed_override import OverrideFollower
+
+    program = CORPUS["circle-3600-gon"][0]()
+    limits = limits_for(program)
+    config = dataclasses.replace(bench_config(), look_ahead_segments=50)
+    streamed = OverrideFollower(Interpolator(program, limits, config), limits)
+    whole = OverrideFollower(whole_plan(program, limits, config, monkeypatch), limits)
+    ratios = [1.0] * 100 + [0.4] * 300 + [1.2] * 500
+    for tick, ratio in enumerate(ratios):
+        ours, theirs = streamed.advance(0.01, ratio), whole.advance(0.01, ratio)
+        assert_allclose(ours.position_m, theirs.position_m, rtol=0.0, atol=1e-12)
+        if tick == 100:  # 1 s into a 5.9 s circle: the follower extended the plan, it did not finish it
+            assert not streamed.interpolator._stream.finished
+    assert ours.done and theirs.done

@@ -190,9 +190,14 @@ class InterpolatorNode(SuiteNode):
         self._publish_path(program, live.interpolator, stamp_ns)
 
     def _publish_path(self, program: Program, interpolator: Interpolator, stamp_ns: int) -> None:
-        """``program`` as written on the latched ``path``, with the tolerance it is planned with (as the engine's)."""
+        """``program`` as written on the latched ``path``, with the tolerance it is planned with (as the engine's).
+
+        Its ``planned_duration_s`` is NaN while a streaming plan (``look_ahead_segments`` below the program's
+        length) has not reached the end: finishing it here would plan the whole program before the first tick.
+        """
+        duration_s = interpolator.planned_end_s(0.0)
         self.path_pub.publish(program_to_path(with_planning_tolerance(program, interpolator.config), stamp_ns,
-                                              self.frame_id, interpolator.duration_s))
+                                              self.frame_id, duration_s if math.isfinite(duration_s) else math.nan))
 
     def fault(self, message: str) -> None:
         """Fault as every node does; a running goal ends as faulted with the reason."""
