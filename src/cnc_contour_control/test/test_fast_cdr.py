@@ -60,6 +60,12 @@ def _message(data: st.DataObject, cls: type) -> Any:
     return msg
 
 
+@pytest.fixture(autouse=True)
+def codecs_on(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The codecs are opt-in (``CNC_FAST_CDR=1``); these tests test them."""
+    monkeypatch.setenv("CNC_FAST_CDR", "1")
+
+
 def _has_nan(msg: Any) -> bool:
     return "nan" in repr(msg).lower()
 
