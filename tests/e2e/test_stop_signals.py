@@ -13,13 +13,11 @@ import os
 import signal
 import subprocess
 import sys
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 import pytest
 
-from cnc_tools.testing import stop_processes
+from cnc_tools.testing import stop_processes, wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"
@@ -35,13 +33,6 @@ NODES = {
 }
 pytestmark = pytest.mark.e2e
 
-
-def _wait_for(condition: Callable[[], bool], timeout_s: float, what: str) -> None:
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
-        time.sleep(0.05)
 
 
 def _status(summary: Path) -> str | None:
@@ -84,7 +75,7 @@ def _start_group(tmp_path: Path, params: Path) -> dict[str, subprocess.Popen[byt
 def test_a_signal_to_the_by_hand_graph_mid_run_ends_every_node_cleanly(tmp_path: Path, sig: int) -> None:
     processes = _start_group(tmp_path, _params_file(tmp_path))
     try:
-        _wait_for(lambda: _status(tmp_path / "summary.json") == "running"
+        wait_until(lambda: _status(tmp_path / "summary.json") == "running"
                   or any(p.poll() is not None for p in processes.values()), 90.0, "the plant to run")
         assert all(p.poll() is None for p in processes.values()), "every node runs until the signal"
         os.killpg(processes["recorder"].pid, sig)
@@ -104,7 +95,7 @@ def test_a_composed_host_stopped_by_the_runner_ends_cleanly(tmp_path: Path) -> N
                                "--set", "duration_s=60", "--compose", "all"],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        _wait_for(lambda: _status(run_dir / "summary.json") == "running", 90.0, "the composed graph to run")
+        wait_until(lambda: _status(run_dir / "summary.json") == "running", 90.0, "the composed graph to run")
         runner.send_signal(signal.SIGINT)  # the runner passes it on: SIGINT to the host
         _, err = runner.communicate(timeout=60)
     finally:

@@ -6,7 +6,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -14,6 +13,7 @@ import pytest
 from cnc_tools.runs.graph import NodeDied, run_graph
 from cnc_tools.runs.outputs import judge_bag
 from cnc_tools.runs.scenario import load_scenario
+from cnc_tools.testing import wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"
@@ -30,13 +30,6 @@ def _alive(pid: int) -> bool:
         return False
     return state != "Z"
 
-
-def _wait_for(condition, timeout_s: float, what: str) -> None:  # noqa: ANN001
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
-        time.sleep(0.05)
 
 
 def _summary(run_dir: Path) -> dict:
@@ -64,12 +57,12 @@ def test_a_signal_to_cnc_contour_run_stops_and_reaps_every_node(tmp_path: Path, 
                               text=True)
     pids: dict[str, int] = {}
     try:
-        _wait_for(lambda: _summary(run_dir).get("status") == "running", 90.0, "the graph to run")
+        wait_until(lambda: _summary(run_dir).get("status") == "running", 90.0, "the graph to run")
         pids = _node_pids(run_dir)
         assert all(_alive(pid) for pid in pids.values())
         parent.send_signal(sig)
         _, err = parent.communicate(timeout=60)
-        _wait_for(lambda: not any(_alive(pid) for pid in pids.values()), 30.0, f"the nodes {pids} to end")
+        wait_until(lambda: not any(_alive(pid) for pid in pids.values()), 30.0, f"the nodes {pids} to end")
     finally:
         for pid in [parent.pid, *pids.values()]:
             if _alive(pid):

@@ -84,12 +84,7 @@ class TopicProbe(_BackgroundNode):
 
     def wait_for(self, condition: Callable[[], bool], timeout_s: float, what: str) -> None:
         """Wait until ``condition()`` holds; raise AssertionError naming ``what`` after ``timeout_s``."""
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if condition():
-                return
-            time.sleep(0.01)
-        raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+        wait_until(condition, timeout_s, what)
 
     def call(self, srv_type: type, name: str, request: Any, timeout_s: float = 10.0) -> Any:
         """Call service ``name`` from the probe's node once it is there; its answer (AssertionError after
@@ -99,6 +94,15 @@ class TopicProbe(_BackgroundNode):
         future = client.call_async(request)
         self.wait_for(future.done, timeout_s, f"answer of {name}")
         return future.result()
+
+
+def wait_until(condition: Callable[[], bool], timeout_s: float, what: str, poll_s: float = 0.01) -> None:
+    """Wait until ``condition()`` holds, looking every ``poll_s``; AssertionError naming ``what`` after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
+        time.sleep(poll_s)
 
 
 def udp_sockets(pid: int) -> list[tuple[str, int]]:

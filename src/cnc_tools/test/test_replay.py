@@ -5,8 +5,7 @@ import math
 import re
 import subprocess
 import sys
-import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from pathlib import Path
 
 import pytest
@@ -23,6 +22,7 @@ from cnc_tools.bagio.replay import (
     skip_empty,
 )
 from cnc_tools.bagio.typestore import project_typestore
+from cnc_tools.testing import wait_until
 
 JS, CLOCK = "sensor_msgs/msg/JointState", "rosgraph_msgs/msg/Clock"
 MS = 1_000_000
@@ -222,14 +222,6 @@ def _final_status(probe) -> object | None:  # noqa: ANN001
     return None
 
 
-def _wait(condition: Callable[[], bool], timeout_s: float, what: str) -> None:
-    """Wait until ``condition()`` holds; fail naming ``what`` after ``timeout_s``."""
-    deadline = time.monotonic() + timeout_s
-    while not condition():
-        if time.monotonic() > deadline:
-            raise AssertionError(f"timed out after {timeout_s} s waiting for {what}")
-        time.sleep(0.01)
-
 
 def _wait_for_all(probe, expected: Mapping[str, int], timeout_s: float = 30.0) -> None:  # noqa: ANN001
     probe.wait_for(lambda: all(len(probe.received(t)) >= n for t, n in expected.items()), timeout_s,
@@ -321,6 +313,6 @@ def test_replaying_into_the_recorder_records_the_same_bag(tmp_path: Path, synth)
             counts = recorder.node.writer.message_counts
             return all(counts.get(t, 0) >= n for t, n in expected.items())
 
-        _wait(holds_everything, 30.0, f"the recorder to hold {expected}")
+        wait_until(holds_everything, 30.0, f"the recorder to hold {expected}")
     rerecorded = _recorded(copy)  # the recorder closed its bag when its node was destroyed
     assert {t: rerecorded[t] for t in recorded} == recorded
