@@ -10,6 +10,8 @@ from pathlib import Path
 
 import pytest
 
+from cnc_contour_control.errors import BagError
+from cnc_tools.bagio.raw_bag import locate, read_raw
 from cnc_tools.runs.graph import NodeDied, run_graph
 from cnc_tools.runs.outputs import judge_bag
 from cnc_tools.runs.scenario import load_scenario
@@ -85,11 +87,17 @@ def test_a_signal_to_cnc_contour_run_stops_and_reaps_every_node(tmp_path: Path, 
 
 
 class _KillWhenRunning:
-    """A runner poll that kills node ``name`` (SIGKILL, by its pid) once the plant reports it is running."""
+    """A runner poll that kills node ``name`` (SIGKILL, by its pid) once the bag on disk holds joint states.
+
+    The recorder flushes every second; waiting for joint states in the flushed
+    bag (not only for the plant's "running") makes the verdict's input certain:
+    on a loaded host the recorder's reader can match the plant's writer after
+    the first ticks, and a node killed then leaves a bag with no state at all.
+    """
 
     def __init__(self, run_dir: Path, name: str) -> None:
         self.run_dir, self.name, self.pid = run_dir, name, None
-        self._size_when_running: int | None = None
+        self._checked_size = -1
 
     def __call__(self) -> None:
         if self.pid is None and _summary(self.run_dir).get("status") == "running" and self._recorded():
@@ -97,13 +105,16 @@ class _KillWhenRunning:
             os.kill(self.pid, signal.SIGKILL)
 
     def _recorded(self) -> bool:
-        """For the recorder: once it has flushed a chunk written after the plant began to tick (every second)."""
-        if self.name != "recorder":
-            return True
-        size = sum(f.stat().st_size for f in (self.run_dir / "bag").glob("*.mcap"))
-        if self._size_when_running is None:
-            self._size_when_running = size
-        return size > self._size_when_running
+        bag = self.run_dir / "bag"
+        size = sum(f.stat().st_size for f in bag.glob("*.mcap"))
+        if size == self._checked_size:
+            return False
+        self._checked_size = size
+        try:
+            raw, _ = read_raw(locate(bag), lambda topic: topic.endswith("/joint_states"))
+        except BagError:
+            return False
+        return any(raw.data.values())
 
 
 @pytest.mark.parametrize("node", ["plant", "interpolator", "servo_x", "recorder"])

@@ -94,13 +94,30 @@ def test_realtime_run_whose_commands_never_arrive_faults_on_the_late_share(tmp_p
     params = {**PARAMS, "mode": "realtime", "max_late_share": 0.2, "late_share_min_ticks": 20,
               "command_max_age_s": 0.03, "summary_file": str(summary_file)}
     with TopicProbe(PROBED) as probe:
-        probe.publisher(AxisCommand, "/cnc/servo/x/command")  # a writer that never keeps the deadline
+        pub = probe.publisher(AxisCommand, "/cnc/servo/x/command")  # closes the loop, then misses every deadline
         with InProcessNode(PlantNode, params) as plant:
+            run_ticks(probe, pub, 0, 0, 0.0)
             probe.wait_for(lambda: plant.node.finished, 20.0, "the fault")
             probe.wait_for(lambda: any(s.level == DiagnosticStatus.ERROR for s in statuses(probe)), 10.0,
                            "the fault on /diagnostics")
     summary = json.loads(summary_file.read_text())
     assert summary["status"] == "faulted" and summary["ticks"] == 19, "judged at the 20th tick"
-    assert "20 of 20 commands late" in summary["faults"][0] and "max_late_share 0.2" in summary["faults"][0]
-    assert summary["late_commands"] == 20
-    assert 16 <= summary["held_commands"] <= 19, "zero once 30 ms old (stamps follow the measured periods)"
+    assert "19 of 20 commands late" in summary["faults"][0] and "max_late_share 0.2" in summary["faults"][0]
+    assert summary["late_commands"] == 19, "tick 0's command closed the loop"
+    assert 15 <= summary["held_commands"] <= 18, "zero once 30 ms old (stamps follow the measured periods)"
+
+
+def test_realtime_clock_waits_for_the_loop_to_close_and_faults_naming_the_silent_command_topic(tmp_path: Path) -> None:
+    summary_file = tmp_path / "summary.json"
+    params = {**PARAMS, "mode": "realtime", "command_timeout_s": 0.2, "startup_timeout_s": 0.5,
+              "summary_file": str(summary_file)}
+    with TopicProbe(PROBED) as probe:
+        probe.publisher(AxisCommand, "/cnc/servo/x/command")  # matched, never answers tick 0
+        with InProcessNode(PlantNode, params) as plant:
+            probe.wait_for(lambda: plant.node.finished, 20.0, "the fault")
+            assert not plant.node.loop_closed
+    summary = json.loads(summary_file.read_text())
+    assert summary["status"] == "faulted" and summary["ticks"] == 0, "the wall clock never started"
+    assert "no /cnc/servo/x/command (last published by /probe) for tick t=0.000000 s within 0.5 s" in \
+        summary["faults"][0], summary["faults"]
+    assert summary["late_commands"] == 0

@@ -114,6 +114,7 @@ class PlantNode(SuiteNode):
         self.latch = EstopLatch()  # estop, ~/enable, ~/reset: zero commands while latched or disabled
         self.safety = SafetyInterface(self, self.latch, lambda: self.clock.stamp_ns)
         self.started = False
+        self.loop_closed = False  # real time: the wall clock runs once tick 0's commands are in
         self.joint_pub = self.create_publisher(JointState, "joint_states", LOCKSTEP_QOS)
         self.joint_gate = self.reader_gate(self.joint_pub, JointState, "expected_subscribers", 1)
         self.tool_pub, self.tool_gate = self._tool_position_publisher()
@@ -194,10 +195,22 @@ class PlantNode(SuiteNode):
             self.partners.check()  # who commands: known from the start, however short the run
             self.clock.started_wall_s = wall_time_s()
             self.get_logger().info(f"graph ready, running {self.mode} for {self.clock.duration_s} s")
-            if self.mode == "realtime":
-                self.create_timer(self.clock.sample_time_s, self.guarded(self._realtime_tick))
-                self.last_wall_s = wall_time_s()
             self._publish_tick()
+
+    def _close_loop(self, commands: list[float]) -> None:
+        """Real time: tick 0's commands are in from every axis, so the wall clock starts now.
+
+        Until the controller answers once, the loop is open: a servo whose
+        reader matched the plant's writer late (discovery on a loaded host)
+        would otherwise see its first commands counted late and fault the run
+        before it ever closed the loop. The wait is the startup timeout, as in
+        lockstep.
+        """
+        self.loop_closed = True
+        self.commands = list(commands)
+        self.received = [True] * len(self.axes)
+        self.clock.started_wall_s = self.last_wall_s = wall_time_s()
+        self.create_timer(self.clock.sample_time_s, self.guarded(self._realtime_tick))
 
     def _publish_tick(self) -> None:
         stamp_ns = self.clock.stamp_ns
@@ -209,7 +222,7 @@ class PlantNode(SuiteNode):
         if self.force_pub is not None and self.cutting is not None:
             self.force_pub.publish(wrench_msg(self.cutting.cutting_force_n(), stamp_ns))
         self.clock_pub.publish(clock_msg(stamp_ns))
-        if self.mode == "lockstep":
+        if self.mode == "lockstep" or not self.loop_closed:
             self.matcher.expect(stamp_ns, wall_time_s())
 
     def _command_callback(self, axis: str) -> Any:
@@ -220,15 +233,20 @@ class PlantNode(SuiteNode):
 
     def _take_command(self, axis: str, stamp_ns: int, value: float) -> None:
         """One axis's command for tick ``stamp_ns``: held for the real-time tick, or matched in lockstep."""
-        if self.mode == "realtime":
+        if self.mode == "realtime" and self.loop_closed:
             if stamp_ns == self.clock.stamp_ns:
                 index = self.axes.index(axis)
                 self.commands[index] = value
                 self.received[index] = True
             return
         items = self.matcher.add(axis, stamp_ns, value, wall_time_s())
-        if items is not None:
-            self._lockstep_step([items[a] for a in self.axes])
+        if items is None:
+            return
+        commands = [items[a] for a in self.axes]
+        if self.mode == "realtime":
+            self._close_loop(commands)
+        else:
+            self._lockstep_step(commands)
 
     def _lockstep_step(self, commands: list[float]) -> None:
         self.plant.step(self.latch.gate(commands), self.clock.sample_time_s)
