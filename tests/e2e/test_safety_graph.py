@@ -76,14 +76,15 @@ def test_estop_mid_run_latches_stops_the_axes_and_is_in_the_bag(tmp_path: Path) 
         estop = probe.node.create_publisher(Bool, f"{ns}/estop", 10)
         sent: list[int] = []
 
-        def press_once_running() -> None:
-            # plant and both servos latch: press once all three read the e-stop (volatile: none may miss it)
+        def press_once_running(_: JointState) -> None:
+            # plant and both servos latch: press once all three read the e-stop (volatile: none may miss it),
+            # from the probe's own joint_states callback: a polling loop may notice tick 40 after a fast run ended
             if not sent and len(probe.received(f"{ns}/joint_states")) > 40 and estop.get_subscription_count() >= 3:
                 estop.publish(Bool(data=True))
                 sent.append(len(probe.received(f"{ns}/joint_states")))
 
-        result = run_graph(scenario, tmp_path, record=True, extra_subscribers=1, namespace=ns,
-                           on_poll=press_once_running)
+        probe.watch(f"{ns}/joint_states", press_once_running)
+        result = run_graph(scenario, tmp_path, record=True, extra_subscribers=1, namespace=ns)
     assert sent and result.faults == [] and result.summary["estop_latches"] == 1
     _, statuses = read_statuses(result.bag_path)
     latched = {s.name.rsplit("/", 1)[-1]: s for s in statuses if s.message.startswith("e-stop latched")}

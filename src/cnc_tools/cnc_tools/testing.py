@@ -7,6 +7,7 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
+import sys
 import threading
 import time
 from collections import defaultdict
@@ -20,15 +21,27 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
-from cnc_contour_control.nodes.common import LOCKSTEP_QOS
+from cnc_contour_control.nodes.common import LOCKSTEP_QOS, make_executor
+
+
+def _events_executor(context: Context) -> Any:
+    """``make_executor(context)`` also under pytest's ``capsys``: rclpy's EventsExecutor enables
+    ``faulthandler`` on ``sys.stderr``, which must then be a real file."""
+    stderr = sys.stderr
+    sys.stderr = sys.__stderr__
+    try:
+        return make_executor(context)
+    finally:
+        sys.stderr = stderr
 
 
 class _BackgroundNode:
     """A node in its own context, spun by a daemon thread between ``__enter__`` and ``__exit__``."""
 
-    def _attach(self, context: Context, node: Node) -> None:
+    def _attach(self, context: Context, node: Node, events: bool = False) -> None:
+        """``events``: the nodes' executor (``make_executor``), which keeps up with a lockstep graph's rate."""
         self.context, self.node = context, node
-        self.executor = SingleThreadedExecutor(context=context)
+        self.executor = _events_executor(context) if events else SingleThreadedExecutor(context=context)
         self.executor.add_node(node)
         self._running = True
         self._thread = threading.Thread(target=self._spin, daemon=True)
@@ -60,9 +73,12 @@ class TopicProbe(_BackgroundNode):
                  namespace: str = "") -> None:
         context = Context()
         rclpy.init(context=context)
-        self._attach(context, Node(name, namespace=namespace, context=context))
+        # A probe reads every tick of a graph that may run several times faster than real time: a
+        # SingleThreadedExecutor (a wait set rebuilt in Python per callback) fell a whole run behind.
+        self._attach(context, Node(name, namespace=namespace, context=context), events=True)
         self.messages: dict[str, list[Any]] = defaultdict(list)
         self._lock = threading.Lock()
+        self._watchers: dict[str, list[Callable[[Any], None]]] = defaultdict(list)
         for topic, msg_type in subscriptions.items():
             self.node.create_subscription(msg_type, topic, self._recorder(topic), qos)
 
@@ -70,8 +86,15 @@ class TopicProbe(_BackgroundNode):
         def record(msg: Any) -> None:
             with self._lock:
                 self.messages[topic].append(msg)
+            for watcher in self._watchers[topic]:
+                watcher(msg)
 
         return record
+
+    def watch(self, topic: str, callback: Callable[[Any], None]) -> None:
+        """Call ``callback(msg)`` on the probe's thread for each message of ``topic`` once it is recorded:
+        to act at a point of the run (the n-th tick), not at whatever point a polling loop notices it."""
+        self._watchers[topic].append(callback)
 
     def publisher(self, msg_type: type, topic: str, qos: QoSProfile = LOCKSTEP_QOS) -> Any:
         """A publisher on the probe's node."""

@@ -9,13 +9,16 @@ from rclpy.parameter import Parameter
 from cnc_contour_control.errors import BagError
 from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, message_class, spin_node, wall_time_s
 from cnc_contour_control.stages import STAGES
-from cnc_contour_control.topics import RUN_FINISHED, RUN_ID_KEY, TICKS_KEY
+from cnc_contour_control import topics
+from cnc_contour_control.topics import DIAGNOSTICS, RUN_FINISHED, RUN_ID_KEY, TICKS_KEY
 from cnc_tools.bagio.bag import BagWriter
 from cnc_tools.bagio.recording import Completion, header_stamp_ns, is_latched, is_wall_stamped, per_tick_topics, run_topics
 
 
 #: Wall seconds between flushes of the bag to disk (what a SIGKILLed recorder can lose at most).
 FLUSH_PERIOD_S = 1.0
+#: Wall seconds the recorder waits for the plant's /diagnostics writer before it reads joint_states anyway.
+GATE_WAIT_S = 10.0
 
 
 class RecorderNode(SuiteNode):
@@ -48,7 +51,7 @@ class RecorderNode(SuiteNode):
         self.completion = Completion(tuple(self.resolve_topic_name(n) for n in per_tick))
         self.ended_at_s: float | None = None
         self.latest_sim_ns = 0
-        latched_first = self.declare("latched_first", False, describe(
+        self.latched_first = latched_first = self.declare("latched_first", False, describe(
             "subscribe the per-tick topics only once the latched ones (the path) are in the bag: for a run whose "
             "plant waits for every reader of joint_states (the runner's graph), not for a replay", read_only=True))
         latched = {topic: ty for topic, ty in topics.items() if is_latched(ty)}
@@ -73,11 +76,45 @@ class RecorderNode(SuiteNode):
         The plant starts ticking only when every reader of ``joint_states``
         has matched, so a run cannot begin, or die, before the recorder holds
         the program's geometry: a bag of a run killed at its first tick can
-        still be scored.
+        still be scored. ``joint_states`` comes last, once this node has seen
+        the plant's ``/diagnostics`` writer (:meth:`_subscribe_joint_states`).
         """
+        gate = self.resolve_topic_name(topics.JOINT_STATES.name) if self.latched_first else ""
         for topic, type_name in self._later.items():
-            self._subscribe(topic, type_name, LOCKSTEP_QOS)
+            if topic != gate:
+                self._subscribe(topic, type_name, LOCKSTEP_QOS)
+        self._gate_topic = (gate, self._later[gate]) if gate in self._later else None
         self._later = {}
+        if self._gate_topic is not None:
+            self._gate_since_s = wall_time_s()
+            self._gate_timer = self.create_timer(0.02, self.guarded(self._subscribe_joint_states))
+
+    def _subscribe_joint_states(self) -> None:
+        """Subscribe ``joint_states``, the topic the plant's start waits on, once the run's end can be heard.
+
+        The plant's "run finished" comes on ``/diagnostics``, which is not
+        gated: had the plant matched this node's ``joint_states`` reader
+        before its ``/diagnostics`` reader, a short run could end, its report
+        unheard, and the recorder wait forever. Endpoints are announced in the
+        order they are made, so the plant matches the ``/diagnostics`` reader
+        first; this node waits until it has itself discovered the plant's
+        ``/diagnostics`` writer (at most :data:`GATE_WAIT_S`, then goes on with
+        a warning: a plant that reports elsewhere).
+        """
+        topic, type_name = self._gate_topic
+        plants = {(i.node_name, i.node_namespace) for i in self.get_publishers_info_by_topic(topic)}
+        if not plants:
+            return
+        reporters = {(i.node_name, i.node_namespace)
+                     for i in self.get_publishers_info_by_topic(self.resolve_topic_name(DIAGNOSTICS.name))}
+        heard = plants <= reporters
+        if not heard and wall_time_s() - self._gate_since_s < GATE_WAIT_S:
+            return
+        if not heard:
+            self.get_logger().warning(f"no /diagnostics writer of {sorted(plants - reporters)} after {GATE_WAIT_S} s: "
+                                      "the run's end may go unheard")
+        self._gate_timer.cancel()
+        self._subscribe(topic, type_name, LOCKSTEP_QOS)
 
     def _latched_arrived(self, topic: str) -> None:
         if topic in self._awaited:
