@@ -97,22 +97,25 @@ class RecorderNode(SuiteNode):
         before its ``/diagnostics`` reader, a short run could end, its report
         unheard, and the recorder wait forever. Endpoints are announced in the
         order they are made, so the plant matches the ``/diagnostics`` reader
-        first; this node waits until it has itself discovered the plant's
-        ``/diagnostics`` writer (at most :data:`GATE_WAIT_S`, then goes on with
-        a warning: a plant that reports elsewhere).
+        first; this node waits until it has itself discovered a ``/diagnostics``
+        writer of the participant that publishes ``joint_states`` (at most
+        :data:`GATE_WAIT_S`, then goes on with a warning: a plant that reports
+        elsewhere).
         """
         topic, type_name = self._gate_topic
-        plants = {(i.node_name, i.node_namespace) for i in self.get_publishers_info_by_topic(topic)}
+        plants = _participants(self.get_publishers_info_by_topic(topic))
         if not plants:
             return
-        reporters = {(i.node_name, i.node_namespace)
-                     for i in self.get_publishers_info_by_topic(self.resolve_topic_name(DIAGNOSTICS.name))}
-        heard = plants <= reporters
-        if not heard and wall_time_s() - self._gate_since_s < GATE_WAIT_S:
+        reporters = _participants(self.get_publishers_info_by_topic(self.resolve_topic_name(DIAGNOSTICS.name)))
+        unheard = sorted(plants[p] for p in plants.keys() - reporters.keys())
+        self.waiting_for("joint_states gate", f"a /diagnostics writer of {', '.join(unheard)} (publisher of {topic}), "
+                         "to hear the run's end" if unheard else None)
+        if unheard and wall_time_s() - self._gate_since_s < GATE_WAIT_S:
             return
-        if not heard:
-            self.get_logger().warning(f"no /diagnostics writer of {sorted(plants - reporters)} after {GATE_WAIT_S} s: "
+        if unheard:
+            self.get_logger().warning(f"no /diagnostics writer of {unheard} after {GATE_WAIT_S} s: "
                                       "the run's end may go unheard")
+            self.waiting_for("joint_states gate", None)
         self._gate_timer.cancel()
         self._subscribe(topic, type_name, LOCKSTEP_QOS)
 
@@ -162,6 +165,15 @@ class RecorderNode(SuiteNode):
         """Close the bag (MCAP summary and metadata.yaml) on every way out."""
         self.writer.close()
         super().destroy_node()
+
+
+def _participants(endpoints: list[Any]) -> dict[bytes, str]:
+    """The DDS participants (the 12-byte GUID prefix of each endpoint's gid) of ``endpoints``, with a node name.
+
+    By participant, not node name: an endpoint is discovered before its
+    node's name is (``_NODE_NAME_UNKNOWN_`` meanwhile).
+    """
+    return {bytes(info.endpoint_gid[:12]): f"{info.node_namespace}/{info.node_name}" for info in endpoints}
 
 
 def main(args: list[str] | None = None) -> None:
