@@ -30,7 +30,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq, minimize_scalar
 
 from cnc_contour_control.arc import ArcSegment
 from cnc_contour_control.geometry import LineSegment, Segment
@@ -218,6 +217,7 @@ def lift(point_2d: FloatArray, plane: tuple[int, int], corner: FloatArray) -> Fl
 def deviation_m(before: Segment, after: Segment, shape: Fillet, plane: tuple[int, int], corner: FloatArray,
                 side: float) -> float:
     """Largest exact distance (m) of the fillet from the two segments (the smaller of both at each point)."""
+    from scipy.optimize import minimize_scalar
     rel0 = shape.start - shape.center
     a0 = math.atan2(rel0[1], rel0[0])
     rel1 = shape.end - shape.center
@@ -309,6 +309,7 @@ def measured_deviation_m(first: Piece, second: Piece, shape: Fillet, side: float
     a grid maximum away from the crossing refined by
     :func:`scipy.optimize.minimize_scalar`, as :func:`deviation_m` does.
     """
+    from scipy.optimize import brentq, minimize_scalar
     a0, sweep = _fillet_angles(shape, side)
     cx, cy, r = float(shape.center[0]), float(shape.center[1]), shape.radius_m
 

@@ -16,9 +16,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import signal
+
+if TYPE_CHECKING:
+    from scipy import signal
 
 from cnc_contour_control.config import require_finite, require_range
 from cnc_contour_control.errors import ConfigError
@@ -64,6 +67,7 @@ class DiscreteVelocityModel:
         Both coefficient lists are padded to one length, so they read as
         polynomials in z over the same power: the z⁻¹ form above.
         """
+        from scipy import signal
         n = max(len(self.numerator), len(self.denominator))
         num = np.pad(self.numerator, (0, n - len(self.numerator)))
         den = np.pad(self.denominator, (0, n - len(self.denominator)))
@@ -103,6 +107,7 @@ class PiVelocityLoop:
 
     def lti(self) -> signal.lti:
         """The closed loop (velocity command -> velocity) as a :class:`scipy.signal.lti`."""
+        from scipy import signal
         c = self.torque_per_inertia
         return signal.lti([c * self.kp, c * self.ki], [1.0, c * self.kp, c * self.ki])
 

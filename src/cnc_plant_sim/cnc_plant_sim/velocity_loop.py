@@ -48,7 +48,6 @@ from typing import Any
 
 import numpy as np
 import numpy.typing as npt
-from scipy.linalg import expm
 
 from cnc_contour_control.config import build_config, require_choice
 from cnc_contour_control.errors import ConfigError, FaultError
@@ -183,7 +182,9 @@ class PiLoopAxis:
     def _map(self, h_s: float) -> tuple[tuple[float, ...], ...]:
         """Rows of [Φ | Γ] for a sub-step ``h_s`` (exact ZOH), cached."""
         rows = self._maps.get(h_s)
-        if rows is None:
+        if rows is None:  # once per sub-step length: the import stays off the per-sample path
+            from scipy.linalg import expm
+
             block = np.zeros((4, 4))
             block[:3, :3], block[:3, 3] = self._a * h_s, self._b * h_s
             rows = tuple(tuple(float(x) for x in row) for row in expm(block)[:3])

@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from scipy import signal
 
 from cnc_contour_control.compensators.base import MAX_GAIN, AxisCorrection, CompensatorSample, check_sample, factors_for
 from cnc_contour_control.compensators.state_file import FloatArray, load_state, save_state
@@ -87,6 +86,7 @@ class IterativeLearningCompensator:
     """
 
     def __init__(self, config: IlcConfig, axis_names: Sequence[str], sample_time_s: float) -> None:
+        from scipy import signal
         self.config = config
         self.axis_names = tuple(axis_names)
         self.sample_time_s = require_positive("sample_time_s", sample_time_s, "ilc")
@@ -152,6 +152,7 @@ class IterativeLearningCompensator:
         ndarray, shape (M,)
             a_{k+1} [drive units].
         """
+        from scipy import signal
         length, advance = len(errors_m), self.config.advance_samples
         previous = np.zeros(length)
         previous[:min(length, len(feedforward))] = feedforward[:length]

@@ -30,8 +30,6 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
-from scipy import signal
-from scipy.special import comb
 
 from cnc_contour_control.config import require_range
 from cnc_contour_control.errors import ConfigError
@@ -64,6 +62,7 @@ def require_below_nyquist(name: str, f_hz: float, sample_time_s: float) -> float
 def response(numerator: Sequence[float], denominator: Sequence[float], f_hz: np.ndarray | float,
              sample_time_s: float) -> np.ndarray:
     """Frequency response of b(z⁻¹)/a(z⁻¹) at ``f_hz`` [Hz] (complex, shape of ``np.atleast_1d(f_hz)``)."""
+    from scipy import signal
     worn = np.atleast_1d(np.asarray(f_hz, dtype=float))
     return signal.freqz(numerator, denominator, worN=worn, fs=1.0 / sample_time_s)[1]
 
@@ -81,6 +80,7 @@ def linear_phase_lowpass(radii: Sequence[float], angles_rad: Sequence[float], or
         a DC gain of zero (a zero on z = 1), or a filter that is no low-pass
         (|L| > 1 somewhere above DC: the printed zeros of paper 002).
     """
+    from scipy import signal
     if order % 2:
         raise ConfigError(f"filter_order must be even (integer delay D_L = M/2), got {order}")
     if len(radii) != len(angles_rad) or order != 4 * len(radii):
@@ -161,6 +161,7 @@ def _target(model: DiscreteVelocityModel, lowpass: np.ndarray, f_d_hz: float, in
 def _fit_rls(model: DiscreteVelocityModel, lowpass: np.ndarray, f_d_hz: float, taps: int, include_ml: bool,
              delta: float, samples: int) -> np.ndarray:
     """W by the paper's RLS on s(n) = sin(2π n f_d T) through P_m."""
+    from scipy import signal
     t = model.sample_time_s
     ml = abs(complex(response(lowpass, [1.0], f_d_hz, t)[0])) if include_ml else 1.0
     s = np.sin(2.0 * np.pi * f_d_hz * t * np.arange(samples))
@@ -219,6 +220,7 @@ def q_filter_continuous(order: int, relative_degree: int, time_constant_s: float
 
     Numerator Σ_{k≤K−r} C(K, k)(τs)^k, denominator (1 + τs)^K.
     """
+    from scipy.special import comb
     num = [comb(order, k, exact=True) * time_constant_s ** k for k in range(order - relative_degree + 1)]
     den = [comb(order, k, exact=True) * time_constant_s ** k for k in range(order + 1)]
     return tuple(float(v) for v in num[::-1]), tuple(float(v) for v in den[::-1])
@@ -233,6 +235,7 @@ def q_filter(order: int, relative_degree: int, time_constant_s: float,
     ConfigError
         ``relative_degree`` below the model's (Q·P_n⁻¹ would be improper) or above ``order``.
     """
+    from scipy import signal
     needed = model_relative_degree(model)
     if relative_degree < needed:
         raise ConfigError(f"q_relative_degree must be >= {needed} (the model's relative degree), got {relative_degree}")
@@ -248,6 +251,7 @@ def q_filter(order: int, relative_degree: int, time_constant_s: float,
 
 def mbda_pi(kp: float, ki_per_s: float, sample_time_s: float) -> tuple[Polynomial, Polynomial]:
     """M(z⁻¹) = k_p + k_i T/(1 − z⁻¹) (backward difference of k_p + k_i/s)."""
+    from scipy import signal
     b, a, _ = signal.cont2discrete(([kp, ki_per_s], [1.0, 0.0]), sample_time_s, method="backward_diff")
     return tuple(float(v) for v in np.ravel(b)), tuple(float(v) for v in np.ravel(a))
 

@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from scipy.optimize import linprog
 
 from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.force.model import DepthSchedule, FirstOrderLag, TurningModelConfig
@@ -120,6 +119,7 @@ def _constraints(scaled: npt.NDArray[np.float64], error: npt.NDArray[np.float64]
 def _solve(free: npt.NDArray[np.float64], matrix: npt.NDArray[np.float64], reference_n: float,
            switch: QuantiserConfig, config: PreviewConfig) -> npt.NDArray[np.float64]:
     """The continuous plan: weighted minimax plus the mean absolute error (x = ratios, z_over, z_under, |e_i|)."""
+    from scipy.optimize import linprog
     n, columns = matrix.shape
     a, b = _constraints(matrix, free - reference_n)
     cost = np.r_[np.zeros(columns), config.overshoot_weight, 1.0, np.full(n, config.mean_weight / n)]

@@ -4,14 +4,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cnc_tools.bench.engine import add_options as add_engine_options
-from cnc_tools.bench.graph import add_options as add_graph_options
-from cnc_tools.bench.registry import BENCHES, get_bench
+from cnc_tools.bench.registry import TARGETS, get_bench
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """The options every bench shares, plus ``--against`` (engine and graph benches) and ``--record`` (graph bench)."""
-    parser.add_argument("name", help=f"benchmark, one of {sorted(BENCHES)}")
+    from cnc_tools.bench.engine import add_options as add_engine_options  # the bench command only
+    from cnc_tools.bench.graph import add_options as add_graph_options
+
+    parser.add_argument("name", help=f"benchmark, one of {sorted(TARGETS)}")
     parser.add_argument("--quick", action="store_true", help="shorter runs and fewer repetitions (< 30 s)")
     parser.add_argument("--json", type=Path, help="also write the measured figures to this JSON file")
     parser.add_argument("--out", type=Path, help="folder for run files (default bags/bench/<name>/<timestamp>)")

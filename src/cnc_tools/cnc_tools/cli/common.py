@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -16,11 +17,19 @@ Handler = Callable[[argparse.Namespace], int]
 
 @dataclass(frozen=True)
 class Subcommand:
-    """One subcommand: how to configure its parser, what runs it, one line of help."""
+    """One subcommand: its module, the names of the function that configures its parser and of the one that
+    runs it, and one line of help. The module is imported only when the subcommand is used (``load``): a
+    ``cnc-contour`` call imports what its own subcommand needs, not every bench and plot of the suite."""
 
-    configure: Callable[[argparse.ArgumentParser], None]
-    handler: Handler
+    module: str
+    configure_name: str
+    handler_name: str
     help: str
+
+    def load(self) -> tuple[Callable[[argparse.ArgumentParser], None], Handler]:
+        """The subcommand's configure function and handler (its module imported now)."""
+        module = importlib.import_module(self.module)
+        return getattr(module, self.configure_name), getattr(module, self.handler_name)
 
 
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:

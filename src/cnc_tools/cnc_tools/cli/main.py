@@ -9,20 +9,25 @@ from cnc_contour_control.errors import CncError
 from cnc_tools.cli.registry import COMMANDS
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The parser of ``cnc-contour`` with every registered subcommand."""
+def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
+    """The parser of ``cnc-contour``: every registered subcommand listed; configured (its module imported)
+    only the one ``argv`` names, or every one when ``argv`` is None."""
     parser = argparse.ArgumentParser(prog="cnc-contour", description="CNC contour-control suite")
     sub = parser.add_subparsers(dest="command", required=True)
+    chosen = None if argv is None else next((a for a in argv if not a.startswith("-")), "")
     for name, subcommand in COMMANDS.items():
         sub_parser = sub.add_parser(name, help=subcommand.help, description=subcommand.help)
-        subcommand.configure(sub_parser)
-        sub_parser.set_defaults(handler=subcommand.handler)
+        if chosen is None or name == chosen:
+            configure, handler = subcommand.load()
+            configure(sub_parser)
+            sub_parser.set_defaults(handler=handler)
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``cnc-contour``."""
-    args = build_parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser(argv).parse_args(argv)
     try:
         return int(args.handler(args))
     except CncError as err:
