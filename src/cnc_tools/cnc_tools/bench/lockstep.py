@@ -15,6 +15,11 @@ Measured side by side in one run, on the paper-000 circle
    (:mod:`cnc_tools.bench.pingpong`, the graph's QoS and executor), with a
    ``Reference`` and with a ``Float64``; one hop = median round trip / 2;
 3. the ratio per-hop overhead / bare hop (goal <= :data:`HOP_RATIO_GOAL`);
+   beside it, a bare relay graph (:mod:`cnc_tools.bench.relay`: the graph's
+   four processes, topics, message types, QoS and executor, no suite code),
+   per hop = wall per tick / :data:`HOPS`, and the two ratios that split the
+   goal's: graph / relay (what the suite's nodes add) and relay / ping-pong
+   (what the topology costs on this machine);
 4. the in-process engine's real-time factor at T = 1 ms and 10 ms, median of
    several runs (goal at 1 ms >= :data:`ENGINE_RTF_GOAL`).
 """
@@ -28,6 +33,7 @@ from pathlib import Path
 from typing import Any
 
 from cnc_tools.bench.peers import round_trips
+from cnc_tools.bench.relay import relay_ticks
 from cnc_tools.bench.report import format_table, goal_text, machine, write_json
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.engine import run_engine
@@ -52,10 +58,12 @@ class Plan:
     pingpong_iterations: int
     pingpong_warmup: int
     engine_repeats: int
+    relay_ticks: int = 6000
+    relay_warmup: int = 500
 
 
 FULL = Plan({0.01: None, 0.001: None}, 2000, 200, 7)
-QUICK = Plan({0.01: 2.0, 0.001: 1.0}, 500, 50, 3)
+QUICK = Plan({0.01: 2.0, 0.001: 1.0}, 500, 50, 3, 1000, 100)
 
 
 @dataclass(frozen=True)
@@ -162,9 +170,11 @@ def lockstep_bench(options: argparse.Namespace) -> int:
         graph.append(measure_graph(scenario, run_dir / f"graph_T{t * 1e3:g}ms", startup_s))
     print("  bare rclpy ping-pong ...", flush=True)
     hops = [measure_hop(run_dir / "pingpong", message, plan) for message in ("reference", "float64")]
+    print("  bare relay graph ...", flush=True)
+    relay_per_tick_s = relay_ticks(run_dir / "relay", plan.relay_ticks, plan.relay_warmup)
     print("  engine ...", flush=True)
     engine = [measure_engine(scenario_at(t, None), plan.engine_repeats) for t in SAMPLE_TIMES_S]
-    figures = collect(options.quick, graph, hops, engine)
+    figures = collect(options.quick, graph, hops, engine, relay_per_tick_s)
     figures["machine"]["load_average_1min_at_start"] = load_at_start
     print_figures(figures)
     write_json(options.json, figures)
@@ -172,17 +182,19 @@ def lockstep_bench(options: argparse.Namespace) -> int:
 
 
 def collect(quick: bool, graph: list[GraphFigures], hops: list[HopFigures],
-            engine: list[EngineFigures]) -> dict[str, Any]:
+            engine: list[EngineFigures], relay_per_tick_s: float) -> dict[str, Any]:
     """Every figure of the run, with the ratios and goals, as plain types."""
-    bare = hops[0].one_way_hop_s
+    bare, relay_hop = hops[0].one_way_hop_s, relay_per_tick_s / HOPS
     ratios = [{"sample_time_s": g.sample_time_s, "per_hop_s": g.per_hop_s, "bare_hop_s": bare,
-               "ratio": g.per_hop_s / bare, "goal": HOP_RATIO_GOAL, "met": g.per_hop_s / bare <= HOP_RATIO_GOAL}
+               "ratio": g.per_hop_s / bare, "goal": HOP_RATIO_GOAL, "met": g.per_hop_s / bare <= HOP_RATIO_GOAL,
+               "relay_hop_s": relay_hop, "graph_over_relay": g.per_hop_s / relay_hop}
               for g in graph]
     at_1ms = next(e for e in engine if e.sample_time_s == 0.001)
     return {
         "bench": "lockstep", "quick": quick, "scenario": SCENARIO, "machine": machine(), "hops_per_tick": HOPS,
         "graph": [asdict(g) for g in graph], "bare_hop": [asdict(h) for h in hops],
         "hop_ratio": ratios, "engine": [asdict(e) for e in engine],
+        "relay": {"wall_per_tick_s": relay_per_tick_s, "per_hop_s": relay_hop, "relay_over_bare": relay_hop / bare},
         "engine_goal": {"sample_time_s": 0.001, "real_time_factor_min": ENGINE_RTF_GOAL,
                         "measured_median": at_1ms.real_time_factor_median,
                         "met": at_1ms.real_time_factor_median >= ENGINE_RTF_GOAL},
@@ -206,6 +218,13 @@ def print_figures(figures: dict[str, Any]) -> None:
     print(f"\nper-hop overhead / bare hop (Reference), goal <= {HOP_RATIO_GOAL:g}")
     print(format_table(["T [ms]", "per hop [us]", "bare hop [us]", "ratio", "goal"], [
         [r["sample_time_s"] * 1e3, r["per_hop_s"] * 1e6, r["bare_hop_s"] * 1e6, r["ratio"], goal_text(r["met"])]
+        for r in figures["hop_ratio"]]))
+    relay = figures["relay"]
+    print(f"\nbare relay graph (the graph's 4 processes, topics, types, QoS, executor; no suite code): "
+          f"{relay['wall_per_tick_s'] * 1e6:.0f} us/tick, {relay['per_hop_s'] * 1e6:.0f} us/hop, "
+          f"{relay['relay_over_bare']:.2f} bare hops (what the topology costs)")
+    print(format_table(["T [ms]", "graph per hop [us]", "relay per hop [us]", "graph / relay (what the nodes add)"], [
+        [r["sample_time_s"] * 1e3, r["per_hop_s"] * 1e6, r["relay_hop_s"] * 1e6, r["graph_over_relay"]]
         for r in figures["hop_ratio"]]))
     goal = figures["engine_goal"]
     print(f"\nengine (in-process), 2 axes; goal at T = 1 ms: RTF >= {ENGINE_RTF_GOAL:g} (median): {goal_text(goal['met'])}")
