@@ -62,7 +62,7 @@ def _message(data: st.DataObject, cls: type) -> Any:
 
 @pytest.fixture(autouse=True)
 def codecs_on(monkeypatch: pytest.MonkeyPatch) -> None:
-    """The codecs are opt-in (``CNC_FAST_CDR=1``); these tests test them."""
+    """The codecs are on unless ``CNC_FAST_CDR=0``; these tests test them whatever the environment says."""
     monkeypatch.setenv("CNC_FAST_CDR", "1")
 
 

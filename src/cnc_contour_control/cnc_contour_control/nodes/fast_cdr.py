@@ -19,7 +19,7 @@ introspection (``SLOT_TYPES``, rosidl_parser definitions):
 
 Types it cannot do (wide strings, sequences of octets or chars) give no
 codec: :func:`codec_for` returns None and callers use rclpy. Tested byte for
-byte against rclpy (``test_fast_cdr.py``). ``CNC_FAST_CDR=1`` turns it on (off by default).
+byte against rclpy (``test_fast_cdr.py``). On by default; ``CNC_FAST_CDR=0`` turns it off (rclpy's own conversion).
 """
 from __future__ import annotations
 
@@ -277,12 +277,13 @@ _CODECS: dict[type, Codec | None] = {}
 
 
 def enabled() -> bool:
-    """True with ``CNC_FAST_CDR=1`` on a little-endian host; off by default (every message through rclpy).
+    """True on a little-endian host unless ``CNC_FAST_CDR=0`` (then every message goes through rclpy).
 
-    Opt-in while a recorder that sometimes never saw the run's end in a CI run is not yet explained
-    (docs/design.md §4, "Message conversion").
+    (Opt-in for a while: a recorder that never saw a fast run's end turned out
+    to be a reader of ``/diagnostics`` matched after the run ended, not the
+    codecs: docs/design.md §5.)
     """
-    return os.environ.get("CNC_FAST_CDR", "0") == "1" and sys.byteorder == "little"
+    return os.environ.get("CNC_FAST_CDR", "1") != "0" and sys.byteorder == "little"
 
 
 def codec_for(msg_type: type) -> Codec | None:
