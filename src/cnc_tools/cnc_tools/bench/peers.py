@@ -11,8 +11,9 @@ import secrets
 import signal
 import subprocess
 import sys
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 from cnc_contour_control.errors import FaultError
 from cnc_tools.runs.dds import loopback_env
@@ -67,6 +68,27 @@ class Peers:
         path = self.run_dir / f"{name}.log"
         lines = [line for line in path.read_text(errors="replace").splitlines() if line.strip()] if path.exists() else []
         return lines[-1] if lines else ""
+
+
+def run_role(node_name: str, body: Callable[[Any, Any], int], namespace: str = "") -> int:
+    """A peer process's side: ``body(node, executor)`` on a fresh rclpy node with the nodes' executor;
+    its exit code (0 when interrupted), the node destroyed and rclpy shut down on every way out."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+
+    from cnc_contour_control.nodes.common import make_executor
+
+    rclpy.init(args=None)
+    node = rclpy.create_node(node_name, namespace=namespace)
+    executor = make_executor(node.context)
+    executor.add_node(node)
+    try:
+        return body(node, executor)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        return 0
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
 
 
 PINGPONG = "cnc_tools.bench.pingpong"

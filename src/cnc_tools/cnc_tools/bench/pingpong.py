@@ -88,23 +88,11 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one role until it is done (ping) or interrupted (echo); return the exit code."""
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
-
-    from cnc_contour_control.nodes.common import make_executor
+    from cnc_tools.bench.peers import run_role
 
     args = _parse(argv)
-    rclpy.init(args=None)
-    node = rclpy.create_node(f"pingpong_{args.role}")
-    executor = make_executor(node.context)
-    executor.add_node(node)
-    try:
-        return _echo(node, executor, args) if args.role == "echo" else _ping(node, executor, args)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return run_role(f"pingpong_{args.role}", lambda node, executor: (
+        _echo if args.role == "echo" else _ping)(node, executor, args))
 
 
 def _echo(node: Any, executor: Any, args: argparse.Namespace) -> int:

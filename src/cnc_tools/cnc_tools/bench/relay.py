@@ -67,28 +67,22 @@ def _parse(argv: Sequence[str] | None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run one role until it is done (plant) or interrupted; return the exit code."""
-    import rclpy
-    from rclpy.executors import ExternalShutdownException
-
-    from cnc_contour_control.nodes.common import make_executor
+    from cnc_tools.bench.peers import run_role
 
     args = _parse(argv)
-    rclpy.init(args=None)
-    node = rclpy.create_node(f"relay_{args.role}{'_' + args.axis if args.axis else ''}", namespace=args.ns)
-    executor = make_executor(node.context)
-    executor.add_node(node)
-    try:
-        if args.role == "plant":
-            return _RelayPlant(node, executor, args).run()
-        _answer(node, args)
-        while rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-        return 0
-    except (KeyboardInterrupt, ExternalShutdownException):
-        return 0
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return run_role(f"relay_{args.role}{'_' + args.axis if args.axis else ''}", lambda node, executor: _role(
+        node, executor, args), args.ns)
+
+
+def _role(node: Any, executor: Any, args: argparse.Namespace) -> int:
+    import rclpy
+
+    if args.role == "plant":
+        return _RelayPlant(node, executor, args).run()
+    _answer(node, args)
+    while rclpy.ok():
+        executor.spin_once(timeout_sec=0.1)
+    return 0
 
 
 def _answer(node: Any, args: argparse.Namespace) -> None:
