@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -43,11 +44,14 @@ def _status(summary: Path) -> str | None:
 
 
 def _params_file(tmp_path: Path) -> Path:
-    """The installed recorded-graph parameters with a summary file and the program by absolute path.
+    """The installed recorded-graph parameters with a summary file, the program by absolute path, and 60 s to run.
 
     Edited as text: rcl's YAML reads an unquoted ``y`` (an axis) as a bool, so the file is not dumped anew.
+    The program's own 6.5 s of simulation take well under a second of lockstep, less than the plant's 1 s
+    between "running" summaries: the run could end before the test saw it run.
     """
-    text = PARAMS.read_text()
+    text, count = re.subn(r'"duration_s": [0-9.e+-]+', '"duration_s": 60.0', PARAMS.read_text())
+    assert count == 1, f"{PARAMS} sets the plant's duration_s once"
     replacements = {'"summary_file": ""': f'"summary_file": "{tmp_path / "summary.json"}"',
                     '"program_file": "': f'"program_file": "{CONFIG}/'}
     for old, new in replacements.items():
@@ -77,7 +81,8 @@ def test_a_signal_to_the_by_hand_graph_mid_run_ends_every_node_cleanly(tmp_path:
     try:
         wait_until(lambda: _status(tmp_path / "summary.json") == "running"
                   or any(p.poll() is not None for p in processes.values()), 90.0, "the plant to run")
-        assert all(p.poll() is None for p in processes.values()), "every node runs until the signal"
+        exited = {name: p.returncode for name, p in processes.items() if p.poll() is not None}
+        assert not exited, f"every node runs until the signal; exited: {exited}"
         os.killpg(processes["recorder"].pid, sig)
         codes = {name: process.wait(timeout=30) for name, process in processes.items()}
     finally:

@@ -4,6 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from rosbags.highlevel import AnyReader
 from cnc_contour_interfaces.msg import Path as PathMsg
 from cnc_contour_interfaces.msg import Reference
 from diagnostic_msgs.msg import DiagnosticArray
@@ -33,3 +34,27 @@ def test_joint_states_is_read_only_after_the_plants_diagnostics_writer_is_known(
             plant.node.create_publisher(DiagnosticArray, "/diagnostics", 100)
             plant.wait_for(lambda: joint_states.get_subscription_count() == 1, 20.0,
                            "the recorder's joint_states reader once /diagnostics has a writer of the plant")
+
+
+def test_a_plant_that_leaves_before_its_run_end_is_heard_is_a_fault_and_the_bag_keeps_what_came(tmp_path: Path) -> None:
+    """No recorder waits for ever on a run end that will not come (a plant killed, a report lost)."""
+    params = {"output": str(tmp_path / "bag"), "drain_timeout_s": 0.5}
+    with TopicProbe({}, name="plant", namespace="/cnc") as plant:
+        joint_states = plant.publisher(JointState, "/cnc/joint_states")
+        with InProcessNode(RecorderNode, params) as recorder:
+            plant.wait_for(lambda: joint_states.get_subscription_count() == 1, 20.0, "the recorder's joint_states reader")
+            for tick in range(3):
+                message = JointState()
+                message.header.stamp.nanosec = 1_000_000 * (tick + 1)
+                joint_states.publish(message)
+            plant.wait_for(lambda: recorder.node.writer.message_counts.get("/cnc/joint_states") == 3, 20.0,
+                           "three joint_states in the bag")
+            assert recorder.node.fault_message is None, "the plant is still there: the recorder waits"
+            plant.node.destroy_publisher(joint_states)
+            plant.wait_for(lambda: recorder.node.fault_message is not None, 20.0, "the recorder's fault")
+    message = recorder.node.fault_message
+    assert "the publisher of /cnc/joint_states left the graph" in message and "run finished" in message, message
+    assert "within 0.5 s" in message and "3 /cnc/joint_states messages" in message, message
+    with AnyReader([tmp_path / "bag"]) as reader:
+        assert sum(1 for c in reader.connections if c.topic == "/cnc/joint_states"
+                   for _ in reader.messages(connections=[c])) == 3

@@ -50,6 +50,9 @@ class RecorderNode(SuiteNode):
         per_tick = per_tick_topics(namespace, axes, optional, outputs)
         self.completion = Completion(tuple(self.resolve_topic_name(n) for n in per_tick))
         self.ended_at_s: float | None = None
+        #: Wall time the run's joint_states writer (the plant) left the graph with no run end heard, if it did.
+        self.plant_left_at_s: float | None = None
+        self._plant_seen = False
         self.latest_sim_ns = 0
         self.latched_first = latched_first = self.declare("latched_first", False, describe(
             "subscribe the per-tick topics only once the latched ones (the path) are in the bag: for a run whose "
@@ -160,6 +163,26 @@ class RecorderNode(SuiteNode):
         elif self.ended_at_s is not None and wall_time_s() - self.ended_at_s > self.drain_timeout_s:
             self.fault(f"recorder: run ended but messages are missing after {self.drain_timeout_s} s: "
                        f"{self.completion.missing(counts)}")
+        elif self.ended_at_s is None:
+            self._check_plant_present(counts)
+
+    def _check_plant_present(self, counts: dict[str, int]) -> None:
+        """Fault (the bag is closed with what came) when the plant left the graph and its run end never came.
+
+        Without this a recorder whose plant died, or whose "run finished" was
+        lost, would wait for ever; the drain time lets a late report still land.
+        """
+        topic = self.resolve_topic_name(topics.JOINT_STATES.name)
+        present = self.count_publishers(topic) > 0
+        self._plant_seen = self._plant_seen or present
+        if present or not self._plant_seen:
+            self.plant_left_at_s = None
+            return
+        self.plant_left_at_s = self.plant_left_at_s or wall_time_s()
+        if wall_time_s() - self.plant_left_at_s > self.drain_timeout_s:
+            self.fault(f"recorder: the publisher of {topic} left the graph and no \"{RUN_FINISHED}\" of this run came "
+                       f"on /diagnostics within {self.drain_timeout_s} s; the bag is closed with "
+                       f"{counts.get(topic, 0)} {topic} messages")
 
     def destroy_node(self) -> None:
         """Close the bag (MCAP summary and metadata.yaml) on every way out."""
