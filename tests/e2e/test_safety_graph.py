@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import re
+from contextlib import ExitStack
 from pathlib import Path
 
 import pytest
@@ -70,21 +71,30 @@ def test_plant_and_servos_report_every_second_of_run_time_into_the_bag(tmp_path:
 def test_estop_mid_run_latches_stops_the_axes_and_is_in_the_bag(tmp_path: Path) -> None:
     scenario = load_scenario(CIRCLE, {"duration_s": 3.0})  # a 1 s report after the latch, however late it comes
     ns = "/cnc/estop_e2e"
-    probed = {f"{ns}/joint_states": JointState, f"{ns}/reference": Reference,  # the extra reader of every topic
-              f"{ns}/servo/x/command": AxisCommand, f"{ns}/servo/y/command": AxisCommand}
-    with TopicProbe(probed) as probe:
+    probed = {f"{ns}/reference": Reference, f"{ns}/servo/x/command": AxisCommand,
+              f"{ns}/servo/y/command": AxisCommand}
+    with TopicProbe(probed) as probe, ExitStack() as later:
         estop = probe.node.create_publisher(Bool, f"{ns}/estop", 10)
         sent: list[int] = []
+        ticks: list[TopicProbe] = []
 
         def press_once_running(_: JointState) -> None:
-            # plant and both servos latch: press once all three read the e-stop (volatile: none may miss it),
             # from the probe's own joint_states callback: a polling loop may notice tick 40 after a fast run ended
-            if not sent and len(probe.received(f"{ns}/joint_states")) > 40 and estop.get_subscription_count() >= 3:
+            if not sent and len(ticks[0].received(f"{ns}/joint_states")) > 40:
                 estop.publish(Bool(data=True))
-                sent.append(len(probe.received(f"{ns}/joint_states")))
+                sent.append(len(ticks[0].received(f"{ns}/joint_states")))
 
-        probe.watch(f"{ns}/joint_states", press_once_running)
-        result = run_graph(scenario, tmp_path, record=True, extra_subscribers=1, namespace=ns)
+        def read_ticks_once_the_estop_is_heard() -> None:
+            # Plant and both servos latch, and the e-stop is volatile: none may miss it. The plant starts only
+            # once every reader of joint_states matched, so the extra reader comes once all three read the
+            # e-stop (a 300-tick run under load once ended before they had).
+            if not ticks and estop.get_subscription_count() >= 3:
+                ticks.append(later.enter_context(TopicProbe({f"{ns}/joint_states": JointState}, name="ticks")))
+                ticks[0].watch(f"{ns}/joint_states", press_once_running)
+
+        result = run_graph(scenario, tmp_path, record=True, extra_subscribers=1, namespace=ns,
+                           on_poll=read_ticks_once_the_estop_is_heard)
+        joint_states = ticks[0].received(f"{ns}/joint_states")
     assert sent and result.faults == [] and result.summary["estop_latches"] == 1
     _, statuses = read_statuses(result.bag_path)
     latched = {s.name.rsplit("/", 1)[-1]: s for s in statuses if s.message.startswith("e-stop latched")}
@@ -94,5 +104,5 @@ def test_estop_mid_run_latches_stops_the_axes_and_is_in_the_bag(tmp_path: Path) 
     latch = next(i for i, s in enumerate(plant) if s.message.startswith("e-stop latched"))
     after = [s.values for s in plant[latch:] if s.message == RUNNING]
     assert after and all(v["estop_latched"] == "true" for v in after), "the latch holds to the end of the run"
-    speeds = [max(abs(v) for v in m.velocity) for m in probe.received(f"{ns}/joint_states")]
+    speeds = [max(abs(v) for v in m.velocity) for m in joint_states]
     assert max(speeds[-20:]) < 0.2 * max(speeds[sent[0]:sent[0] + 20]), "zero commands: the axes coast to rest"
