@@ -52,7 +52,8 @@ def test_lockstep_graph_matches_engine_to_1e9(tmp_path: Path) -> None:
 
 
 def test_dds_sockets_stay_on_loopback(tmp_path: Path) -> None:
-    scenario = load_scenario(CIRCLE, {"duration_s": 1.0})
+    # 1000 ticks: the sockets are read while every node still runs (100 ticks can end within 0.1 s)
+    scenario = load_scenario(CIRCLE, {"duration_s": 10.0})
     domain = int(os.environ["ROS_DOMAIN_ID"])
     well_known, (low, high) = dds_ports(domain), ephemeral_port_range()
     with TopicProbe(PROBED) as probe:
@@ -70,7 +71,7 @@ def test_dds_sockets_stay_on_loopback(tmp_path: Path) -> None:
 
 
 def test_node_killed_mid_run_is_named_and_everything_is_reaped(tmp_path: Path) -> None:
-    scenario = load_scenario(CIRCLE)
+    scenario = load_scenario(CIRCLE, {"duration_s": 20.0})  # the kill comes mid-run however far the probe trails
     with TopicProbe(PROBED) as probe:
         with pytest.raises(FaultError, match=r"node servo_y \(pid \d+\) exited with code -9") as caught:
             with GraphRun(graph_nodes(scenario, tmp_path, extra_subscribers=1), tmp_path) as run:
@@ -82,7 +83,7 @@ def test_node_killed_mid_run_is_named_and_everything_is_reaped(tmp_path: Path) -
 
 
 def test_missing_input_past_timeout_is_a_fault_naming_the_topic(tmp_path: Path) -> None:
-    scenario = load_scenario(CIRCLE)
+    scenario = load_scenario(CIRCLE, {"duration_s": 20.0})  # the stop comes mid-run however far the probe trails
     nodes = graph_nodes(scenario, tmp_path, extra_subscribers=1, input_timeout_s=1.0)
     with TopicProbe(PROBED) as probe:
         with pytest.raises(FaultError) as caught:
