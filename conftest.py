@@ -1,5 +1,8 @@
 """Session-wide test setup: DDS on loopback, a fresh random ROS domain per test session, and the work units.
 
+At the end the controller removes the Fast DDS shared-memory segments that
+the session's killed nodes left in ``/dev/shm`` (:mod:`cnc_tools.runs.shm`).
+
 With pytest-xdist (``-n 2``, pytest.ini) every worker is a session of its
 own: the controller draws a random domain and each worker takes the next ones
 (``gw0`` the first after it, ...), so no two workers share one. A test file is
@@ -15,6 +18,8 @@ import pytest
 
 #: Where the controller leaves its domain for the workers it starts.
 DOMAIN_BASE_KEY = "CNC_TEST_DOMAIN_BASE"
+#: The Fast DDS segments present when the session began (the controller's; None in a worker).
+SEGMENTS_BEFORE = pytest.StashKey[set]()
 
 
 def session_domain_id(environ: dict[str, str] | os._Environ[str], draw: int) -> int:
@@ -34,6 +39,22 @@ def pytest_configure(config: pytest.Config) -> None:
     domain_id = session_domain_id(os.environ, random_domain_id())
     os.environ.setdefault(DOMAIN_BASE_KEY, str(domain_id))
     apply_loopback_policy(os.environ, domain_id)
+    if not os.environ.get("PYTEST_XDIST_WORKER"):
+        from cnc_tools.runs.shm import fast_dds_segments
+
+        config.stash[SEGMENTS_BEFORE] = fast_dds_segments()
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter, config: pytest.Config) -> None:
+    """The controller, once every worker ended: remove the stale segments this session made, and say how many."""
+    if SEGMENTS_BEFORE not in config.stash:
+        return
+    from cnc_tools.runs.shm import remove_stale_segments
+
+    removed = remove_stale_segments(config.stash[SEGMENTS_BEFORE])
+    if removed:
+        terminalreporter.write_line(f"removed {len(removed)} stale Fast DDS shared-memory segments that killed nodes "
+                                    "of this session left in /dev/shm")
 
 
 def graph_lane_scope(nodeid: str) -> str:
