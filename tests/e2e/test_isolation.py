@@ -117,9 +117,16 @@ def test_a_far_future_joint_state_from_outside_the_run_is_a_fault_naming_the_top
         with pytest.raises(FaultError) as caught:
             with GraphRun(nodes, tmp_path, namespace=ns) as run:
                 probe.wait_for(lambda: len(probe.received(topic)) > 20, 60.0, "the run to be going")
-                publisher.publish(JointState(header=Header(stamp=ns_to_stamp(1000 * NS_PER_S)), name=["x", "y"],
-                                             position=[0.0, 0.0], velocity=[0.0, 0.0]))
-                run.wait("plant", 120.0)
+                intruder = JointState(header=Header(stamp=ns_to_stamp(1000 * NS_PER_S)), name=["x", "y"],
+                                      position=[0.0, 0.0], velocity=[0.0, 0.0])
+
+                def intrude() -> None:
+                    # every poll once matched with the three stages' readers and the probe's own (volatile: a
+                    # message sent before a reader matched is not for it; CI once ran 2000 ticks without a match)
+                    if publisher.get_subscription_count() >= 4:
+                        publisher.publish(intruder)
+
+                run.wait("plant", 120.0, intrude)
     message = str(caught.value)
     assert "exited with code 3" in message and f"{topic}:" in message and "outside the run" in message, message
     assert all(p.returncode is not None for p in run.processes.values()), "all node processes reaped"
