@@ -14,6 +14,7 @@ from cnc_contour_control.errors import FaultError
 from cnc_contour_control.nodes.common import stamp_to_ns
 from cnc_tools.runs.engine import run_engine, tick_count
 from cnc_tools.runs.graph import GraphRun, graph_nodes, run_graph
+from cnc_tools.runs.namespaces import run_namespace
 from cnc_tools.runs.scenario import load_scenario
 from cnc_tools.testing import TopicProbe, dds_ports, ephemeral_port_range, udp_sockets
 
@@ -72,10 +73,11 @@ def test_dds_sockets_stay_on_loopback(tmp_path: Path) -> None:
 
 def test_node_killed_mid_run_is_named_and_everything_is_reaped(tmp_path: Path) -> None:
     scenario = load_scenario(CIRCLE, {"duration_s": 20.0})  # the kill comes mid-run however far the probe trails
-    with TopicProbe(PROBED) as probe:
+    ns = run_namespace()  # the killed servo stays in the graph until its DDS lease ends: not in the file's /cnc
+    with TopicProbe({topic.replace("/cnc", ns, 1): kind for topic, kind in PROBED.items()}) as probe:
         with pytest.raises(FaultError, match=r"node servo_y \(pid \d+\) exited with code -9") as caught:
-            with GraphRun(graph_nodes(scenario, tmp_path, extra_subscribers=1), tmp_path) as run:
-                probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 20, 30.0, "ticks")
+            with GraphRun(graph_nodes(scenario, tmp_path, extra_subscribers=1), tmp_path, namespace=ns) as run:
+                probe.wait_for(lambda: len(probe.received(f"{ns}/joint_states")) > 20, 30.0, "ticks")
                 os.kill(run.processes["servo_y"].pid, signal.SIGKILL)
                 run.wait("plant", 60.0)
     assert "servo_y" in str(caught.value)

@@ -24,7 +24,8 @@ from cnc_tools.testing import TopicProbe
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"
-NS = "/cnc/partner_lost_e2e"
+#: Each case in a namespace of its own: a servo killed by SIGKILL stays in the graph until its DDS lease ends.
+NS_PREFIX = "/cnc/partner_lost_e2e_"
 #: The stages' input timeout in this run [s] ...
 INPUT_TIMEOUT_S = 1.0
 #: ... and the plant's per-tick command timeout it gives.
@@ -35,9 +36,9 @@ pytestmark = pytest.mark.e2e
 
 #: (signal, how the plant's fault starts, the bound on its exit after the kill [s]).
 CASES = {
-    "exits": (signal.SIGTERM, f"plant: {NS}/servo_y left the graph: {NS}/servo/y/command has 0 publishers (had 1)",
+    "exits": (signal.SIGTERM, "plant: {ns}/servo_y left the graph: {ns}/servo/y/command has 0 publishers (had 1)",
               COMMAND_TIMEOUT_S),  # sooner than the timeout: found in the graph
-    "crashes": (signal.SIGKILL, f"plant: no {NS}/servo/y/command (last published by {NS}/servo_y) for tick t=",
+    "crashes": (signal.SIGKILL, "plant: no {ns}/servo/y/command (last published by {ns}/servo_y) for tick t=",
                 COMMAND_TIMEOUT_S + 3.0),
 }
 
@@ -45,13 +46,15 @@ CASES = {
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_killing_a_servo_mid_run_stops_the_plant_with_a_fault_naming_it(tmp_path: Path, case: str) -> None:
     sig, fault, bound_s = CASES[case]
+    ns = NS_PREFIX + case
+    fault = fault.format(ns=ns)
     scenario = load_scenario(CIRCLE, {"duration_s": 20.0})
-    probed = {f"{NS}/joint_states": JointState, f"{NS}/reference": Reference, f"{NS}/diagnostics": DiagnosticArray,
-              f"{NS}/servo/x/command": AxisCommand, f"{NS}/servo/y/command": AxisCommand}
+    probed = {f"{ns}/joint_states": JointState, f"{ns}/reference": Reference, f"{ns}/diagnostics": DiagnosticArray,
+              f"{ns}/servo/x/command": AxisCommand, f"{ns}/servo/y/command": AxisCommand}
     with TopicProbe(probed) as probe, GraphRun(graph_nodes(scenario, tmp_path, 1, INPUT_TIMEOUT_S), tmp_path,
-                                               namespace=NS) as run:
+                                               namespace=ns) as run:
         def ticks() -> int:
-            return len(probe.received(f"{NS}/joint_states"))
+            return len(probe.received(f"{ns}/joint_states"))
 
         probe.wait_for(lambda: ticks() > 50, 120.0, "50 ticks of the run")
         pid = json.loads((tmp_path / "pids.json").read_text())["nodes"]["servo_y"]
@@ -66,6 +69,6 @@ def test_killing_a_servo_mid_run_stops_the_plant_with_a_fault_naming_it(tmp_path
     assert stopped_after_s < bound_s, f"the plant stopped {stopped_after_s:.2f} s after the kill"
     assert summary["status"] == "faulted" and len(summary["faults"]) == 1 and summary["faults"][0].startswith(fault)
     assert summary["estop_latches"] == 1 and ticks_at_exit < 2000, "stopped mid-run (20 s are 2001 ticks)"
-    errors = [s for a in probe.received(f"{NS}/diagnostics") for s in a.status
-              if s.level == DiagnosticStatus.ERROR and s.name == f"{NS}/plant"]
+    errors = [s for a in probe.received(f"{ns}/diagnostics") for s in a.status
+              if s.level == DiagnosticStatus.ERROR and s.name == f"{ns}/plant"]
     assert [s.message for s in errors] == summary["faults"], "the fault on /diagnostics"
