@@ -174,7 +174,8 @@ class RecorderNode(SuiteNode):
         """
         topic = self.resolve_topic_name(topics.JOINT_STATES.name)
         present = self.count_publishers(topic) > 0
-        self._plant_seen = self._plant_seen or present
+        # Seen in the graph, or by its messages: a short run (or a loaded machine) may come and go between checks.
+        self._plant_seen = self._plant_seen or present or counts.get(topic, 0) > 0
         if present or not self._plant_seen:
             self.plant_left_at_s = None
             return
