@@ -38,7 +38,7 @@ def test_fast_dds_parses_the_shipped_profile_without_an_error() -> None:
     done = _made_under(profile_path())
     output = done.stdout + done.stderr  # Fast DDS logs its errors to stdout
     assert done.returncode == 0 and "participant made" in done.stdout, output
-    assert "XMLPARSER" not in output and "Error" not in output, output
+    assert "XMLPARSER" not in output, output  # the parser's own errors; a transport's are another matter
 
 
 def test_a_bad_element_is_what_the_check_above_would_see(tmp_path: Path) -> None:
