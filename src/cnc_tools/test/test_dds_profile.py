@@ -1,4 +1,5 @@
-"""Tier 2: the shipped Fast DDS profile is one Fast DDS itself parses without a complaint.
+"""Tier 2: the shipped Fast DDS profile is one Fast DDS itself parses without a complaint, and it sends
+user data over shared memory.
 
 A profile with one bad element is dropped whole by Fast DDS (only an
 ``XMLPARSER`` error on stderr says so), and with it the loopback binding:
@@ -58,3 +59,46 @@ def test_reliable_writers_repair_a_lost_last_sample_well_within_a_nodes_exit_wai
     assert period is not None
     period_s = int(period.findtext(f"{NS}sec")) + int(period.findtext(f"{NS}nanosec")) * 1e-9
     assert 0.0 < period_s <= 0.2, period_s
+
+
+UDP_DATAGRAMS_PER_ROUND_TRIP = """
+import sys, tempfile
+from pathlib import Path
+from cnc_tools.bench.peers import round_trips
+
+def sent() -> int:
+    udp = [line.split() for line in open("/proc/net/snmp") if line.startswith("Udp:")]
+    return int(udp[1][udp[0].index("OutDatagrams")])
+
+counts = []
+for trips in (20, 400):
+    before = sent()
+    round_trips(Path(tempfile.mkdtemp()), "reference", trips, 10)
+    counts.append(sent() - before)
+print((counts[1] - counts[0]) / 380)
+"""
+
+
+def _udp_datagrams_per_round_trip(profile: Path) -> float:
+    """UDP datagrams per Reference round trip of a real ping-pong under ``profile``, in a network namespace of
+    its own (loopback only), so that no other process's traffic enters the kernel's count; discovery, the same
+    for 20 and 400 round trips, drops out of the difference."""
+    env = loopback_env({**os.environ, "FASTRTPS_DEFAULT_PROFILES_FILE": str(profile),
+                        "FASTDDS_DEFAULT_PROFILES_FILE": str(profile)})
+    done = subprocess.run(["unshare", "--map-root-user", "--net", "sh", "-c",
+                           'ip link set lo up && exec "$0" -c "$1"', sys.executable, UDP_DATAGRAMS_PER_ROUND_TRIP],
+                          env=env, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stdout + done.stderr
+    return float(done.stdout.strip().splitlines()[-1])
+
+
+def test_user_data_goes_over_shared_memory_not_loopback_udp(tmp_path: Path) -> None:
+    """A participant announces the default unicast locators its profile lists: a UDP-only list (as this profile
+    had until 2026-11-27) sends every sample through the kernel's UDP stack although SHM is a transport."""
+    udp_only = tmp_path / "udp_only.xml"
+    udp_only.write_text(profile_path().read_text().replace(
+        "      <builtin>",
+        "      <defaultUnicastLocatorList>\n        <locator><udpv4><address>127.0.0.1</address></udpv4></locator>\n"
+        "      </defaultUnicastLocatorList>\n      <builtin>", 1))
+    assert _udp_datagrams_per_round_trip(udp_only) >= 2.0  # two samples a round trip, and their heartbeats
+    assert _udp_datagrams_per_round_trip(profile_path()) < 0.5  # only the periodic discovery and heartbeats

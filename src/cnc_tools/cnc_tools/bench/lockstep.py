@@ -32,19 +32,15 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from cnc_tools.bench.hop_terms import HOP_RATIO_GOAL, HOPS, SCENARIO, scenario_at
 from cnc_tools.bench.peers import round_trips
 from cnc_tools.bench.relay import relay_ticks
 from cnc_tools.bench.report import format_table, goal_text, machine, write_json
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.graph import run_graph
-from cnc_tools.runs.scenario import Scenario, load_scenario
+from cnc_tools.runs.scenario import Scenario
 
-SCENARIO = "scenarios/paper000_circle_high.yaml"
-#: Hops on a tick's critical path: plant -> interpolator -> servo -> plant.
-HOPS = 3
-#: Goal: a graph hop costs at most this many bare rclpy hops (issue 9; issue 7 asked for 2).
-HOP_RATIO_GOAL = 1.5
 #: Goal: the engine runs two axes at T = 1 ms at least this much faster than real time.
 ENGINE_RTF_GOAL = 100.0
 SAMPLE_TIMES_S = (0.01, 0.001)
@@ -102,14 +98,6 @@ class EngineFigures:
     real_time_factor_median: float
     real_time_factor_best: float
     wall_per_tick_median_s: float
-
-
-def scenario_at(sample_time_s: float, duration_s: float | None) -> Scenario:
-    """The bench's scenario at ``sample_time_s`` (and a shorter duration, if given)."""
-    overrides: dict[str, Any] = {"sample_time_s": sample_time_s}
-    if duration_s is not None:
-        overrides["duration_s"] = duration_s
-    return load_scenario(project_root() / SCENARIO, overrides)
 
 
 def children_cpu_s() -> float:

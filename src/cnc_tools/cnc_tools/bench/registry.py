@@ -18,6 +18,7 @@ Bench = Callable[[argparse.Namespace], int]
 #: Benches by name: "module:function".
 TARGETS: dict[str, str] = {
     "lockstep": "cnc_tools.bench.lockstep:lockstep_bench",
+    "hops": "cnc_tools.bench.hops:hops_bench",
     "engine": "cnc_tools.bench.engine:engine_bench",
     "graph": "cnc_tools.bench.graph:graph_bench",
     "cross-axis": "cnc_tools.bench.cross_axis:cross_axis_bench",

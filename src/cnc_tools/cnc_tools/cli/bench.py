@@ -1,4 +1,4 @@
-"""The ``cnc-contour bench NAME [--quick] [--json PATH] [--out DIR] [--engine] [--seeds N] [--against REV] [--record]`` subcommand."""
+"""The ``cnc-contour bench NAME [--quick] [--json PATH] [--out DIR] [--engine] [--seeds N] [--against REV] [--record] [--rounds N] [--dds-profile NAME=PATH]`` subcommand."""
 from __future__ import annotations
 
 import argparse
@@ -11,6 +11,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     """The options every bench shares, plus ``--against`` (engine and graph benches) and ``--record`` (graph bench)."""
     from cnc_tools.bench.engine import add_options as add_engine_options  # the bench command only
     from cnc_tools.bench.graph import add_options as add_graph_options
+    from cnc_tools.bench.hops import add_options as add_hops_options
 
     parser.add_argument("name", help=f"benchmark, one of {sorted(TARGETS)}")
     parser.add_argument("--quick", action="store_true", help="shorter runs and fewer repetitions (< 30 s)")
@@ -23,6 +24,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--scheduler", help="Dask scheduler tcp://host:port for a bench's independent runs (paper003)")
     add_engine_options(parser)
     add_graph_options(parser)
+    add_hops_options(parser)
 
 
 def bench(args: argparse.Namespace) -> int:
