@@ -72,7 +72,7 @@ def test_dds_sockets_stay_on_loopback(tmp_path: Path) -> None:
 
 
 def test_node_killed_mid_run_is_named_and_everything_is_reaped(tmp_path: Path) -> None:
-    scenario = load_scenario(CIRCLE, {"duration_s": 20.0})  # the kill comes mid-run however far the probe trails
+    scenario = load_scenario(CIRCLE, {"duration_s": 200.0})  # the kill comes mid-run however fast the graph runs
     ns = run_namespace()  # the killed servo stays in the graph until its DDS lease ends: not in the file's /cnc
     with TopicProbe({topic.replace("/cnc", ns, 1): kind for topic, kind in PROBED.items()}) as probe:
         with pytest.raises(FaultError, match=r"node servo_y \(pid \d+\) exited with code -9") as caught:
@@ -85,7 +85,7 @@ def test_node_killed_mid_run_is_named_and_everything_is_reaped(tmp_path: Path) -
 
 
 def test_missing_input_past_timeout_is_a_fault_naming_the_topic(tmp_path: Path) -> None:
-    scenario = load_scenario(CIRCLE, {"duration_s": 20.0})  # the stop comes mid-run however far the probe trails
+    scenario = load_scenario(CIRCLE, {"duration_s": 200.0})  # the stop comes mid-run however fast the graph runs
     nodes = graph_nodes(scenario, tmp_path, extra_subscribers=1, input_timeout_s=1.0)
     with TopicProbe(PROBED) as probe:
         with pytest.raises(FaultError) as caught:

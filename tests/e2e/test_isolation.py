@@ -105,7 +105,7 @@ def test_a_foreign_listener_does_not_open_the_start_up_gate_before_the_recorder_
 
 
 def test_a_far_future_joint_state_from_outside_the_run_is_a_fault_naming_the_topic(tmp_path: Path) -> None:
-    scenario = load_scenario(ROOT / "scenarios" / "paper000_circle_high.yaml", {"duration_s": 20.0})  # mid-run
+    scenario = load_scenario(ROOT / "scenarios" / "paper000_circle_high.yaml", {"duration_s": 200.0})  # mid-run, however fast the graph runs (the fault ends it)
     ns = run_namespace()
     topic = f"{ns}/joint_states"
     watched = {topic: JointState, f"{ns}/reference": Reference,

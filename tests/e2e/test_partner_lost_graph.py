@@ -48,7 +48,7 @@ def test_killing_a_servo_mid_run_stops_the_plant_with_a_fault_naming_it(tmp_path
     sig, fault, bound_s = CASES[case]
     ns = NS_PREFIX + case
     fault = fault.format(ns=ns)
-    scenario = load_scenario(CIRCLE, {"duration_s": 20.0})
+    scenario = load_scenario(CIRCLE, {"duration_s": 200.0})  # the kill ends it; mid-run however fast the graph runs
     probed = {f"{ns}/joint_states": JointState, f"{ns}/reference": Reference, f"{ns}/diagnostics": DiagnosticArray,
               f"{ns}/servo/x/command": AxisCommand, f"{ns}/servo/y/command": AxisCommand}
     with TopicProbe(probed) as probe, GraphRun(graph_nodes(scenario, tmp_path, 1, INPUT_TIMEOUT_S), tmp_path,
