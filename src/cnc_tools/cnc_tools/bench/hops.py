@@ -23,7 +23,7 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -35,7 +35,6 @@ from cnc_tools.bench.report import format_table, goal_text, machine, write_json
 from cnc_tools.runs.dds import profile_path
 from cnc_tools.runs.folders import project_root, timestamp
 
-SIDES = ("bare", "relay", "graph")
 PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 SHIPPED = "shipped"
 
@@ -122,28 +121,38 @@ def dds_profile(path: Path) -> Iterator[None]:
                 os.environ[name] = value
 
 
-def measure_side(side: str, run_dir: Path, plan: Plan) -> float:
-    """One side's hop in seconds."""
+def _bare_hop_s(run_dir: Path, plan: Plan) -> float:
     from cnc_tools.bench.peers import round_trips  # the sides' modules: when measured, not on import
+
+    return statistics.median(round_trips(run_dir, "reference", plan.round_trips, plan.pingpong_warmup)) / 2.0
+
+
+def _relay_hop_s(run_dir: Path, plan: Plan) -> float:
     from cnc_tools.bench.relay import relay_ticks
+
+    return relay_ticks(run_dir, plan.relay_ticks, plan.relay_warmup) / HOPS
+
+
+def _graph_hop_s(run_dir: Path, plan: Plan) -> float:
     from cnc_tools.runs.graph import run_graph
 
-    if side == "bare":
-        return statistics.median(round_trips(run_dir, "reference", plan.round_trips, plan.pingpong_warmup)) / 2.0
-    if side == "relay":
-        return relay_ticks(run_dir, plan.relay_ticks, plan.relay_warmup) / HOPS
     summary = run_graph(scenario_at(plan.sample_time_s, plan.graph_duration_s), run_dir).summary
     return float(summary["wall_time_s"]) / int(summary["ticks"]) / HOPS
 
 
+#: Each side's measurement: run folder and plan in, one hop in seconds out.
+SIDES: dict[str, Callable[[Path, Plan], float]] = {"bare": _bare_hop_s, "relay": _relay_hop_s, "graph": _graph_hop_s}
+
+
 def measure_round(index: int, profile: str, path: Path, run_dir: Path, plan: Plan) -> RoundFigures:
     """Every side once under ``path``, starting with side ``index`` mod 3 (the order rotates by round)."""
-    order = SIDES[index % len(SIDES):] + SIDES[:index % len(SIDES)]
+    names = tuple(SIDES)
+    order = names[index % len(names):] + names[:index % len(names)]
     hops: dict[str, float] = {}
     with dds_profile(path):
         for side in order:
             print(f"  round {index + 1}, {profile}: {side} ...", flush=True)
-            hops[side] = measure_side(side, run_dir / f"round{index + 1}_{profile}_{side}", plan)
+            hops[side] = SIDES[side](run_dir / f"round{index + 1}_{profile}_{side}", plan)
     return RoundFigures(profile, index + 1, hops["bare"], hops["relay"], hops["graph"], machine()["load_average_1min"])
 
 
