@@ -10,6 +10,7 @@ import json
 import os
 import signal
 import time
+import uuid
 from pathlib import Path
 
 import pytest
@@ -24,7 +25,8 @@ from cnc_tools.testing import TopicProbe
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"
-#: Each case in a namespace of its own: a servo killed by SIGKILL stays in the graph until its DDS lease ends.
+#: Each run in a namespace of its own (also a repeat of a case): a servo killed by SIGKILL stays in the graph
+#: until its DDS lease ends.
 NS_PREFIX = "/cnc/partner_lost_e2e_"
 #: The stages' input timeout in this run [s] ...
 INPUT_TIMEOUT_S = 1.0
@@ -46,7 +48,7 @@ CASES = {
 @pytest.mark.parametrize("case", sorted(CASES))
 def test_killing_a_servo_mid_run_stops_the_plant_with_a_fault_naming_it(tmp_path: Path, case: str) -> None:
     sig, fault, bound_s = CASES[case]
-    ns = NS_PREFIX + case
+    ns = f"{NS_PREFIX}{case}_{uuid.uuid4().hex[:8]}"
     fault = fault.format(ns=ns)
     scenario = load_scenario(CIRCLE, {"duration_s": 200.0})  # the kill ends it; mid-run however fast the graph runs
     probed = {f"{ns}/joint_states": JointState, f"{ns}/reference": Reference, f"{ns}/diagnostics": DiagnosticArray,
