@@ -1,11 +1,15 @@
-"""Session-wide test setup: DDS on loopback, a fresh random ROS domain per test session, and the work units.
+"""Session-wide test setup: DDS on loopback, a ROS domain of its own per test process, and the work units.
 
 At the end the controller removes the Fast DDS shared-memory segments that
 the session's killed nodes left in ``/dev/shm`` (:mod:`cnc_tools.runs.shm`).
 
 With pytest-xdist (``-n 2``, pytest.ini) every worker is a session of its
-own: the controller draws a random domain and each worker takes the next ones
-(``gw0`` the first after it, ...), so no two workers share one. A test file is
+own. Each process of the session (controller and workers) claims a domain that
+no other claimant on this host holds (:func:`cnc_tools.runs.dds.claim_free_domain_id`,
+an flock the kernel drops when the process ends), so no two workers share one,
+nor two test sessions running at once (two clones, a developer beside CI):
+with independent random draws two sessions shared a domain 3 % of the time,
+and their fixed-namespace tests (``/cnc``) heard each other. A test file is
 one work unit: its tests run one after the other on one worker, so a module
 fixture (a bench's runs, a recorded bag) is made once, and a worker runs at
 most one whole graph (``tests/e2e``) at a time.
@@ -16,29 +20,19 @@ import os
 
 import pytest
 
-#: Where the controller leaves its domain for the workers it starts.
-DOMAIN_BASE_KEY = "CNC_TEST_DOMAIN_BASE"
 #: The Fast DDS segments present when the session began (the controller's; None in a worker).
 SEGMENTS_BEFORE = pytest.StashKey[set]()
-
-
-def session_domain_id(environ: dict[str, str] | os._Environ[str], draw: int) -> int:
-    """This session's domain: ``draw`` for the controller (or a run without xdist), base + 1 + worker index else."""
-    from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID
-
-    worker, base = environ.get("PYTEST_XDIST_WORKER", ""), environ.get(DOMAIN_BASE_KEY, "")
-    if not worker.startswith("gw") or not base:
-        return draw
-    return 1 + (int(base) + int(worker[2:])) % MAX_RANDOM_DOMAIN_ID
+#: This process's claim on its domain, held open for the process's life.
+DOMAIN_CLAIMS: list[object] = []
 
 
 def pytest_configure(config: pytest.Config) -> None:
     """Before any node exists: the loopback DDS policy and this session's own domain."""
-    from cnc_tools.runs.dds import apply_loopback_policy, random_domain_id
+    from cnc_tools.runs.dds import apply_loopback_policy, claim_free_domain_id
 
-    domain_id = session_domain_id(os.environ, random_domain_id())
-    os.environ.setdefault(DOMAIN_BASE_KEY, str(domain_id))
-    apply_loopback_policy(os.environ, domain_id)
+    claim = claim_free_domain_id()
+    DOMAIN_CLAIMS.append(claim)
+    apply_loopback_policy(os.environ, claim.domain_id)
     if not os.environ.get("PYTEST_XDIST_WORKER"):
         from cnc_tools.runs.shm import fast_dds_segments
 
