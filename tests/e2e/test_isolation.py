@@ -105,7 +105,9 @@ def test_a_foreign_listener_does_not_open_the_start_up_gate_before_the_recorder_
 
 
 def test_a_far_future_joint_state_from_outside_the_run_is_a_fault_naming_the_topic(tmp_path: Path) -> None:
-    scenario = load_scenario(ROOT / "scenarios" / "paper000_circle_high.yaml", {"duration_s": 200.0})  # mid-run, however fast the graph runs (the fault ends it)
+    # Mid-run however fast the graph runs and however late the intruder matches (the fault ends it): under load
+    # a 20000-tick run over shared memory once ended within 9 s, before the intruder's writer had matched.
+    scenario = load_scenario(ROOT / "scenarios" / "paper000_circle_high.yaml", {"duration_s": 2000.0})
     ns = run_namespace()
     topic = f"{ns}/joint_states"
     watched = {topic: JointState, f"{ns}/reference": Reference,
@@ -117,7 +119,7 @@ def test_a_far_future_joint_state_from_outside_the_run_is_a_fault_naming_the_top
         with pytest.raises(FaultError) as caught:
             with GraphRun(nodes, tmp_path, namespace=ns) as run:
                 probe.wait_for(lambda: len(probe.received(topic)) > 20, 60.0, "the run to be going")
-                intruder = JointState(header=Header(stamp=ns_to_stamp(1000 * NS_PER_S)), name=["x", "y"],
+                intruder = JointState(header=Header(stamp=ns_to_stamp(100_000 * NS_PER_S)), name=["x", "y"],
                                       position=[0.0, 0.0], velocity=[0.0, 0.0])
 
                 def intrude() -> None:
