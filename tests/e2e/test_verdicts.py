@@ -19,8 +19,8 @@ from cnc_tools.testing import wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"
-#: Long enough that no run here finishes before it is stopped.
-LONG_S = 60.0
+#: Long enough that no run here finishes before it is stopped (60000 ticks: 6000 take 2 s over shared memory).
+LONG_S = 600.0
 pytestmark = pytest.mark.e2e
 
 
