@@ -87,7 +87,7 @@ def test_fault_inside_the_composed_process_names_the_node_and_everything_is_reap
 
 
 def test_a_stopped_composed_run_closes_its_bag_and_says_interrupted(tmp_path: Path) -> None:
-    scenario = load_scenario(CIRCLE, {"duration_s": 60.0})
+    scenario = load_scenario(CIRCLE, {"duration_s": 600.0})  # 60000 ticks: stopped mid-run however fast
 
     def stop_once_running() -> None:  # the runner's path for SIGINT: its poll raises, the run is stopped and reaped
         summary = tmp_path / "summary.json"

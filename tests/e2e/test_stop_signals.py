@@ -44,13 +44,13 @@ def _status(summary: Path) -> str | None:
 
 
 def _params_file(tmp_path: Path) -> Path:
-    """The installed recorded-graph parameters with a summary file, the program by absolute path, and 60 s to run.
+    """The installed recorded-graph parameters with a summary file, the program by absolute path, and 600 s to run.
 
     Edited as text: rcl's YAML reads an unquoted ``y`` (an axis) as a bool, so the file is not dumped anew.
     The program's own 6.5 s of simulation take well under a second of lockstep, less than the plant's 1 s
     between "running" summaries: the run could end before the test saw it run.
     """
-    text, count = re.subn(r'"duration_s": [0-9.e+-]+', '"duration_s": 60.0', PARAMS.read_text())
+    text, count = re.subn(r'"duration_s": [0-9.e+-]+', '"duration_s": 600.0', PARAMS.read_text())
     assert count == 1, f"{PARAMS} sets the plant's duration_s once"
     replacements = {'"summary_file": ""': f'"summary_file": "{tmp_path / "summary.json"}"',
                     '"program_file": "': f'"program_file": "{CONFIG}/'}
@@ -97,7 +97,7 @@ def test_a_signal_to_the_by_hand_graph_mid_run_ends_every_node_cleanly(tmp_path:
 def test_a_composed_host_stopped_by_the_runner_ends_cleanly(tmp_path: Path) -> None:
     run_dir = tmp_path / "run"
     runner = subprocess.Popen([sys.executable, "-m", "cnc_tools.cli.main", "run", str(CIRCLE), "--out", str(run_dir),
-                               "--set", "duration_s=60", "--compose", "all"],
+                               "--set", "duration_s=600", "--compose", "all"],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         wait_until(lambda: _status(run_dir / "summary.json") == "running", 90.0, "the composed graph to run")
