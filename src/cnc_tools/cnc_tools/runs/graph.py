@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import time
@@ -35,6 +36,9 @@ from cnc_tools.runs.scenario import Scenario
 
 #: Seconds between two looks at the processes (and at stop signals) while a run waits.
 POLL_S = 0.05
+#: How long a partner the plant's fault says left the graph may take to end its process after the plant's
+#: (it leaves the graph before its interpreter has torn down) [s].
+PARTNER_EXIT_GRACE_S = 5.0
 
 
 class NodeDied(FaultError):
@@ -145,6 +149,8 @@ class GraphRun:
              may_finish: Sequence[str] = ()) -> dict[str, int | None]:
         """Wait until ``main`` exits; a node that exits first ends the run with :class:`NodeDied` naming it.
 
+        So does a partner that ``main``'s fault says left the graph and that fails within
+        :data:`PARTNER_EXIT_GRACE_S` after ``main`` ended (it leaves the graph before its process ends).
         Nodes in ``may_finish`` (a recorder that is done) may exit first with code 0.
         ``poll`` is called every :data:`POLL_S` (progress, stop signals).
         """
@@ -155,8 +161,11 @@ class GraphRun:
             codes = self.exit_codes()
             died = self._died(codes, main, may_finish)
             if codes[main] is not None:
-                if died is not None and codes[main] != 0:
-                    raise died  # the plant stopped because a partner died: the partner is the cause
+                if codes[main] != 0:  # the plant stopped because a partner died: the partner is the cause
+                    died = died or self.failed_within(self._partners_that_left(main), PARTNER_EXIT_GRACE_S)
+                    if died is not None:
+                        raise died
+                    codes = self.exit_codes()  # as they are after the grace
                 return codes
             if died is not None:
                 raise died
@@ -167,8 +176,36 @@ class GraphRun:
         """The first node but ``main`` that has exited, unless it may finish and did so with code 0."""
         for name, code in codes.items():
             if name != main and code is not None and not (name in may_finish and code == 0):
-                return NodeDied(name, f"node {name} ({self._where(name)}) exited with code {code} "
-                                      f"during the run; last output: {self.last_output(name)!r}")
+                return self._death(name, code)
+        return None
+
+    def _death(self, name: str, code: int) -> NodeDied:
+        return NodeDied(name, f"node {name} ({self._where(name)}) exited with code {code} during the run; "
+                              f"last output: {self.last_output(name)!r}")
+
+    def _partners_that_left(self, main: str) -> list[str]:
+        """The nodes that ``main``'s faults in ``summary.json`` say left the graph (``<ns>/<name>, ... left the graph``).
+
+        The partner leaves the graph before its interpreter has torn down, so ``main`` may end first.
+        """
+        summary = read_summary(self.run_dir / "summary.json") or {}
+        lost = " ".join(fault.split(" left the graph", 1)[0] for fault in summary.get("faults", [])
+                        if " left the graph" in fault)
+        return [name for name in self.node_names if name != main
+                and re.search(rf"{re.escape(self.namespace)}/{re.escape(name)}(?![\w/])", lost)]
+
+    def failed_within(self, names: Sequence[str], grace_s: float) -> NodeDied | None:
+        """The first of ``names`` whose process ends with a non-zero code within ``grace_s`` (None if none does)."""
+        deadline = time.monotonic() + grace_s
+        while names:
+            codes = self.exit_codes()
+            for name in names:
+                code = codes[name]
+                if code is not None and code != 0:
+                    return self._death(name, code)
+            if all(codes[name] is not None for name in names) or time.monotonic() > deadline:
+                break
+            time.sleep(POLL_S)
         return None
 
     def wait_exit(self, name: str, timeout_s: float, poll: Callable[[], None] | None = None) -> int:
