@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cnc_contour_control.testing import stop_processes
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.outputs import judge_bag
 from cnc_tools.runs.scenario import load_scenario
-from cnc_tools.testing import stop_processes
 
 ROOT = Path(__file__).resolve().parents[2]
 README_BAG = "/tmp/by_hand_bag"

@@ -9,20 +9,21 @@ from typing import Any
 import numpy as np
 import pytest
 import rclpy
-from cnc_contour_interfaces.msg import ContourError
 from rclpy.context import Context
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.nodes.common import SuiteNode
+from cnc_contour_control.testing import TopicProbe, all_alive
+from cnc_contour_interfaces.msg import ContourError
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.nodes.composed_host import EXIT_RAISED, ComposedHost
-from cnc_tools.runs.compose import HOST, MemberExit, exits_path, group_nodes, read_exits
+from cnc_tools.nodes.host_spec import HOST, MemberExit, exits_path, read_exits
+from cnc_tools.runs.compose import group_nodes
 from cnc_tools.runs.engine import run_engine, tick_count
 from cnc_tools.runs.graph import NodeDied, run_graph
 from cnc_tools.runs.graph_nodes import graph_specs, recorder_spec
 from cnc_tools.runs.lifetime import RunInterrupted
 from cnc_tools.runs.scenario import Scenario, load_scenario
-from cnc_tools.testing import TopicProbe, all_alive
 
 pytestmark = pytest.mark.e2e
 

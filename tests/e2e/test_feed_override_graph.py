@@ -46,7 +46,7 @@ def _program_file(tmp_path: Path) -> Path:
     return path
 
 
-def _joint_state(stamp_ns: int):  # noqa: ANN202
+def _joint_state(stamp_ns: int):
     from sensor_msgs.msg import JointState
 
     from cnc_contour_control.nodes.common import ns_to_stamp
@@ -56,10 +56,9 @@ def _joint_state(stamp_ns: int):  # noqa: ANN202
     return msg
 
 
-def _override(stamp_ns: int, ratio: float):  # noqa: ANN202
-    from cnc_contour_interfaces.msg import FeedOverride
-
+def _override(stamp_ns: int, ratio: float):
     from cnc_contour_control.nodes.common import ns_to_stamp
+    from cnc_contour_interfaces.msg import FeedOverride
 
     msg = FeedOverride(requested_ratio=ratio, applied_ratio=ratio, quantum=0.0)
     msg.header.stamp = ns_to_stamp(stamp_ns)
@@ -70,8 +69,9 @@ class _Rig:
     """A probe that drives one interpolator node tick by tick and reads its references."""
 
     def __init__(self, probe: object) -> None:
-        from cnc_contour_interfaces.msg import FeedOverride
         from sensor_msgs.msg import JointState
+
+        from cnc_contour_interfaces.msg import FeedOverride
 
         self.probe = probe
         self.joint_states = probe.publisher(JointState, f"{NS}/joint_states")  # type: ignore[attr-defined]
@@ -97,10 +97,9 @@ def _node_parameters(tmp_path: Path, source: str, **extra: object) -> dict[str, 
 
 
 def test_the_interpolator_node_follows_an_operators_feed_override_topic(tmp_path: Path) -> None:
-    from cnc_contour_interfaces.msg import Reference
-
     from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-    from cnc_tools.testing import InProcessNode, TopicProbe
+    from cnc_contour_control.testing import InProcessNode, TopicProbe
+    from cnc_contour_interfaces.msg import Reference
 
     with TopicProbe({f"{NS}/reference": Reference}) as probe, \
             InProcessNode(InterpolatorNode, _node_parameters(tmp_path, "topic", max_acceleration_m_s2=[0.25, 0.25]),
@@ -129,13 +128,12 @@ def test_the_interpolator_node_follows_an_operators_feed_override_topic(tmp_path
 
 
 def test_the_interpolator_node_takes_the_previous_ticks_override_exactly(tmp_path: Path) -> None:
-    from cnc_contour_interfaces.msg import Reference
-
-    from cnc_contour_control.feed_override import LiveReference, OverrideConfig
-    from cnc_contour_control.interpolation import AxisLimits, InterpolatorConfig
+    from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
+    from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig
+    from cnc_contour_control.motion.program_file import read_program_file
     from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-    from cnc_contour_control.program_file import read_program_file
-    from cnc_tools.testing import InProcessNode, TopicProbe
+    from cnc_contour_control.testing import InProcessNode, TopicProbe
+    from cnc_contour_interfaces.msg import Reference
 
     with TopicProbe({f"{NS}/reference": Reference}) as probe, \
             InProcessNode(InterpolatorNode, _node_parameters(tmp_path, "previous_tick"), namespace=NS):
@@ -156,11 +154,11 @@ def test_the_interpolator_node_takes_the_previous_ticks_override_exactly(tmp_pat
 
 
 def test_a_missing_previous_tick_override_is_a_fault_naming_the_topic(tmp_path: Path) -> None:
-    from cnc_contour_interfaces.msg import Reference
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
     from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-    from cnc_tools.testing import InProcessNode, TopicProbe
+    from cnc_contour_control.testing import InProcessNode, TopicProbe
+    from cnc_contour_interfaces.msg import Reference
 
     parameters = _node_parameters(tmp_path, "previous_tick", feed_override_timeout_s=0.3)
     with TopicProbe({f"{NS}/reference": Reference, "/diagnostics": DiagnosticArray}) as probe, \

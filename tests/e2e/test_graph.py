@@ -7,16 +7,16 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cnc_contour_interfaces.msg import AxisCommand, Reference
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.testing import TopicProbe, dds_ports, ephemeral_port_range, udp_sockets
+from cnc_contour_interfaces.msg import AxisCommand, Reference
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.runs.engine import run_engine, tick_count
 from cnc_tools.runs.graph import GraphRun, graph_nodes, run_graph
 from cnc_tools.runs.namespaces import run_namespace
 from cnc_tools.runs.scenario import load_scenario
-from cnc_tools.testing import TopicProbe, dds_ports, ephemeral_port_range, udp_sockets
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"

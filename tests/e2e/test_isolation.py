@@ -12,14 +12,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cnc_contour_interfaces.msg import AxisCommand, Reference
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from cnc_contour_control.errors import FaultError
-from cnc_contour_control.lockstep import NS_PER_S, seconds_to_ns
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.lockstep import NS_PER_S, seconds_to_ns
 from cnc_contour_control.nodes.common import ns_to_stamp
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.msg import AxisCommand, Reference
 from cnc_plant_sim.nodes.plant_node import PlantNode
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.typestore import project_typestore
@@ -27,7 +28,6 @@ from cnc_tools.runs.engine import run_engine, tick_count
 from cnc_tools.runs.graph import GraphRun, graph_nodes, run_graph
 from cnc_tools.runs.namespaces import run_namespace
 from cnc_tools.runs.scenario import Scenario, load_scenario
-from cnc_tools.testing import InProcessNode, TopicProbe
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.e2e
@@ -46,7 +46,7 @@ def _stamps(messages: list[tuple[int, object]]) -> list[int]:
     return [m.header.stamp.sec * NS_PER_S + m.header.stamp.nanosec for _, m in messages]  # type: ignore[attr-defined]
 
 
-def _assert_bag_holds_only_its_run(scenario: Scenario, result) -> None:  # noqa: ANN001
+def _assert_bag_holds_only_its_run(scenario: Scenario, result) -> None:
     ns, ticks, t_ns = result.namespace, tick_count(scenario), seconds_to_ns(scenario.sample_time_s)
     messages = _bag_messages(result.bag_path)
     assert all(topic.startswith(ns + "/") for topic in messages), (ns, sorted(messages))

@@ -14,14 +14,14 @@ import uuid
 from pathlib import Path
 
 import pytest
-from cnc_contour_interfaces.msg import AxisCommand, Reference
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import JointState
 
+from cnc_contour_control.testing import TopicProbe
+from cnc_contour_interfaces.msg import AxisCommand, Reference
 from cnc_tools.runs.graph import GraphRun
 from cnc_tools.runs.graph_nodes import PLANT_TIMEOUT_FACTOR, graph_nodes
 from cnc_tools.runs.scenario import load_scenario
-from cnc_tools.testing import TopicProbe
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"

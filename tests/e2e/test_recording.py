@@ -14,13 +14,13 @@ from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.errors import BagError
+from cnc_contour_control.core.errors import BagError
+from cnc_contour_control.testing import TopicProbe
 from cnc_tools.bagio.bag import read_bag
+from cnc_tools.bagio.typestore import project_typestore
 from cnc_tools.runs.engine import tick_count
 from cnc_tools.runs.graph import GraphRun, graph_nodes, recorder_spec, run_graph
 from cnc_tools.runs.scenario import load_scenario
-from cnc_tools.testing import TopicProbe
-from cnc_tools.bagio.typestore import project_typestore
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"

@@ -7,18 +7,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cnc_contour_interfaces.msg import AxisCommand, Reference
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
 
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.core.errors import FaultError
 from cnc_contour_control.nodes.safety_io import RUNNING
+from cnc_contour_control.testing import TopicProbe
+from cnc_contour_interfaces.msg import AxisCommand, Reference
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.diagnostics import read_statuses
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.graph import NodeDied, run_graph
 from cnc_tools.runs.scenario import load_scenario
-from cnc_tools.testing import TopicProbe
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"

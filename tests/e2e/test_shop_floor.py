@@ -31,19 +31,19 @@ from typing import Any
 
 import numpy as np
 import pytest
-from cnc_contour_interfaces.action import RunProgram
-from cnc_contour_interfaces.msg import FeedOverride, Reference
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from sensor_msgs.msg import JointState
 from rcl_interfaces.srv import SetParameters
 from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
 from cnc_contour_control.nodes.common import stamp_to_ns
+from cnc_contour_control.testing import TopicProbe, stop_processes
+from cnc_contour_interfaces.action import RunProgram
+from cnc_contour_interfaces.msg import FeedOverride, Reference
 from cnc_tools.cli.main import main as cli
 from cnc_tools.runs.graph import find_executable
-from cnc_tools.testing import TopicProbe, stop_processes
 
 ROOT = Path(__file__).resolve().parents[2]
 SCENARIO = ROOT / "scenarios" / "paper000_circle_high.yaml"

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from cnc_tools.testing import stop_processes, wait_until
+from cnc_contour_control.testing import stop_processes, wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"

@@ -10,12 +10,12 @@ from pathlib import Path
 
 import pytest
 
-from cnc_contour_control.errors import BagError
+from cnc_contour_control.core.errors import BagError
+from cnc_contour_control.testing import wait_until
 from cnc_tools.bagio.raw_bag import locate, read_raw
 from cnc_tools.runs.graph import NodeDied, run_graph
 from cnc_tools.runs.outputs import judge_bag
 from cnc_tools.runs.scenario import load_scenario
-from cnc_tools.testing import wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
 CIRCLE = ROOT / "scenarios" / "paper000_circle_high.yaml"

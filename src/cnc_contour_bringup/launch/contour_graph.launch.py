@@ -9,7 +9,7 @@
 ``params_file`` (default: ``share/cnc_contour_control/config/paper000_circle_high.params.yaml``,
 paper 000's circle at 1.3 m/min) is one ROS 2 parameters file with a section
 per node (``/cnc/plant``, ``/cnc/interpolator``, ``/cnc/servo_x``, ...) and
-``/**`` for values they share (:mod:`cnc_contour_control.graph_params`); its
+``/**`` for values they share (:mod:`cnc_contour_control.graph.graph_params`); its
 sections are the nodes started, each with that file, in its folder (the
 program it names is relative to it). The installed files are generated from
 scenarios by the runner's code (``cnc-contour config-files``), so the launched
@@ -37,9 +37,9 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.graph_files import GraphNode, read_manifest
-from cnc_contour_control.graph_params import read_graph_params
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.graph.graph_files import GraphNode, read_manifest
+from cnc_contour_control.graph.graph_params import read_graph_params
 
 PACKAGE = "cnc_contour_control"
 #: The installed default graph, in ``share/<PACKAGE>/config/``.

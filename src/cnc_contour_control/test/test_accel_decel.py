@@ -8,17 +8,17 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import signal
 
-from cnc_contour_control.accel_decel import (
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.accel_decel import (
     AccelDecelConfig,
     ReferenceFilter,
     filter_coefficients,
     make_filter,
 )
-from cnc_contour_control.arc import ArcSegment
-from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.geometry import Program
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.arc import ArcSegment
+from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 
 DT_S = 0.001
 

@@ -8,9 +8,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cnc_contour_control import blend_fillet as bf
-from cnc_contour_control.arc import ArcSegment
-from cnc_contour_control.geometry import LineSegment, Segment
+from cnc_contour_control.motion import blend_fillet as bf
+from cnc_contour_control.motion.arc import ArcSegment
+from cnc_contour_control.motion.geometry import LineSegment, Segment
 
 FEED_M_S = 0.02
 LINE_M = 0.01

@@ -8,16 +8,15 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.arc_budget import combined_tangential_m_s2
-from cnc_contour_control.blending import blend_program, corner_trim_m
-from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError, ProgramError
-from cnc_contour_control.gcode import parse_gcode
-from cnc_contour_control.geometry import ArcSegment, Dwell, LineSegment, Program
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_contour_control.segment_tangents import end_tangents
-from cnc_tools.sibling_tests import sibling_module
-
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.motion.arc_budget import combined_tangential_m_s2
+from cnc_contour_control.motion.blending import blend_program, corner_trim_m
+from cnc_contour_control.motion.gcode import parse_gcode
+from cnc_contour_control.motion.geometry import ArcSegment, Dwell, LineSegment, Program
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.segment_tangents import end_tangents
+from cnc_contour_control.testing import sibling_module
 
 _INTERPOLATION_TESTS = sibling_module(__file__, "test_interpolation")  # its check_limits, the one limit check of the planner
 

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
 from cnc_contour_control.compensators import (
     COMPENSATORS,
     Compensator,
@@ -22,11 +23,10 @@ from cnc_contour_control.compensators import (
     make_compensator,
 )
 from cnc_contour_control.compensators.neural import bipolar_sigmoid
-from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.params import ParamSpec, declared_bounds, flat_specs
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_plant_sim.plant import Plant, make_plant
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.params import ParamSpec, declared_bounds, flat_specs
+from cnc_plant_sim.models.plant import Plant, make_plant
 
 DT_S = 0.001
 AXES = ("x", "y")

@@ -6,18 +6,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from cnc_contour_interfaces.msg import Compensation, ContourError, Reference
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
 from cnc_contour_control.estimators import make_estimator
+from cnc_contour_control.motion.program_file import read_program_file
 from cnc_contour_control.nodes.common import ns_to_stamp
 from cnc_contour_control.nodes.compensator_node import CompensatorNode
 from cnc_contour_control.nodes.estimator_node import EstimatorNode
-from cnc_contour_control.program_file import read_program_file
-from cnc_tools.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.msg import Compensation, ContourError, Reference
 
 pytestmark = pytest.mark.nodes
 ROOT = Path(__file__).resolve().parents[3]

@@ -6,10 +6,10 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import signal
 
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.velocity_models import PAPER002_MODELS
 from cnc_contour_control.disturbance.design import dob_filters, mbda_pi, q_filter
 from cnc_contour_control.disturbance.filters import FirFilter, IirFilter
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.velocity_models import PAPER002_MODELS
 
 RNG = np.random.default_rng(2)
 SIGNAL = RNG.normal(size=400)

@@ -6,13 +6,13 @@ import math
 import numpy as np
 import pytest
 
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.velocity_models import PAPER002_MODELS
 from cnc_contour_control.disturbance.filters import IirFilter
 from cnc_contour_control.disturbance.loop import inertia_perturbed, tf
-from cnc_contour_control.disturbance.report import design_report, loop_figures
-from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.laws import LAWS, LawSample, law_config, make_law
 from cnc_contour_control.laws.disturbance import PositionLoopConfig
-from cnc_contour_control.velocity_models import PAPER002_MODELS
+from cnc_contour_control.laws.loop_report import design_report, loop_figures
 
 T_S = 0.001
 COMBINATIONS = ("dob", "mbda", "pdc", "dob_pdc", "mbda_pdc")
@@ -110,7 +110,7 @@ def test_design_report_per_combination() -> None:
 
 def test_servo_retunes_the_spindle_and_refuses_a_bad_one() -> None:
     """What the servo node does on a parameter set: build the config (refused with a reason), then retune."""
-    from cnc_contour_control.servo import ServoConfig, ServoController
+    from cnc_contour_control.axis.servo import ServoConfig, ServoController
 
     def config(spindle_rpm: float) -> ServoConfig:
         return ServoConfig.from_mapping({"axis_name": "x", "law": "dob_pdc", "law_params": {"spindle_rpm": spindle_rpm},
@@ -126,7 +126,7 @@ def test_servo_retunes_the_spindle_and_refuses_a_bad_one() -> None:
 
 
 def test_frequency_responses_for_the_figures() -> None:
-    from cnc_contour_control.disturbance.report import pdc_frequency_responses
+    from cnc_contour_control.laws.loop_report import pdc_frequency_responses
 
     curves = pdc_frequency_responses(law_config("pdc"), points=500)
     at_fd = int(np.argmin(np.abs(curves["f_hz"] - 50.0)))

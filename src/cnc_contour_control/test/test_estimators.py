@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.params import declared_bounds
 from cnc_contour_control.estimators import (
     ESTIMATORS,
     ContourEstimate,
@@ -23,9 +24,8 @@ from cnc_contour_control.estimators import (
     signed_segment_error,
 )
 from cnc_contour_control.estimators.window import line_error, line_error_2
-from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
-from cnc_contour_control.interpolation import AxisLimits, Interpolator
-from cnc_contour_control.params import declared_bounds
+from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator
 
 T_S = 1e-3
 FEED_M_S = 0.05

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from rclpy.serialization import deserialize_message, serialize_message
 from rosidl_parser import definition as idl
 
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.core.errors import FaultError
 from cnc_contour_control.nodes import fast_cdr
 
 MSG_DIR = Path(__file__).resolve().parents[2] / "cnc_contour_interfaces" / "msg"

@@ -8,16 +8,16 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cnc_contour_control.errors import CncError
-from cnc_contour_control.feed_override import (
+from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.motion.feed_override import (
     OverrideConfig,
     OverrideFollower,
     hold_distance_m,
     planning_limits,
 )
-from cnc_contour_control.geometry import LineSegment, Program
-from cnc_contour_control.interpolation import AxisLimits, Interpolator
-from cnc_contour_control.program import load_program
+from cnc_contour_control.motion.geometry import LineSegment, Program
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator
+from cnc_contour_control.motion.program import load_program
 
 LIMITS = AxisLimits((0.05, 0.05), (0.5, 0.5))
 DT_S = 1e-3

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.force import (
     FORCE_LAWS,
     DepthSchedule,

@@ -4,14 +4,14 @@ from __future__ import annotations
 import math
 
 import pytest
-from cnc_contour_interfaces.msg import FeedOverride
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 
 from cnc_contour_control.force import ForceRegulator, ForceRegulatorConfig, QuantiserConfig
 from cnc_contour_control.nodes.common import ns_to_stamp
 from cnc_contour_control.nodes.force_regulator_node import ForceRegulatorNode
-from cnc_tools.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.msg import FeedOverride
 
 pytestmark = pytest.mark.nodes
 NS = "/force_node_test"

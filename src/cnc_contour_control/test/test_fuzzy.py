@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.laws import LAWS, FeedbackLaw, LawSample, make_law
 from cnc_contour_control.laws.fuzzy import (
     PAPER000_DE_CENTRES_PER_SAMPLE,

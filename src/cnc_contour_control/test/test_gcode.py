@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError, ProgramError
-from cnc_contour_control.gcode import parse_gcode
-from cnc_contour_control.geometry import ArcSegment, LineSegment
+from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.motion.gcode import parse_gcode
+from cnc_contour_control.motion.geometry import ArcSegment, LineSegment
 
 PART = """%
 (a test part)

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError, ProgramError
-from cnc_contour_control.gcode import parse_gcode
-from cnc_contour_control.geometry import ArcSegment
-from cnc_contour_control.interpolation import AxisLimits, Interpolator
-from cnc_contour_control.program import load_program
-from cnc_contour_control.program_goal import ProgramGoal
+from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.motion.gcode import parse_gcode
+from cnc_contour_control.motion.geometry import ArcSegment
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator
+from cnc_contour_control.motion.program import load_program
+from cnc_contour_control.motion.program_goal import ProgramGoal
 
 XY = ("x", "y")
 
@@ -66,7 +66,7 @@ def test_bad_r_arcs_are_refused_naming_the_line_and_the_values(text: str, messag
 # ----------------------------------------------------------------------------------------------- M2/M30
 @pytest.mark.parametrize("end", ["M30", "M2", "M02"])
 def test_nothing_runs_after_the_program_end(end: str) -> None:
-    with pytest.raises(ProgramError, match=rf"line 4: X5 after the program's end \(M2/M30 on line 3\)"):
+    with pytest.raises(ProgramError, match=r"line 4: X5 after the program's end \(M2/M30 on line 3\)"):
         parse_gcode(f"G1 X1 F100\nX2\n{end}\nX5", axes=XY)
 
 

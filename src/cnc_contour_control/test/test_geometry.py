@@ -8,9 +8,9 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial import cKDTree
 
-from cnc_contour_control.errors import ProgramError
-from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
-from cnc_contour_control.points import RADIUS_TOLERANCE_M
+from cnc_contour_control.core.errors import ProgramError
+from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program
+from cnc_contour_control.motion.points import RADIUS_TOLERANCE_M
 
 FEED_M_S = 0.01
 

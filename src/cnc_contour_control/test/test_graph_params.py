@@ -7,8 +7,8 @@ from typing import Any
 import pytest
 import yaml
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.graph_params import (
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.graph.graph_params import (
     SHARED_SECTION,
     flatten,
     graph_params_yaml,

@@ -9,10 +9,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError, ProgramError
-from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_contour_control.program import load_program
+from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.program import load_program
 
 LIMITS_2 = AxisLimits((0.035, 0.035), (0.5, 0.5))
 

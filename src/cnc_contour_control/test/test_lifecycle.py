@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import uuid
-
 from pathlib import Path
 from typing import Any
 
@@ -12,7 +11,7 @@ from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 
 from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-from cnc_tools.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, TopicProbe
 
 pytestmark = pytest.mark.nodes
 NS = "/lifecycle_test"
@@ -65,7 +64,7 @@ def test_configure_with_a_bad_parameter_is_refused_naming_it_and_the_node_stays_
         probe.wait_for(lambda: node.node.status_publisher.get_subscription_count() > 0, 10.0, "the probe's match")
         assert not _change(probe, Transition.TRANSITION_CONFIGURE)
         assert _state(probe) == "unconfigured" and not node.node.finished
-        errors = lambda: [s for a in probe.received("/diagnostics") for s in a.status  # noqa: E731
+        errors = lambda: [s for a in probe.received("/diagnostics") for s in a.status
                           if s.level == DiagnosticStatus.ERROR]
         probe.wait_for(errors, 10.0, "the refusal on /diagnostics")
     message = errors()[0].message
@@ -73,7 +72,7 @@ def test_configure_with_a_bad_parameter_is_refused_naming_it_and_the_node_stays_
 
 
 def test_an_unmanaged_node_with_a_bad_parameter_still_fails_at_start() -> None:
-    from cnc_contour_control.errors import CncError
+    from cnc_contour_control.core.errors import CncError
 
     with pytest.raises(CncError, match="program_source"):
         with InProcessNode(InterpolatorNode, {**ACTION_MODE, "managed": False, "program_source": "tape"},

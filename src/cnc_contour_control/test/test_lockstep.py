@@ -5,8 +5,8 @@ import math
 
 import pytest
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.lockstep import (
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.lockstep import (
     StampMatcher,
     duration_to_ns,
     join_ns,

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.interpolation import Interpolator, InterpolatorConfig
-from cnc_contour_control.plan_arrays import look_ahead_caps_m_s
-from cnc_tools.sibling_tests import sibling_module
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.interpolation import Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.plan_arrays import look_ahead_caps_m_s
+from cnc_contour_control.testing import sibling_module
 
 _BLENDING = sibling_module(__file__, "test_blending")
 CONFIGS = {"split": InterpolatorConfig(path_tolerance_mm=0.01),

@@ -11,12 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError, FaultError, ProgramError
-from cnc_contour_control.feed_override import OverrideConfig
-from cnc_contour_control.interpolation import AxisLimits, InterpolatorConfig
-from cnc_contour_control.program_goal import ProgramGoal
-from cnc_contour_control.program_session import ProgramSession, ProgramSessionParams
-from cnc_contour_control.safety import (
+from cnc_contour_control.axis.safety import (
     EstopLatch,
     FerrorActionParams,
     FollowingErrorGuard,
@@ -24,8 +19,13 @@ from cnc_contour_control.safety import (
     MachineWatch,
     check_following_error,
 )
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_contour_control.servo_hold import HeldServo, HoldParams
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
+from cnc_contour_control.axis.servo_hold import HeldServo, HoldParams
+from cnc_contour_control.core.errors import ConfigError, FaultError, ProgramError
+from cnc_contour_control.motion.feed_override import OverrideConfig
+from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig
+from cnc_contour_control.motion.program_goal import ProgramGoal
+from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
 
 T_NS = 10_000_000
 T_S = 0.01

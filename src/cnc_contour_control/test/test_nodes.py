@@ -4,15 +4,15 @@ from __future__ import annotations
 import math
 
 import pytest
-from cnc_contour_interfaces.msg import AxisCommand, Reference
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
 from cnc_contour_control.nodes.common import ns_to_stamp
 from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_tools.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.msg import AxisCommand, Reference
 
 pytestmark = pytest.mark.nodes
 SERVO_PARAMS = {"axis": "x", "sample_time_s": 0.01, "law": "pid", "gains.kp": 2.4, "gains.ki": 10.0, "gains.kd": 0.067,
@@ -29,7 +29,7 @@ def reference(stamp_ns: int, x_m: float, v_m_s: float = 0.0) -> Reference:
                      velocity_m_s=[v_m_s, 0.0], acceleration_m_s2=[0.0, 0.0])
 
 
-def _header(stamp_ns: int):  # noqa: ANN202
+def _header(stamp_ns: int):
     from std_msgs.msg import Header
 
     return Header(stamp=ns_to_stamp(stamp_ns), frame_id="machine")

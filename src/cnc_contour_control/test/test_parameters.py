@@ -13,15 +13,21 @@ from rclpy.exceptions import ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import ParamSpec, config_values, flat_specs
+from cnc_contour_control.graph.stage_params import InterpolatorRunParams, ServoRunParams
 from cnc_contour_control.laws.fuzzy import FuzzyConfig
-from cnc_contour_control.nodes.parameters import (ConfigParameters, Section, command_line_words, declare_config,
-                                                  given_value, ros_type, ros_value)
-from cnc_contour_control.params import ParamSpec, config_values, flat_specs
-from cnc_contour_control.stage_params import InterpolatorRunParams, ServoRunParams
-from cnc_tools.sibling_tests import sibling_module
-
+from cnc_contour_control.nodes.parameters import (
+    ConfigParameters,
+    Section,
+    command_line_words,
+    declare_config,
+    given_value,
+    ros_type,
+    ros_value,
+)
+from cnc_contour_control.testing import sibling_module
 
 _cases = sibling_module(__file__, "test_params")  # the same config classes and bounds as the ROS-free test
 CONFIGS, _outside, _with = _cases.CONFIGS, _cases._outside, _cases._with
@@ -203,8 +209,8 @@ def test_a_change_is_validated_by_the_config_on_set_and_applied_after_it(context
 
 
 def test_the_plants_per_axis_overrides_are_nested_parameters_and_reach_the_plant() -> None:
+    from cnc_contour_control.testing import InProcessNode
     from cnc_plant_sim.nodes.plant_node import PlantNode
-    from cnc_tools.testing import InProcessNode
 
     given = {"axes": ["x", "y"], "axis_overrides.y.time_constant_s": 0.06, "axis_overrides.y.friction": "table",
              "axis_overrides.y.friction_params.velocity_mm_s": [-10.0, 0.0, 10.0],

@@ -6,21 +6,26 @@ from typing import Any
 
 import pytest
 
-from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.interpolation import AxisLimits, InterpolatorConfig
-from cnc_contour_control.laws import LAWS, law_config_class
-from cnc_contour_control.params import ParamSpec, config_values, declared_bounds, flat_specs
-from cnc_contour_control.servo import ServoConfig
-from cnc_contour_control.stage_params import InterpolatorRunParams, ServoRunParams, servo_config_values
-from cnc_plant_sim.axis import AxisConfig
-from cnc_plant_sim.plant import PlantConfig, VariationConfig
-from cnc_plant_sim.run_params import PlantRunParams
+from cnc_contour_control.axis.servo import ServoConfig
 
 #: Every config class a node declares parameters from, with the required fields it needs to build.
 from cnc_contour_control.compensators import COMPENSATORS, compensator_config_class
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import ParamSpec, config_values, declared_bounds, flat_specs
 from cnc_contour_control.estimators import ESTIMATORS, estimator_config_class
-from cnc_contour_control.stage_params import CompensatorRunParams, EstimatorRunParams
+from cnc_contour_control.graph.stage_params import (
+    CompensatorRunParams,
+    EstimatorRunParams,
+    InterpolatorRunParams,
+    ServoRunParams,
+    servo_config_values,
+)
+from cnc_contour_control.laws import LAWS, law_config_class
+from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig
+from cnc_plant_sim.models.axis import AxisConfig
+from cnc_plant_sim.models.plant import PlantConfig, VariationConfig
+from cnc_plant_sim.run.run_params import PlantRunParams
 
 CONFIGS: dict[type, dict[str, Any]] = {
     InterpolatorConfig: {},

@@ -1,7 +1,7 @@
 """Tier 1: a lockstep input's publishers leaving is a lost partner, named with the topic (no ROS)."""
 from __future__ import annotations
 
-from cnc_contour_control.safety import EstopLatch, PartnerWatch
+from cnc_contour_control.axis.safety import EstopLatch, PartnerWatch
 
 TOPIC = "/cnc/r1/servo/x/command"
 

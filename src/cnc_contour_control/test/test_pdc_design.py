@@ -9,6 +9,8 @@ from numpy.testing import assert_allclose
 from scipy import signal
 from scipy.special import comb
 
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.velocity_models import PAPER002_MODELS
 from cnc_contour_control.disturbance.design import (
     design_pdc,
     linear_phase_lowpass,
@@ -18,9 +20,7 @@ from cnc_contour_control.disturbance.design import (
     response,
     rls_fit,
 )
-from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.laws import law_config
-from cnc_contour_control.velocity_models import PAPER002_MODELS
 
 T_S = 0.001
 RADII = (0.9, 0.8, 0.85)

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from cnc_contour_control.axis.spindle_override import SpindleOverride, law_receiver
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.disturbance.loop import tf
 from cnc_contour_control.disturbance.stack_loop import StackBlocks, pid_transfer, sampled_plant, stack_figures
-from cnc_contour_control.errors import ConfigError
 from cnc_contour_control.laws import LawSample, law_config, make_law
 from cnc_contour_control.laws.pdc_stack import PAPER000_X_MODEL, PdcStackLaw
-from cnc_contour_control.spindle_override import SpindleOverride, law_receiver
 
 DT_S = PAPER000_X_MODEL[2]
 K_BLU_S, TAU_S = 28.35, 0.055  # paper 000's X drive, whose ZOH is the stacks' default P_n

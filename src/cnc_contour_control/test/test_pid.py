@@ -8,10 +8,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import param_specs
 from cnc_contour_control.laws import LAWS, FeedbackLaw, LawEntry, LawSample, law_config_class, make_law
 from cnc_contour_control.laws.pid import PidConfig, PidLaw, pid_gains_from_per_sample, pid_gains_per_sample
-from cnc_contour_control.params import param_specs
 
 #: Table 4 of paper 000 (per sample at T = 10 ms) in time units.
 TABLE4 = {"kp": 2.4, "ki": 10.0, "kd": 0.067}

@@ -20,12 +20,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.blending import BlendedProgram
-from cnc_contour_control.geometry import ArcSegment, Dwell, LineSegment, Program, Segment
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_contour_control.points import MIN_LENGTH_M
-from cnc_contour_control.segment_tangents import junction_turns_rad
-from cnc_tools.sibling_tests import sibling_module
+from cnc_contour_control.motion.blending import BlendedProgram
+from cnc_contour_control.motion.geometry import ArcSegment, Dwell, LineSegment, Program, Segment
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.points import MIN_LENGTH_M
+from cnc_contour_control.motion.segment_tangents import junction_turns_rad
+from cnc_contour_control.testing import sibling_module
 
 _BLENDING = sibling_module(__file__, "test_blending")
 LIMITS = {2: _BLENDING.LIMITS_2, 3: _BLENDING.LIMITS_3}

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError, ProgramError
-from cnc_contour_control.geometry import ArcSegment, LineSegment
-from cnc_contour_control.program import SHAPES, SOURCES, load_program
+from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.motion.geometry import ArcSegment, LineSegment
+from cnc_contour_control.motion.program import SHAPES, SOURCES, load_program
 
 
 def test_default_circle_is_paper000s_circular_test() -> None:

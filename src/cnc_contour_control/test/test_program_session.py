@@ -6,12 +6,12 @@ import math
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError, ProgramError
-from cnc_contour_control.feed_override import LiveReference, OverrideConfig
-from cnc_contour_control.gcode import parse_gcode
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_contour_control.program_goal import ProgramGoal, SegmentSpec, goal_program
-from cnc_contour_control.program_session import LiveScores, ProgramOutcome, ProgramSession, ProgramSessionParams
+from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
+from cnc_contour_control.motion.gcode import parse_gcode
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.program_goal import ProgramGoal, SegmentSpec, goal_program
+from cnc_contour_control.motion.program_session import LiveScores, ProgramOutcome, ProgramSession, ProgramSessionParams
 
 AXES = ("x", "y")
 LIMITS = AxisLimits((0.05, 0.05), (0.5, 0.5))
@@ -217,7 +217,7 @@ def test_a_segment_path_runs_with_the_goals_feed_and_tolerance() -> None:
     assert len(s.prepare(corner)[1].interpolator.program.segments) == 3, "the corner blended by an arc"
 
 
-def test_a_yaml_program_file_must_start_at_the_machine(tmp_path) -> None:  # noqa: ANN001
+def test_a_yaml_program_file_must_start_at_the_machine(tmp_path) -> None:
     file = tmp_path / "part.yaml"
     file.write_text("shape: line\nlength_mm: 5\nfeed_mm_min: 600\nstart_mm: [1, 0]\n")
     s = session()

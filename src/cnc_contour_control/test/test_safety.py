@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import pytest
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.safety import EstopLatch, FollowingErrorLimit, check_following_error, limit_of
-from cnc_contour_control.servo import ServoConfig
-from cnc_contour_control.tick_stats import TickStats
+from cnc_contour_control.axis.safety import EstopLatch, FollowingErrorLimit, check_following_error, limit_of
+from cnc_contour_control.axis.servo import ServoConfig
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.tick_stats import TickStats
 
 LIMIT = FollowingErrorLimit("x", min_ferror_m=1e-4, ferror_m=1e-3, ferror_velocity_m_s=0.5)
 

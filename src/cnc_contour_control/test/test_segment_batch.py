@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ProgramError
-from cnc_contour_control.geometry import ArcSegment, LineSegment
-from cnc_contour_control.segment_batch import arc_segments, line_segments
+from cnc_contour_control.core.errors import ProgramError
+from cnc_contour_control.motion.geometry import ArcSegment, LineSegment
+from cnc_contour_control.motion.segment_batch import arc_segments, line_segments
 
 ARC_FIELDS = ("start_m", "end_m", "center_m", "clockwise", "plane", "feed_m_s", "source_line", "radius_m",
               "sweep_rad", "start_angle_rad", "length_m", "rise_m")

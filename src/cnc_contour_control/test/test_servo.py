@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.axis.servo import ServoConfig, ServoController, ServoOutput, quantise
+from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.laws import LAWS, LawEntry, LawOutput, LawSample
 from cnc_contour_control.laws.pid import PConfig
-from cnc_contour_control.servo import ServoConfig, ServoController, ServoOutput, quantise
 
 
 def servo(**overrides: object) -> ServoController:
@@ -88,7 +88,7 @@ def test_quantise_never_goes_beyond_the_limit(value: float, quantum: float, limi
 
 
 def test_the_servo_runs_the_tested_quantiser(monkeypatch: pytest.MonkeyPatch) -> None:
-    import cnc_contour_control.servo as servo_module
+    import cnc_contour_control.axis.servo as servo_module
 
     calls = []
     monkeypatch.setattr(servo_module, "quantise", lambda *args: calls.append(args) or 42.0)
@@ -238,7 +238,7 @@ T_S = 0.01
 
 def track_ramp(law: str, law_params: dict, quantum: float, duration_s: float = 6.0) -> np.ndarray:
     """Following error [BLU] of the nominal paper-000 X axis tracking a ramp from rest."""
-    from cnc_plant_sim.plant import make_plant  # the plant package is a test-only dependency
+    from cnc_plant_sim.models.plant import make_plant  # the plant package is a test-only dependency
 
     plant = make_plant({"axes": ["x"], "variation": {"gain_pct": 0, "time_constant_pct": 0,
                                                      "friction_pct": 0}})

@@ -3,10 +3,10 @@ from __future__ import annotations
 
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.safety import EstopLatch
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_contour_control.servo_hold import HeldServo, HoldParams
+from cnc_contour_control.axis.safety import EstopLatch
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
+from cnc_contour_control.axis.servo_hold import HeldServo, HoldParams
+from cnc_contour_control.core.errors import ConfigError
 
 T_NS = 10_000_000
 T_S = 0.01
@@ -15,7 +15,7 @@ T_S = 0.01
 def pid_state(held: HeldServo) -> tuple[float, float, float]:
     """The PID's u(k−1), e(k−1), r(k−1): its integrator and its memory."""
     law = held.controller.law
-    return law._u, law._e1, law._rate1  # noqa: SLF001 (white-box: the state the test is about)
+    return law._u, law._e1, law._rate1
 
 
 def make(ramp_s: float = 0.2) -> tuple[HeldServo, EstopLatch]:
@@ -43,7 +43,7 @@ def test_a_plain_controller_would_have_wound_up_in_the_same_window() -> None:
     plain = ServoController(ServoConfig(axis_name="x", quantum=0.0))
     for _ in range(100):
         plain.step(T_S, 0.0, 0.0, 0.0, -5e-3, 0.0, 0.0)
-    assert abs(plain.law._u) == 127.0, "the comparison: without the hold the state sits at its clamp"  # noqa: SLF001
+    assert abs(plain.law._u) == 127.0, "the comparison: without the hold the state sits at its clamp"
 
 
 def test_resume_after_reset_and_enable_starts_at_zero_error_and_closes_the_gap_smoothly() -> None:

@@ -6,7 +6,6 @@ from typing import Any
 
 import pytest
 from builtin_interfaces.msg import Duration
-from cnc_contour_interfaces.msg import AxisCommand, Reference
 from diagnostic_msgs.msg import DiagnosticArray
 from scipy.interpolate import CubicHermiteSpline
 from sensor_msgs.msg import JointState
@@ -14,10 +13,11 @@ from std_msgs.msg import Bool, Header
 from std_srvs.srv import SetBool, Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
 from cnc_contour_control.nodes.common import ns_to_stamp
 from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_tools.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.msg import AxisCommand, Reference
 
 pytestmark = pytest.mark.nodes
 T_NS = 10_000_000
@@ -84,11 +84,11 @@ def test_the_estop_freezes_the_law_and_reset_and_enable_resume_without_a_bump() 
 
         driving = ticks(0, 9, 0.0)
         law = servo.node.controller.law
-        state = (law._u, law._e1, law._rate1)  # noqa: SLF001 (the integrator under test)
+        state = (law._u, law._e1, law._rate1)
         estop.publish(Bool(data=True))
         probe.wait_for(lambda: servo.node.latch.latched, 10.0, "the latch")
         latched = ticks(10, 59, -2e-3)
-        frozen = (law._u, law._e1, law._rate1)  # noqa: SLF001
+        frozen = (law._u, law._e1, law._rate1)
         estop.publish(Bool(data=False))
         probe.wait_for(lambda: not servo.node.latch.estop_input, 10.0, "the input released")
         assert call(probe, Trigger, "/cnc/servo/reset", Trigger.Request()).success

@@ -9,12 +9,12 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.integrate import quad
 
-from cnc_contour_control.arc_budget import combined_tangential_m_s2, speed_bands
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.geometry import ArcSegment
-from cnc_contour_control.interpolation import Interpolator, InterpolatorConfig
-from cnc_contour_control.plan_arrays import SpeedBands, segment_extents
-from cnc_tools.sibling_tests import sibling_module
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.arc_budget import combined_tangential_m_s2, speed_bands
+from cnc_contour_control.motion.geometry import ArcSegment
+from cnc_contour_control.motion.interpolation import Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.plan_arrays import SpeedBands, segment_extents
+from cnc_contour_control.testing import sibling_module
 
 _BLENDING = sibling_module(__file__, "test_blending")
 ACCEL_M_S2 = np.array([0.25, 0.25, 0.4])

@@ -4,11 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.laws import LawSample, make_law
 from cnc_contour_control.laws.base import SpindleFollowing
 from cnc_contour_control.laws.disturbance import DisturbanceLaw
-from cnc_contour_control.servo import ServoConfig, ServoController
 
 SERVO = {"axis_name": "x", "counts_per_m": 1.0, "output_limit": 1.0, "quantum": 0.0, "command_unit": "m/s"}
 

@@ -11,7 +11,7 @@ from rclpy.parameter_client import AsyncParameterClient
 
 from cnc_contour_control.laws import law_config
 from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_tools.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, TopicProbe
 
 pytestmark = pytest.mark.nodes
 PARAMS = {"axis": "x", "sample_time_s": 0.001, "law": "pdc", "input_timeout_s": 30.0, "gains.spindle_rpm": 1500.0}

@@ -6,9 +6,12 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.interpolate import CubicHermiteSpline, make_interp_spline
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.trajectory_reference import (JointTrajectoryReference, ReferenceSourceParams,
-                                                      TrajectoryFollower)
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.motion.trajectory_reference import (
+    JointTrajectoryReference,
+    ReferenceSourceParams,
+    TrajectoryFollower,
+)
 
 START_NS = 2_500_000_000
 

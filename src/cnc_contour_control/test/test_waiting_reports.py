@@ -4,9 +4,9 @@ from __future__ import annotations
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
-from cnc_contour_control.lockstep import StampMatcher
+from cnc_contour_control.core.lockstep import StampMatcher
 from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_tools.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, TopicProbe
 
 NS = "/waiting_test"
 SERVO_PARAMS = {"axis": "x", "sample_time_s": 0.01, "law": "pid", "input_timeout_s": 30.0}

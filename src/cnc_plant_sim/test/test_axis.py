@@ -10,8 +10,8 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 from scipy.integrate import solve_ivp
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_plant_sim.axis import AxisConfig, FeedDriveAxis, dynamics
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_plant_sim.models.axis import AxisConfig, FeedDriveAxis, dynamics
 
 BLU_M = 1e-5
 X_AXIS = {"name": "x", "gain_blu_s_per_dac": 28.35, "time_constant_s": 0.055,

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_plant_sim.command_source import COMMAND_INTERFACES, CommandSourceParams, command_interface
-from cnc_plant_sim.plant import PLANTS, make_plant
+from cnc_contour_control.core.errors import ConfigError
+from cnc_plant_sim.models.plant import PLANTS, make_plant
+from cnc_plant_sim.run.command_source import COMMAND_INTERFACES, CommandSourceParams, command_interface
 
 
 @pytest.mark.parametrize("model", sorted(PLANTS))

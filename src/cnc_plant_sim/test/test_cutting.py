@@ -6,11 +6,11 @@ from typing import Any
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.params import config_values
-from cnc_plant_sim.cutting import CuttingConfig, CuttingPlant, cutting_force_n
-from cnc_plant_sim.plant import PlantConfig, make_plant
-from cnc_plant_sim.turning import TurningProcess
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import config_values
+from cnc_plant_sim.models.plant import PlantConfig, make_plant
+from cnc_plant_sim.process.cutting import CuttingConfig, CuttingPlant, cutting_force_n
+from cnc_plant_sim.process.turning import TurningProcess
 
 TURNING: dict[str, Any] = {"process": "turning", "feed_axis": "z", "depth_schedule": [[0.0, 1.0], [0.05, 2.0]]}
 

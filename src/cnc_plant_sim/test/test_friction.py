@@ -9,8 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError
-from cnc_plant_sim.friction import (
+from cnc_contour_control.core.errors import ConfigError
+from cnc_plant_sim.models.friction import (
     FRICTIONS,
     CoulombViscousFriction,
     TableFriction,

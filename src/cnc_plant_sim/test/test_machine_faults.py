@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_plant_sim.machine_faults import FaultedPlant, MachineFaults, apply_faults, play, tool_positions_m
-from cnc_plant_sim.plant import PlantConfig, make_plant
+from cnc_contour_control.core.errors import ConfigError
+from cnc_plant_sim.models.machine_faults import FaultedPlant, MachineFaults, apply_faults, play, tool_positions_m
+from cnc_plant_sim.models.plant import PlantConfig, make_plant
 
 NO_VARIATION = {"gain_pct": 0, "time_constant_pct": 0, "friction_pct": 0}
 

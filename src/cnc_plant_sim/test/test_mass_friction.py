@@ -10,8 +10,8 @@ from numpy.testing import assert_allclose
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_plant_sim.mass_friction import (
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_plant_sim.models.mass_friction import (
     CUTTING_LOADS,
     PAPER001_AXES,
     MassFrictionOptions,
@@ -22,7 +22,7 @@ from cnc_plant_sim.mass_friction import (
     friction_n,
     paper001_axes,
 )
-from cnc_plant_sim.plant import PLANTS, Plant, make_plant
+from cnc_plant_sim.models.plant import PLANTS, Plant, make_plant
 
 DT_S = 1.0e-3
 
@@ -235,8 +235,8 @@ def test_the_cutting_load_acts_on_the_plant_and_is_reported_in_its_forces() -> N
 
 @pytest.mark.nodes
 def test_the_plant_node_builds_paper001_with_its_overrides() -> None:
+    from cnc_contour_control.testing import InProcessNode
     from cnc_plant_sim.nodes.plant_node import PlantNode
-    from cnc_tools.testing import InProcessNode
 
     params = {"model": "paper001", "axes": ["x", "y"], "sample_time_s": 0.001, "duration_s": 1.0,
               "axis_overrides.x.mass": 0.9, "mass_friction.length_unit": "m",

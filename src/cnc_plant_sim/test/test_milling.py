@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.force.model import DepthSchedule
-from cnc_plant_sim.cutting import CUTTING_PROCESSES, CuttingConfig, cutting_force_n
-from cnc_plant_sim.milling import MillingConfig, MillingProcess, instant_force, mean_force_vectors
-from cnc_plant_sim.plant import PlantConfig, make_plant
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.force_model import DepthSchedule
+from cnc_plant_sim.models.plant import PlantConfig, make_plant
+from cnc_plant_sim.process.cutting import CUTTING_PROCESSES, CuttingConfig, cutting_force_n
+from cnc_plant_sim.process.milling import MillingConfig, MillingProcess, instant_force, mean_force_vectors
 
 MILLING: dict[str, Any] = {"process": "milling", "depth_schedule": [[0.0, 1.0], [0.05, 2.0]],
                            "milling": {"flutes": 4, "feed_axes": ["x", "y"]}}

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.laws.pdc_stack import PAPER000_X_MODEL
-from cnc_plant_sim.nominal_models import continuous_velocity_model, drive_velocity_model
-from cnc_plant_sim.plant import PlantConfig, make_plant
+from cnc_plant_sim.models.nominal_models import continuous_velocity_model, drive_velocity_model
+from cnc_plant_sim.models.plant import PlantConfig, make_plant
 
 CASES = {
     "paper000": ({"model": "paper000", "axes": ["x", "y"], "variation": {"gain_pct": 0, "time_constant_pct": 0,

@@ -7,11 +7,16 @@ import math
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_plant_sim.periodic_load import (PeriodicLoadConfig, PeriodicLoadPlant, SpindleFields, schedule_from,
-                                         set_spindle_rpm)
-from cnc_plant_sim.plant import PlantConfig, make_plant
-from cnc_plant_sim.velocity_loop import VelocityLoopOptions, VelocityLoopPlant
+from cnc_contour_control.core.errors import ConfigError
+from cnc_plant_sim.models.periodic_load import (
+    PeriodicLoadConfig,
+    PeriodicLoadPlant,
+    SpindleFields,
+    schedule_from,
+    set_spindle_rpm,
+)
+from cnc_plant_sim.models.plant import PlantConfig, make_plant
+from cnc_plant_sim.models.velocity_loop import VelocityLoopOptions, VelocityLoopPlant
 
 DT_S = 0.01
 LOAD = {"amplitude": 60.0, "spindle_rpm": 300.0, "flutes": 2, "phases_rad": [0.0, 1.0]}

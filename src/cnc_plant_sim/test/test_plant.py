@@ -11,10 +11,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_plant_sim.axis import AxisConfig, FeedDriveAxis
-from cnc_plant_sim.feed_drives import FEED_DRIVE_MODELS, FeedDrivePlant
-from cnc_plant_sim.plant import PLANTS, Plant, PlantConfig, PlantEntry, make_plant
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_plant_sim.models.axis import AxisConfig, FeedDriveAxis
+from cnc_plant_sim.models.feed_drives import FEED_DRIVE_MODELS, FeedDrivePlant
+from cnc_plant_sim.models.plant import PLANTS, Plant, PlantConfig, PlantEntry, make_plant
 
 NO_VARIATION = {"gain_pct": 0, "time_constant_pct": 0, "friction_pct": 0}
 
@@ -159,11 +159,11 @@ class ConstantSpeedPlant:
         self.axis_names = config.axes
         self.reset()
 
-    def reset(self, positions_m=None) -> None:  # noqa: ANN001
+    def reset(self, positions_m=None) -> None:
         self._x = np.array(positions_m if positions_m is not None else [0.0] * len(self.axis_names), float)
         self._u = np.zeros(len(self.axis_names))
 
-    def step(self, commands, dt_s: float) -> None:  # noqa: ANN001
+    def step(self, commands, dt_s: float) -> None:
         self._u = np.asarray(commands, float)
         self._x = self._x + self._u * 1e-3 * dt_s
 
@@ -207,8 +207,8 @@ def test_a_plant_added_to_the_registry_is_built_by_make_plant() -> None:
 
 
 def test_core_modules_do_not_import_rclpy() -> None:
-    code = ("import sys, cnc_plant_sim.friction, cnc_plant_sim.axis, cnc_plant_sim.plant, "
-            "cnc_contour_control.servo, cnc_contour_control.laws; "
+    code = ("import sys, cnc_plant_sim.models.friction, cnc_plant_sim.models.axis, cnc_plant_sim.models.plant, "
+            "cnc_contour_control.axis.servo, cnc_contour_control.laws; "
             "assert 'rclpy' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True, env=None)
 

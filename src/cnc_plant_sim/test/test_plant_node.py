@@ -5,13 +5,13 @@ import math
 
 import numpy as np
 import pytest
-from cnc_contour_interfaces.msg import AxisCommand
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.nodes.common import ns_to_stamp
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.msg import AxisCommand
 from cnc_plant_sim.nodes.plant_node import PlantNode
-from cnc_tools.testing import InProcessNode, TopicProbe
 
 pytestmark = pytest.mark.nodes
 PARAMS = {"axes": ["x", "y"], "sample_time_s": 0.01, "duration_s": 1.0, "expected_subscribers": 1,

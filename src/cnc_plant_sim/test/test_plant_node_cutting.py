@@ -2,15 +2,15 @@
 from __future__ import annotations
 
 import pytest
-from cnc_contour_interfaces.msg import AxisCommand
 from geometry_msgs.msg import WrenchStamped
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.nodes.common import ns_to_stamp
-from cnc_plant_sim.cutting import cutting_force_n
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.msg import AxisCommand
+from cnc_plant_sim.models.plant import make_plant
 from cnc_plant_sim.nodes.plant_node import PlantNode
-from cnc_plant_sim.plant import make_plant
-from cnc_tools.testing import InProcessNode, TopicProbe
+from cnc_plant_sim.process.cutting import cutting_force_n
 
 pytestmark = pytest.mark.nodes
 NS = "/cutting_plant_test"

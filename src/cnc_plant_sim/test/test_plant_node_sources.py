@@ -7,13 +7,13 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from cnc_contour_interfaces.msg import AxisCommand
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.nodes.common import ns_to_stamp
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.msg import AxisCommand
 from cnc_plant_sim.nodes.plant_node import PlantNode
-from cnc_tools.testing import InProcessNode, TopicProbe
 
 pytestmark = pytest.mark.nodes
 T_NS = 10_000_000

@@ -9,8 +9,8 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
+from cnc_contour_control.testing import InProcessNode, TopicProbe
 from cnc_plant_sim.nodes.plant_node import PlantNode
-from cnc_tools.testing import InProcessNode, TopicProbe
 
 pytestmark = pytest.mark.nodes
 PARAMS = {"axes": ["x", "y"], "sample_time_s": 0.01, "duration_s": 1.0, "expected_subscribers": 1,

@@ -8,12 +8,12 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import signal
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.units import M_PER_PULSE_PAPER002
-from cnc_contour_control.velocity_models import PAPER002_MODELS, PAPER003_TORQUE_PER_INERTIA, PiVelocityLoop
-from cnc_plant_sim.plant import PLANTS, PlantConfig, make_plant
-from cnc_contour_control.spindle import SpindleSchedule
-from cnc_plant_sim.velocity_loop import (
+from cnc_contour_control.axis.spindle import SpindleSchedule
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.units import M_PER_PULSE_PAPER002
+from cnc_contour_control.core.velocity_models import PAPER002_MODELS, PAPER003_TORQUE_PER_INERTIA, PiVelocityLoop
+from cnc_plant_sim.models.plant import PLANTS, PlantConfig, make_plant
+from cnc_plant_sim.models.velocity_loop import (
     PAPER003_STANDARD_GAINS,
     VelocityLoopOptions,
     VelocityLoopPlant,

@@ -3,9 +3,9 @@ from __future__ import annotations
 
 import pytest
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_plant_sim.run_params import PlantRunParams
-from cnc_plant_sim.watchdog import CommandWatchdog, WatchdogParams
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_plant_sim.run.run_params import PlantRunParams
+from cnc_plant_sim.run.watchdog import CommandWatchdog, WatchdogParams
 
 T_NS = 10_000_000
 

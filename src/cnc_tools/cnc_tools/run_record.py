@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from cnc_contour_control.geometry import Program
+from cnc_contour_control.motion.geometry import Program
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -10,11 +10,11 @@ from typing import Any
 import pytest
 import yaml
 
-from cnc_contour_control.config import MAX_INPUT_FILE_BYTES
-from cnc_contour_control.errors import CncError
-from cnc_contour_control.params import param_specs
-from cnc_contour_control.program_file import read_program_file
-from cnc_plant_sim.run_params import PlantRunParams
+from cnc_contour_control.core.config import MAX_INPUT_FILE_BYTES
+from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.core.params import param_specs
+from cnc_contour_control.motion.program_file import read_program_file
+from cnc_plant_sim.run.run_params import PlantRunParams
 from cnc_tools.cli.main import main
 from cnc_tools.runs.scenario import build_scenario
 

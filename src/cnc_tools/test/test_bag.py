@@ -15,7 +15,7 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from ruamel.yaml import YAML
 
-from cnc_contour_control.errors import BagError, ConfigError
+from cnc_contour_control.core.errors import BagError, ConfigError
 from cnc_tools.bagio.bag import BagWriter, read_bag
 from cnc_tools.bagio.typestore import (
     candidate_msg_dirs,
@@ -29,7 +29,7 @@ SETTINGS = settings(max_examples=30, deadline=None, suppress_health_check=[Healt
 
 
 @pytest.fixture(scope="module")
-def circle(synth):  # noqa: ANN001, ANN201 - fixture
+def circle(synth):
     return synth.circle_program(), synth.circle_trajectory(0.02, 5e-6)
 
 
@@ -62,7 +62,7 @@ def test_layout_is_rosbag2_mcap(circle_bag: Path) -> None:
     assert "transient_local" in str(qos["/cnc/path"])
 
 
-def test_mcap_library_decodes_every_message(circle_bag: Path, circle) -> None:  # noqa: ANN001
+def test_mcap_library_decodes_every_message(circle_bag: Path, circle) -> None:
     program, traj = circle
     with (circle_bag / "circle.mcap").open("rb") as stream:
         reader = make_reader(stream, validate_crcs=True, decoder_factories=[DecoderFactory()])
@@ -79,7 +79,7 @@ def test_mcap_library_decodes_every_message(circle_bag: Path, circle) -> None:  
     assert_allclose(paths[0].segments[0].start_m, program.segments[0].start_m)
 
 
-def test_rosbags_reads_back_what_was_written(circle_bag: Path, circle) -> None:  # noqa: ANN001
+def test_rosbags_reads_back_what_was_written(circle_bag: Path, circle) -> None:
     _, traj = circle
     with AnyReader([circle_bag], default_typestore=project_typestore()) as reader:
         conns = [c for c in reader.connections if c.topic == "/cnc/reference"]
@@ -88,11 +88,11 @@ def test_rosbags_reads_back_what_was_written(circle_bag: Path, circle) -> None: 
     assert_array_equal(np.array([r.header.stamp.nanosec for r in refs]) % 1_000_000, 0)
 
 
-def test_read_bag_returns_the_recorded_arrays(circle_bag: Path, circle) -> None:  # noqa: ANN001
+def test_read_bag_returns_the_recorded_arrays(circle_bag: Path, circle) -> None:
     program, traj = circle
     run = read_bag(circle_bag)
     assert run.integrity.complete and run.integrity.method == "index"
-    assert run.integrity.lost == {t: 0 for t in run.integrity.found}
+    assert run.integrity.lost == dict.fromkeys(run.integrity.found, 0)
     assert run.name == "circle" and run.axis_names == ("x", "y")
     assert_array_equal(run.joint_states.stamp_ns, traj.stamp_ns)
     assert_array_equal(run.joint_states.position_m, traj.position_m)
@@ -112,28 +112,28 @@ def test_read_without_commands_skips_them(circle_bag: Path) -> None:
     assert "/cnc/servo/x/command" not in run.integrity.found
 
 
-def test_joint_names_in_another_order_with_extra_axes(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_joint_names_in_another_order_with_extra_axes(tmp_path: Path, synth) -> None:
     program, traj = synth.circle_program(), synth.circle_trajectory(0.02, 0.0, n=50)
     bag = synth.write_run_bag(tmp_path / "b", program, traj, joint_names=("spindle", "y", "x"), commands=False)
     assert_array_equal(read_bag(bag).joint_states.position_m, traj.position_m)
 
 
 # --------------------------------------------------------------------------- refusals
-def test_missing_path_topic_is_refused_by_name(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_missing_path_topic_is_refused_by_name(tmp_path: Path, synth) -> None:
     bag = synth.write_run_bag(tmp_path / "b", synth.circle_program(), synth.circle_trajectory(0.02, 0.0, n=20),
                               with_path=False)
     with pytest.raises(BagError, match="/cnc/path"):
         read_bag(bag)
 
 
-def test_joint_states_lacking_a_path_axis_is_refused_by_name(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_joint_states_lacking_a_path_axis_is_refused_by_name(tmp_path: Path, synth) -> None:
     program, traj = synth.circle_program(n_axes=3), synth.circle_trajectory(0.02, 0.0, n=20, n_axes=3)
     bag = synth.write_run_bag(tmp_path / "b", program, traj, joint_names=("x", "y"), commands=False)
     with pytest.raises(BagError, match=r"/cnc/joint_states lacks axes \['z'\]"):
         read_bag(bag)
 
 
-def test_a_bag_recorded_with_an_older_type_lacking_a_field_is_refused_by_name(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_a_bag_recorded_with_an_older_type_lacking_a_field_is_refused_by_name(tmp_path: Path, synth) -> None:
     name = "cnc_contour_interfaces/msg/Reference"
     old_text = (find_msg_dir() / "Reference.msg").read_text().replace("bool done", "# (no done field yet)")
     definitions = {**custom_type_definitions(find_msg_dir()), **get_types_from_msg(old_text, name)}
@@ -162,7 +162,7 @@ def test_writer_refuses_an_existing_folder_and_leaves_it_alone(tmp_path: Path) -
     assert [p.name for p in existing.iterdir()] == ["keep.txt"]
 
 
-def test_writer_refuses_unknown_topics_types_and_writes_after_close(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_writer_refuses_unknown_topics_types_and_writes_after_close(tmp_path: Path, synth) -> None:
     with pytest.raises(BagError, match="no_such_msgs/msg/Thing"):
         BagWriter(tmp_path / "a", {"/t": "no_such_msgs/msg/Thing"})
     writer = BagWriter(tmp_path / "b", {"/cnc/joint_states": "sensor_msgs/msg/JointState"})
@@ -186,7 +186,7 @@ def test_missing_bag_is_a_bag_error(tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------------------- salvage
-def test_cut_in_the_middle_keeps_a_prefix_and_counts_the_loss(tmp_path: Path, bag_bytes, circle) -> None:  # noqa: ANN001
+def test_cut_in_the_middle_keeps_a_prefix_and_counts_the_loss(tmp_path: Path, bag_bytes, circle) -> None:
     data, metadata = bag_bytes
     _, traj = circle
     run = read_bag(_copy(tmp_path, data[: len(data) // 2], metadata))
@@ -198,15 +198,15 @@ def test_cut_in_the_middle_keeps_a_prefix_and_counts_the_loss(tmp_path: Path, ba
     assert "lost" in run.integrity.describe()
 
 
-def test_cut_in_the_summary_recovers_everything_but_is_not_complete(tmp_path: Path, bag_bytes) -> None:  # noqa: ANN001
+def test_cut_in_the_summary_recovers_everything_but_is_not_complete(tmp_path: Path, bag_bytes) -> None:
     data, metadata = bag_bytes
     run = read_bag(_copy(tmp_path, data[:-50], metadata))
     assert not run.integrity.complete
-    assert run.integrity.lost == {t: 0 for t in run.integrity.found}
+    assert run.integrity.lost == dict.fromkeys(run.integrity.found, 0)
     assert run.joint_states.stamp_ns.size == 2000
 
 
-def test_without_metadata_the_loss_is_unknown(tmp_path: Path, bag_bytes) -> None:  # noqa: ANN001
+def test_without_metadata_the_loss_is_unknown(tmp_path: Path, bag_bytes) -> None:
     data, _ = bag_bytes
     run = read_bag(_copy(tmp_path, data[: len(data) // 2], None))
     assert not run.integrity.complete
@@ -214,7 +214,7 @@ def test_without_metadata_the_loss_is_unknown(tmp_path: Path, bag_bytes) -> None
     assert "unknown" in run.integrity.describe()
 
 
-def test_intact_file_without_metadata_is_complete_by_its_summary(tmp_path: Path, bag_bytes) -> None:  # noqa: ANN001
+def test_intact_file_without_metadata_is_complete_by_its_summary(tmp_path: Path, bag_bytes) -> None:
     data, _ = bag_bytes
     run = read_bag(_copy(tmp_path, data, None))
     assert run.integrity.complete and run.integrity.expected_source == "mcap summary"
@@ -231,7 +231,7 @@ def _read_damaged(data: bytes, metadata: str | None) -> object:
 
 @SETTINGS
 @given(fraction=st.floats(0.0, 1.0, exclude_max=True), with_metadata=st.booleans())
-def test_any_cut_gives_bag_error_or_an_incomplete_prefix(bag_bytes, circle, fraction: float,  # noqa: ANN001
+def test_any_cut_gives_bag_error_or_an_incomplete_prefix(bag_bytes, circle, fraction: float,
                                                          with_metadata: bool) -> None:
     data, metadata = bag_bytes
     _, traj = circle
@@ -251,7 +251,7 @@ def test_any_cut_gives_bag_error_or_an_incomplete_prefix(bag_bytes, circle, frac
 
 @SETTINGS
 @given(position=st.floats(0.0, 1.0, exclude_max=True), value=st.integers(0, 255))
-def test_a_corrupt_byte_never_raises_anything_but_bag_error(bag_bytes, position: float, value: int) -> None:  # noqa: ANN001
+def test_a_corrupt_byte_never_raises_anything_but_bag_error(bag_bytes, position: float, value: int) -> None:
     data, metadata = bag_bytes
     index = int(position * len(data))
     damaged = data[:index] + bytes([value]) + data[index + 1:]

@@ -13,7 +13,7 @@ from rosbags.interfaces import QosDurability, QosReliability
 from rosbags.rosbag2 import Reader
 from ruamel.yaml import YAML
 
-from cnc_contour_control.errors import BagError
+from cnc_contour_control.core.errors import BagError
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.mcap_salvage import crc_problem
 from cnc_tools.bagio.mcap_storage import CHUNK_SIZE_BYTES

@@ -7,9 +7,15 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_tools.analysis.ballbar import (CYCLIC_HARMONICS, BallbarDiagnosis, CircleTrace, diagnose_circles,
-                                        fit_circle_ls, minimum_zone_width)
+from cnc_contour_control.core.errors import ConfigError
+from cnc_tools.analysis.ballbar import (
+    CYCLIC_HARMONICS,
+    BallbarDiagnosis,
+    CircleTrace,
+    diagnose_circles,
+    fit_circle_ls,
+    minimum_zone_width,
+)
 
 R_M = 0.05
 CENTRE_M = (0.1, -0.02)

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.analysis.ballbar_radius import RadiusLossModel, model_from_scenario, predict_radius_loss
 from cnc_tools.cli.main import main
 

@@ -7,7 +7,7 @@ from collections.abc import Callable
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.analysis.ballbar import CircleTrace
 from cnc_tools.analysis.ballbar_reversals import Reversal, diagnose_reversals
 

@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.lockstep import NS_PER_S, ns_to_s, seconds_to_ns
-from cnc_contour_control.servo import ServoController
-from cnc_plant_sim.plant import make_plant
+from cnc_contour_control.axis.servo import ServoController
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.lockstep import NS_PER_S, ns_to_s, seconds_to_ns
+from cnc_plant_sim.models.plant import make_plant
+from cnc_tools.analysis.tables import format_table, write_json
 from cnc_tools.bench.registry import BENCHES, get_bench
-from cnc_tools.bench.report import format_table, write_json
 from cnc_tools.cli.main import main
 from cnc_tools.runs.engine import run_engine, tick_count, tick_stamps_s
 from cnc_tools.runs.scenario import Scenario, load_scenario

@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from cnc_contour_control.geometry import LineSegment, Program
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.geometry import LineSegment, Program
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_tools.bench.blending import limit_ratios, limits_for, planning_cost, worst_deviation_m
 from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, polygon, true_circle
 from cnc_tools.bench.time_optimal import ProgramPath, time_optimal_s

@@ -14,21 +14,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
+from cnc_tools.analysis.tables import write_json
 from cnc_tools.bench.engine import PACKAGES
 from cnc_tools.bench.graph import (
     EXECUTABLES,
     SAMPLE_TIMES_S,
     entry_points,
     graph_bench,
+    graph_messages,
     graph_modules,
     per_tick,
-    graph_messages,
     require_same_messages,
     write_wrappers,
 )
 from cnc_tools.bench.registry import get_bench
-from cnc_tools.bench.report import write_json
 from cnc_tools.cli.main import build_parser
 
 ROOT = Path(__file__).resolve().parents[3]

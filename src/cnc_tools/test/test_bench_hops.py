@@ -12,9 +12,18 @@ from pathlib import Path
 
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_tools.bench.hops import (PROFILE_VARIABLES, SHIPPED, Plan, RoundFigures, dds_profile, hops_bench,
-                                  measure_round, parse_profiles, summarize)
+from cnc_contour_control.core.errors import ConfigError
+from cnc_tools.bench.hops import (
+    PROFILE_VARIABLES,
+    SHIPPED,
+    Plan,
+    RoundFigures,
+    dds_profile,
+    hops_bench,
+    measure_round,
+    parse_profiles,
+    summarize,
+)
 from cnc_tools.runs.dds import profile_path
 
 

@@ -14,12 +14,13 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.geometry import LineSegment, Program
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.laws.fuzzy import RULE_BASES
+from cnc_contour_control.motion.geometry import LineSegment, Program
+from cnc_tools.analysis.scoring import score_run
 from cnc_tools.bench.registry import BENCHES
-from cnc_tools.reproductions.paper000.assumptions import VARIANTS
 from cnc_tools.cli.main import main as cli_main
+from cnc_tools.reproductions.paper000.assumptions import VARIANTS
 from cnc_tools.reproductions.paper000.data import EXPERIMENTS, TABLE2_AXES, TABLE4_GAINS, TABLE5, table5_row
 from cnc_tools.reproductions.paper000.runs import (
     CONTROLLERS,
@@ -34,7 +35,6 @@ from cnc_tools.reproductions.paper000.runs import (
 )
 from cnc_tools.reproductions.paper000.sweep import settings_of, table5_cases
 from cnc_tools.runs.engine import run_engine
-from cnc_tools.analysis.scoring import score_run
 
 ROOT = Path(__file__).resolve().parents[3]
 LINE_LOW = ROOT / "scenarios" / "paper000_line_low.yaml"

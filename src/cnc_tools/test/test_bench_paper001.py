@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from cnc_contour_control.compensators import make_compensator
-from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_tools.bench.registry import BENCHES
 from cnc_tools.reproductions.paper001 import runs as runs_module
 from cnc_tools.reproductions.paper001.bench import GOAL_RATIO, TABLE_STACKS

@@ -10,10 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cnc_contour_control.disturbance.report import loop_figures
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.laws import law_config
-from cnc_contour_control.program import load_program
+from cnc_contour_control.laws.loop_report import loop_figures
+from cnc_contour_control.motion.program import load_program
 from cnc_tools.bench.registry import BENCHES
 from cnc_tools.reproductions.paper002 import data
 from cnc_tools.reproductions.paper002.bench import design_config

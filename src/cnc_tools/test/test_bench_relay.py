@@ -9,10 +9,10 @@ from pathlib import Path
 
 import pytest
 
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.testing import wait_until
 from cnc_tools.bench.lockstep import EngineFigures, GraphFigures, HopFigures, collect, print_figures
 from cnc_tools.bench.relay import relay_ticks
-from cnc_tools.testing import wait_until
 
 pytestmark = pytest.mark.nodes
 
@@ -47,7 +47,7 @@ def test_a_relay_process_that_dies_mid_run_is_named_not_waited_for(tmp_path: Pat
     def run() -> None:
         try:
             relay_ticks(tmp_path, 10 ** 8, 0, timeout_s=120.0, namespace=ns)
-        except BaseException as err:  # noqa: BLE001 - handed to the test thread
+        except BaseException as err:
             failure.append(err)
 
     thread = threading.Thread(target=run, daemon=True)

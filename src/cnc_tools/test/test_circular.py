@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.geometry import ArcSegment, Program
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.geometry import ArcSegment, Program
 from cnc_tools.analysis.circular import Circle, analyse_circle, circle_of, fit_circle, reversal_indices
 from cnc_tools.analysis.scoring import score_run
 
@@ -21,7 +21,7 @@ def _circle() -> Circle:
     return Circle((0.0, 0.0), R_M, (0, 1))
 
 
-def _samples(radius_of_theta, n: int = 7201, clockwise: bool = False):  # noqa: ANN001, ANN202
+def _samples(radius_of_theta, n: int = 7201, clockwise: bool = False):
     """Stamps, positions on r(θ) and the reference velocity of one revolution from θ = 0."""
     sign = -1.0 if clockwise else 1.0
     theta = sign * np.linspace(0.0, 2 * np.pi, n)
@@ -32,7 +32,7 @@ def _samples(radius_of_theta, n: int = 7201, clockwise: bool = False):  # noqa: 
     return np.arange(n, dtype=np.int64) * 1_000_000, position, velocity
 
 
-def test_circle_of_accepts_one_circle_and_refuses_the_rest(synth) -> None:  # noqa: ANN001
+def test_circle_of_accepts_one_circle_and_refuses_the_rest(synth) -> None:
     assert circle_of(synth.circle_program()) == Circle((0.0, 0.0), R_M, (0, 1))
     assert circle_of(synth.corner_program()) is None
     half = [ArcSegment(start_m=np.array(a), end_m=np.array(b), center_m=np.zeros(2), clockwise=False, feed_m_s=0.01)
@@ -110,7 +110,7 @@ def test_window_outside_its_range_is_refused() -> None:
         analyse_circle(_circle(), AXES, stamps, position, velocity, window_deg=400)
 
 
-def test_score_of_a_circle_run_carries_the_circular_test(synth) -> None:  # noqa: ANN001
+def test_score_of_a_circle_run_carries_the_circular_test(synth) -> None:
     score = score_run(synth.make_run(synth.circle_program(), synth.circle_trajectory(R_M, 2e-6, n=4000)))
     data = json.loads(score.to_json())["circular_test"]
     assert_allclose(data["mean_radius_error_um"], 2.0, rtol=1e-6)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.servo import ServoController
-from cnc_contour_control.stages import STAGES, pipeline
+from cnc_contour_control.axis.servo import ServoController
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.stages import STAGES, pipeline
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.backends import run_scenario
 from cnc_tools.runs.engine import ENGINE_STAGES, build_stages, run_engine, tick_count

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.geometry import ArcSegment
-from cnc_contour_control.program import load_program
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.geometry import ArcSegment
+from cnc_contour_control.motion.program import load_program
 from cnc_tools.analysis.scoring import contour_error_series
 from cnc_tools.bench import estimator as estimator_bench_module
 from cnc_tools.bench.registry import BENCHES

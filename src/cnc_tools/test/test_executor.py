@@ -13,7 +13,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.analysis.scoring import contour_error_series
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine

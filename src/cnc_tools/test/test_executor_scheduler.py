@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 import pytest
 
-from cnc_contour_control.errors import CncError, ConfigError
+from cnc_contour_control.core.errors import CncError, ConfigError
 from cnc_tools.runs.executor import DaskExecutor, Executor, SchedulerUnreachableError, make_executor
 
 LOOPBACK = "127.0.0.1"

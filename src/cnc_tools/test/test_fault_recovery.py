@@ -18,14 +18,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.stages import pipeline
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.stages import pipeline
 from cnc_tools.analysis.ballbar import BallbarDiagnosis, CircleTrace, diagnose_circles
 from cnc_tools.analysis.ballbar_cyclic import fit_cyclic_error
 from cnc_tools.analysis.ballbar_reversals import ReversalDiagnosis, diagnose_reversals
 from cnc_tools.bagio.record_bag import write_record_bag
-from cnc_tools.cli.main import main
 from cnc_tools.cli.circular import measured_positions
+from cnc_tools.cli.main import main
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.scenario import build_scenario

@@ -1,7 +1,7 @@
 """The live feed override in the engine: a schedule with a feed hold keeps the limits, stays on the path, finishes.
 
 Tier 1 (no DDS): the engine's interpolator stage steps
-:class:`~cnc_contour_control.feed_override.LiveReference`, the core object the
+:class:`~cnc_contour_control.motion.feed_override.LiveReference`, the core object the
 interpolator node steps; the graph test (tests/e2e/test_feed_override_graph.py)
 compares the two.
 """
@@ -14,8 +14,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.feed_override import OverrideConfig, OverrideInbox, check_source
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.feed_override import OverrideConfig, OverrideInbox, check_source
 from cnc_tools.analysis.scoring import score_run
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine

@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
-from cnc_plant_sim.friction import paper000_x, paper000_y
-from cnc_tools.identification import friction as fid
-from cnc_tools.identification import friction_curve as fcurve
+from cnc_contour_control.core.errors import ConfigError
+from cnc_plant_sim.models.friction import paper000_x, paper000_y
 from cnc_tools.cli import identify_friction as fic
 from cnc_tools.cli.main import main
+from cnc_tools.identification import friction as fid
+from cnc_tools.identification import friction_curve as fcurve
 
 #: Quantisation (8-bit DAC) bounds the error of one nominal-plant point (measured: <= 0.28 DAC).
 QUANTISATION_DAC = 0.3

@@ -20,8 +20,8 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
-from cnc_contour_control.graph_files import GraphNode, write_params_file
-from cnc_contour_control.graph_params import read_graph_params
+from cnc_contour_control.graph.graph_files import GraphNode, write_params_file
+from cnc_contour_control.graph.graph_params import read_graph_params
 from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
 from cnc_contour_control.nodes.servo_node import ServoNode
 from cnc_plant_sim.nodes.plant_node import PlantNode

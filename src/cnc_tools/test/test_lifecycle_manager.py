@@ -6,10 +6,10 @@ import uuid
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
+from cnc_contour_control.testing import InProcessNode, TopicProbe
 from cnc_tools.nodes.lifecycle_manager import LifecycleManagerNode, TransitionPlan
-from cnc_tools.testing import InProcessNode, TopicProbe
 
 NS = "/lifecycle_manager_test"
 ACTION_MODE = {"axes": ["x", "y"], "program_source": "action", "program_file": "", "managed": True}

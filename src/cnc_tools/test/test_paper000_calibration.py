@@ -6,7 +6,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.reproductions.paper000.calibration import (
     PidColumnObjective,
     check_variables,

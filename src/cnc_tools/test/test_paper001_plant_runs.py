@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.signal import find_peaks
 
-from cnc_plant_sim.mass_friction import paper001_axes
+from cnc_plant_sim.models.mass_friction import paper001_axes
 from cnc_tools.analysis.scoring import tracking_errors
 from cnc_tools.reproductions.paper001.data import SCENARIOS, TABLE2, TABLE3, paper_result
 from cnc_tools.reproductions.paper001.readings import (

@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.reproductions.paper002 import data
 from cnc_tools.reproductions.paper002.measures import recovery_time_s
 from cnc_tools.reproductions.paper002.online import RECOVERY_GOAL_S, step_recovery_s

@@ -25,7 +25,7 @@ def test_each_spindle_change_is_a_fresh_design() -> None:
     assert all(0.0 < t < 60.0 for found in times.values() for t in found)
 
 
-def test_the_bench_writes_its_figures(tmp_path: Path, monkeypatch) -> None:  # noqa: ANN001
+def test_the_bench_writes_its_figures(tmp_path: Path, monkeypatch) -> None:
     import cnc_tools.reproductions.paper002.speed as speed
 
     monkeypatch.setattr(speed, "REPEATS", 2)

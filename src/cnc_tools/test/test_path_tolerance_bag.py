@@ -14,7 +14,7 @@ import pytest
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-from cnc_contour_control.errors import BagError
+from cnc_contour_control.core.errors import BagError
 from cnc_tools.analysis.scoring import score_run
 from cnc_tools.bagio.bag import BagWriter, read_bag
 from cnc_tools.bagio.typestore import custom_type_definitions, find_msg_dir, project_typestore
@@ -36,7 +36,7 @@ def _store_before_the_field() -> Typestore:
     return store
 
 
-def _circle_bag(tmp_path: Path, synth, tolerance_m: float | None, typestore: Typestore | None = None) -> Path:  # noqa: ANN001
+def _circle_bag(tmp_path: Path, synth, tolerance_m: float | None, typestore: Typestore | None = None) -> Path:
     program = dataclasses.replace(synth.circle_program(), path_tolerance_m=tolerance_m)
     traj = synth.circle_trajectory(0.02, 3e-6, n=200)
     return synth.write_run_bag(tmp_path / "bag", program, traj, commands=False, typestore=typestore)
@@ -48,7 +48,7 @@ def test_the_message_declares_the_field() -> None:
 
 @pytest.mark.parametrize("tolerance_m, text", [(1e-5, "path tolerance 10 µm"), (0.0, "path tolerance 0 (exact stop)"),
                                                (None, "path tolerance not recorded")])
-def test_the_tolerance_is_read_back_and_scored_beside_the_deviation(tmp_path: Path, synth, tolerance_m: float | None,  # noqa: ANN001
+def test_the_tolerance_is_read_back_and_scored_beside_the_deviation(tmp_path: Path, synth, tolerance_m: float | None,
                                                                     text: str) -> None:
     run = read_bag(_circle_bag(tmp_path, synth, tolerance_m))
     assert run.program.path_tolerance_m == tolerance_m  # None travels as NaN and comes back as None
@@ -57,7 +57,7 @@ def test_the_tolerance_is_read_back_and_scored_beside_the_deviation(tmp_path: Pa
     assert text in score.to_table()
 
 
-def test_a_bag_recorded_before_the_field_reads_scores_and_says_not_recorded(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_a_bag_recorded_before_the_field_reads_scores_and_says_not_recorded(tmp_path: Path, synth) -> None:
     old_store = _store_before_the_field()
     assert "path_tolerance_m" not in _field_names(old_store, PATH_TYPE)
     old = read_bag(_circle_bag(tmp_path / "old", synth, 1e-5, old_store))  # the writer's schema drops the value
@@ -72,7 +72,7 @@ def test_a_bag_recorded_before_the_field_reads_scores_and_says_not_recorded(tmp_
 
 
 @pytest.mark.parametrize("bad_m", [-1e-6, math.inf])
-def test_a_recorded_tolerance_below_zero_or_infinite_is_a_bag_error(tmp_path: Path, synth, bad_m: float) -> None:  # noqa: ANN001
+def test_a_recorded_tolerance_below_zero_or_infinite_is_a_bag_error(tmp_path: Path, synth, bad_m: float) -> None:
     program = synth.circle_program()
     topics = {k: v for k, v in synth.TOPICS.items() if k != "/clock"}
     with BagWriter(tmp_path / "bad", topics) as writer:

@@ -4,16 +4,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from rosbags.highlevel import AnyReader
-from cnc_contour_interfaces.msg import Path as PathMsg
-from cnc_contour_interfaces.msg import Reference
 from diagnostic_msgs.msg import DiagnosticArray
+from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.nodes.common import LATCHED_QOS
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.msg import Path as PathMsg
+from cnc_contour_interfaces.msg import Reference
 from cnc_tools.nodes.recorder_node import RecorderNode
 from cnc_tools.runs.namespaces import run_namespace
-from cnc_tools.testing import InProcessNode, TopicProbe
 
 pytestmark = pytest.mark.nodes
 

@@ -11,7 +11,8 @@ from pathlib import Path
 import pytest
 from rosbags.highlevel import AnyReader
 
-from cnc_contour_control.errors import BagError, ConfigError
+from cnc_contour_control.core.errors import BagError, ConfigError
+from cnc_contour_control.testing import wait_until
 from cnc_tools.bagio.bag import PATH_TYPE, BagIntegrity, BagWriter
 from cnc_tools.bagio.replay import (
     RawMessage,
@@ -22,14 +23,13 @@ from cnc_tools.bagio.replay import (
     skip_empty,
 )
 from cnc_tools.bagio.typestore import project_typestore
-from cnc_tools.testing import wait_until
 
 JS, CLOCK = "sensor_msgs/msg/JointState", "rosgraph_msgs/msg/Clock"
 MS = 1_000_000
 
 
 # --------------------------------------------------------------------------- helpers
-def _small_run(tmp_path: Path, synth, n: int = 40) -> Path:  # noqa: ANN001
+def _small_run(tmp_path: Path, synth, n: int = 40) -> Path:
     """A synthetic run: path, joint_states, reference, /clock and two command topics, n ticks 1 ms apart."""
     return synth.write_run_bag(tmp_path / "run", synth.circle_program(), synth.circle_trajectory(0.02, 0.0, n=n))
 
@@ -59,7 +59,7 @@ def _recording(log_times_ms: Mapping[str, list[float]], types: Mapping[str, str]
     messages = [RawMessage(topic, round(t * MS), f"{topic}@{t}".encode())
                 for topic, times in log_times_ms.items() for t in times]
     messages.sort(key=lambda m: m.log_time_ns)
-    topics = dict(types or {t: JS for t in log_times_ms})
+    topics = dict(types or dict.fromkeys(log_times_ms, JS))
     counts = {t: len(v) for t, v in log_times_ms.items()}
     return Recording(Path("memory"), topics, tuple(messages), BagIntegrity(True, "index", counts, counts, "test"))
 
@@ -86,7 +86,7 @@ def test_messages_come_in_log_time_order_ties_in_file_order(tmp_path: Path, dama
     assert recording.topics == {"/a": JS, "/b": CLOCK}
 
 
-def test_topics_filter_and_an_unknown_topic_named_with_the_bag_s_topics(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_topics_filter_and_an_unknown_topic_named_with_the_bag_s_topics(tmp_path: Path, synth) -> None:
     bag = _small_run(tmp_path, synth, n=5)
     recording = load_recording(bag, ["/clock", "/cnc/path"])
     assert recording.counts() == {"/clock": 5, "/cnc/path": 1}
@@ -104,7 +104,7 @@ def test_a_missing_bag_is_a_bag_error_naming_it(tmp_path: Path, capsys: pytest.C
     assert f"cnc-contour replay: error: bag {tmp_path / 'nothing'} does not exist" in capsys.readouterr().err
 
 
-def test_a_truncated_bag_gives_its_prefix_and_counts_the_loss(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_a_truncated_bag_gives_its_prefix_and_counts_the_loss(tmp_path: Path, synth) -> None:
     bag = _small_run(tmp_path, synth)
     recorded = _recorded(bag)
     recording = load_recording(_cut(bag, 0.5, tmp_path))
@@ -198,13 +198,13 @@ def test_config_refuses_bad_values_by_name(key: str, value: object, message: str
 
 
 # --------------------------------------------------------------------------- the node over DDS
-def _raw_probe(topics: Mapping[str, str]):  # noqa: ANN202 - a TopicProbe
+def _raw_probe(topics: Mapping[str, str]):
     """A TopicProbe with a raw subscription per replayed topic (bytes, as published) and /diagnostics."""
     from diagnostic_msgs.msg import DiagnosticArray
 
     from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS
+    from cnc_contour_control.testing import TopicProbe
     from cnc_tools.nodes.replay_node import message_class
-    from cnc_tools.testing import TopicProbe
 
     probe = TopicProbe({"/diagnostics": DiagnosticArray}, name="replay_probe")
     for topic, type_name in topics.items():
@@ -213,7 +213,7 @@ def _raw_probe(topics: Mapping[str, str]):  # noqa: ANN202 - a TopicProbe
     return probe
 
 
-def _final_status(probe) -> object | None:  # noqa: ANN001
+def _final_status(probe) -> object | None:
     """The replay node's end-of-replay diagnostic, once received."""
     for array in probe.received("/diagnostics"):
         for status in array.status:
@@ -223,18 +223,18 @@ def _final_status(probe) -> object | None:  # noqa: ANN001
 
 
 
-def _wait_for_all(probe, expected: Mapping[str, int], timeout_s: float = 30.0) -> None:  # noqa: ANN001
+def _wait_for_all(probe, expected: Mapping[str, int], timeout_s: float = 30.0) -> None:
     probe.wait_for(lambda: all(len(probe.received(t)) >= n for t, n in expected.items()), timeout_s,
                    f"replayed messages {dict(expected)}")
     probe.wait_for(lambda: _final_status(probe) is not None, 10.0, "the replay's final diagnostic")
 
 
 @pytest.mark.nodes
-def test_node_replays_every_message_byte_identical_and_in_order(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_node_replays_every_message_byte_identical_and_in_order(tmp_path: Path, synth) -> None:
     from diagnostic_msgs.msg import DiagnosticStatus
 
+    from cnc_contour_control.testing import InProcessNode
     from cnc_tools.nodes.replay_node import ReplayNode
-    from cnc_tools.testing import InProcessNode
 
     bag = _small_run(tmp_path, synth)
     recorded = _recorded(bag)
@@ -251,11 +251,11 @@ def test_node_replays_every_message_byte_identical_and_in_order(tmp_path: Path, 
 
 
 @pytest.mark.nodes
-def test_node_replays_the_salvaged_prefix_of_a_truncated_bag_and_reports_the_loss(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_node_replays_the_salvaged_prefix_of_a_truncated_bag_and_reports_the_loss(tmp_path: Path, synth) -> None:
     from diagnostic_msgs.msg import DiagnosticStatus
 
+    from cnc_contour_control.testing import InProcessNode
     from cnc_tools.nodes.replay_node import ReplayNode
-    from cnc_tools.testing import InProcessNode
 
     bag = _small_run(tmp_path, synth)
     recorded = _recorded(bag)
@@ -276,7 +276,7 @@ def test_node_replays_the_salvaged_prefix_of_a_truncated_bag_and_reports_the_los
 
 
 @pytest.mark.nodes
-def test_the_command_replays_a_bag_in_its_own_process_and_exits(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_the_command_replays_a_bag_in_its_own_process_and_exits(tmp_path: Path, synth) -> None:
     bag = _small_run(tmp_path, synth, n=10)
     recorded = _recorded(bag)
     command = [sys.executable, "-m", "cnc_tools.cli.main", "replay", str(bag), "--rate", "20", "--wait-for-subscribers", "1",
@@ -297,10 +297,10 @@ def test_the_command_replays_a_bag_in_its_own_process_and_exits(tmp_path: Path, 
 
 
 @pytest.mark.nodes
-def test_replaying_into_the_recorder_records_the_same_bag(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_replaying_into_the_recorder_records_the_same_bag(tmp_path: Path, synth) -> None:
+    from cnc_contour_control.testing import InProcessNode
     from cnc_tools.nodes.recorder_node import RecorderNode
     from cnc_tools.nodes.replay_node import ReplayNode
-    from cnc_tools.testing import InProcessNode
 
     bag = _small_run(tmp_path, synth)
     recorded = _recorded(bag)

@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
-from cnc_contour_control.errors import ConfigError
-from cnc_tools.bagio.bag import read_bag
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.analysis.report import FIGURES, nice_magnification, write_report
 from cnc_tools.analysis.scoring import score_run
+from cnc_tools.bagio.bag import read_bag
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 R_M = 0.02
@@ -26,12 +26,12 @@ def _assert_png(path: Path, min_bytes: int = 10_000) -> None:
 
 
 @pytest.fixture(scope="module")
-def circle_runs(circle_bag: Path, synth):  # noqa: ANN001, ANN201 - fixture
+def circle_runs(circle_bag: Path, synth):
     lagging = synth.circle_trajectory(R_M, -4e-6, n=1500, lag_rad=0.01)
     return [read_bag(circle_bag), synth.make_run(synth.circle_program(), lagging, name="lagging")]
 
 
-def test_all_figures_of_two_circle_runs(tmp_path: Path, circle_runs) -> None:  # noqa: ANN001
+def test_all_figures_of_two_circle_runs(tmp_path: Path, circle_runs) -> None:
     written = write_report(circle_runs, tmp_path / "report")
     assert [p.name for p in written] == [name for name, _ in FIGURES.values()]
     assert sorted(p.name for p in (tmp_path / "report").iterdir()) == sorted(p.name for p in written)
@@ -39,13 +39,13 @@ def test_all_figures_of_two_circle_runs(tmp_path: Path, circle_runs) -> None:  #
         _assert_png(path)
 
 
-def test_side_by_side_panels_are_wider_than_one(tmp_path: Path, circle_runs) -> None:  # noqa: ANN001
+def test_side_by_side_panels_are_wider_than_one(tmp_path: Path, circle_runs) -> None:
     one = imread(write_report(circle_runs[:1], tmp_path / "one", figures=["xy"])[0])
     two = imread(write_report(circle_runs, tmp_path / "two", figures=["xy"])[0])
     assert two.shape[1] >= 1.8 * one.shape[1]
 
 
-def test_without_a_circle_the_polar_plot_is_skipped(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_without_a_circle_the_polar_plot_is_skipped(tmp_path: Path, synth) -> None:
     program = synth.corner_program()
     run = synth.make_run(program, synth.offset_trajectory(program, [3e-6, -2e-6]), name="corner")
     written = write_report([run], tmp_path)
@@ -55,7 +55,7 @@ def test_without_a_circle_the_polar_plot_is_skipped(tmp_path: Path, synth) -> No
         _assert_png(path)
 
 
-def test_unknown_figure_and_bad_arguments_are_refused(tmp_path: Path, circle_runs) -> None:  # noqa: ANN001
+def test_unknown_figure_and_bad_arguments_are_refused(tmp_path: Path, circle_runs) -> None:
     with pytest.raises(ConfigError, match=r"figures must be one of \['circular', 'error_path'"):
         write_report(circle_runs, tmp_path, figures=["spectrum"])
     with pytest.raises(ConfigError, match="magnification must be > 0"):
@@ -66,7 +66,7 @@ def test_unknown_figure_and_bad_arguments_are_refused(tmp_path: Path, circle_run
         write_report(circle_runs, tmp_path, scores=[score_run(circle_runs[0])])
 
 
-def test_automatic_magnification_is_1_2_5_and_bounded(circle_runs) -> None:  # noqa: ANN001
+def test_automatic_magnification_is_1_2_5_and_bounded(circle_runs) -> None:
     scores = [score_run(run) for run in circle_runs]
     factor = nice_magnification(circle_runs, scores)
     mantissa = factor / 10 ** np.floor(np.log10(factor))

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cnc_contour_control.servo import ServoConfig, ServoController, at_limit
+from cnc_contour_control.axis.servo import ServoConfig, ServoController, at_limit
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.record_bag import write_record_bag
 from cnc_tools.run_record import RunRecord

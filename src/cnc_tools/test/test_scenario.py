@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from cnc_contour_control.errors import ConfigError, ProgramError
+from cnc_contour_control.core.errors import ConfigError, ProgramError
 from cnc_tools.runs.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]

@@ -10,18 +10,18 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose, assert_array_equal
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.geometry import LineSegment, Program
-from cnc_tools.bagio.bag import BagIntegrity, BagWriter, read_bag
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.geometry import LineSegment, Program
 from cnc_tools.analysis.metrics import METRICS, trapezoid_weights_s
 from cnc_tools.analysis.scoring import score_run, tracking_errors
+from cnc_tools.bagio.bag import BagIntegrity, BagWriter, read_bag
 from cnc_tools.bagio.typestore import message_layout, project_typestore
 
 R_M = 0.02
 
 
 @pytest.mark.parametrize("offset_m", [5e-6, -3e-6, 1e-7, 2.5e-4])
-def test_circle_with_a_radial_offset_has_exactly_that_contour_error(synth, offset_m: float) -> None:  # noqa: ANN001
+def test_circle_with_a_radial_offset_has_exactly_that_contour_error(synth, offset_m: float) -> None:
     traj = synth.circle_trajectory(R_M, offset_m, n=3000)
     score = score_run(synth.make_run(synth.circle_program(radius_m=R_M), traj))
     assert_allclose(score.series.error_m, abs(offset_m), rtol=0, atol=1e-13)
@@ -31,7 +31,7 @@ def test_circle_with_a_radial_offset_has_exactly_that_contour_error(synth, offse
     assert_allclose(values["ise"], offset_m**2 * duration_s, rtol=1e-9)
 
 
-def test_line_with_a_known_normal_offset(synth) -> None:  # noqa: ANN001
+def test_line_with_a_known_normal_offset(synth) -> None:
     line = LineSegment(start_m=np.array([0.0, 0.0]), end_m=np.array([0.05, 0.02]), feed_m_s=0.01)
     program = Program(name="line", axis_names=("x", "y"), segments=(line,))
     traj = synth.offset_trajectory(program, [7e-6])
@@ -41,7 +41,7 @@ def test_line_with_a_known_normal_offset(synth) -> None:  # noqa: ANN001
     assert_allclose(score.series.path_length_m, np.linspace(0, line.length_m, 202)[1:-1], atol=1e-12)
 
 
-def test_corner_points_take_the_nearest_of_both_segments(synth) -> None:  # noqa: ANN001
+def test_corner_points_take_the_nearest_of_both_segments(synth) -> None:
     program = synth.corner_program(side_m=0.01)
     points = np.array([[0.010 + 3e-6, -4e-6],     # beyond the corner: distance to the corner point
                        [0.010 - 2e-6, 5e-6],      # inside: 2 µm from the second line, 5 µm from the first
@@ -51,7 +51,7 @@ def test_corner_points_take_the_nearest_of_both_segments(synth) -> None:  # noqa
     assert_array_equal(index, [0, 1, 0])
 
 
-def test_per_segment_metrics_and_their_sum(synth) -> None:  # noqa: ANN001
+def test_per_segment_metrics_and_their_sum(synth) -> None:
     program = synth.corner_program(side_m=0.01)
     score = score_run(synth.make_run(program, synth.offset_trajectory(program, [2e-6, -7e-6], n_per_segment=300)))
     first, second = score.segments
@@ -64,7 +64,7 @@ def test_per_segment_metrics_and_their_sum(synth) -> None:  # noqa: ANN001
 
 
 @pytest.mark.parametrize(("blu_m", "per_blu"), [(1e-5, 10.0), (1e-6, 1.0), (2.5e-6, 2.5)])
-def test_blu_and_micrometre_columns(synth, blu_m: float, per_blu: float) -> None:  # noqa: ANN001
+def test_blu_and_micrometre_columns(synth, blu_m: float, per_blu: float) -> None:
     score = score_run(synth.make_run(synth.circle_program(), synth.circle_trajectory(R_M, 4e-6)), blu_m=blu_m)
     data = score.to_dict()["contour_error"]
     assert_allclose(data["max_um"], 4.0, rtol=1e-9)
@@ -72,7 +72,7 @@ def test_blu_and_micrometre_columns(synth, blu_m: float, per_blu: float) -> None
     assert_allclose(data["ise_blu2_s"], data["ise_um2_s"] / per_blu**2, rtol=1e-12)
 
 
-def test_samples_before_the_first_reference_are_left_out_and_said_so(synth) -> None:  # noqa: ANN001
+def test_samples_before_the_first_reference_are_left_out_and_said_so(synth) -> None:
     traj = synth.circle_trajectory(R_M, 1e-6, n=500)
     traj.position_m[:20] += 1e-3  # a big error before the reference starts: must not be scored
     score = score_run(synth.make_run(synth.circle_program(), traj, reference_from=20))
@@ -82,7 +82,7 @@ def test_samples_before_the_first_reference_are_left_out_and_said_so(synth) -> N
     assert score.to_dict()["scored_samples"]["n_before_start"] == 20
 
 
-def test_tracking_error_is_reference_minus_position_at_shared_stamps(synth) -> None:  # noqa: ANN001
+def test_tracking_error_is_reference_minus_position_at_shared_stamps(synth) -> None:
     traj = synth.circle_trajectory(R_M, 0.0, n=400)
     traj.position_m[:, 0] -= 3e-6
     traj.position_m[:, 1] += 1e-6
@@ -96,7 +96,7 @@ def test_tracking_error_is_reference_minus_position_at_shared_stamps(synth) -> N
     assert_allclose([x.values_si["max"], x.values_si["rms"], y.values_si["max"]], [3e-6, 3e-6, 1e-6], rtol=1e-9)
 
 
-def test_metric_registry_choice_and_unknown_names(synth) -> None:  # noqa: ANN001
+def test_metric_registry_choice_and_unknown_names(synth) -> None:
     run = synth.make_run(synth.circle_program(), synth.circle_trajectory(R_M, 1e-6, n=100))
     score = score_run(run, metrics=["rms"])
     assert list(score.contour.values_si) == ["rms"]
@@ -112,7 +112,7 @@ def test_trapezoid_weights_integrate_exactly() -> None:
     assert_allclose(np.sum((2 * t + 1) * weights), np.trapezoid(2 * t + 1, t))
 
 
-def test_renderings_table_json_csv(synth) -> None:  # noqa: ANN001
+def test_renderings_table_json_csv(synth) -> None:
     program = synth.corner_program()
     traj = synth.offset_trajectory(program, [2e-6, 3e-6], n_per_segment=50)
     traj.position_m[50:] = traj.position_m[49]  # everything on the first segment: the second has no samples
@@ -129,7 +129,7 @@ def test_renderings_table_json_csv(synth) -> None:  # noqa: ANN001
     assert any(line.strip().startswith("1 line") and line.rstrip().endswith("-") for line in block)
 
 
-def test_an_incomplete_bag_says_so_in_every_output(synth) -> None:  # noqa: ANN001
+def test_an_incomplete_bag_says_so_in_every_output(synth) -> None:
     integrity = BagIntegrity(False, "scan", {"/cnc/joint_states": 10}, None, "unknown", ("the file ends inside a chunk",))
     run = synth.make_run(synth.circle_program(), synth.circle_trajectory(R_M, 0.0, n=10), integrity=integrity)
     score = score_run(run)
@@ -158,7 +158,7 @@ def _rows(message: object, msgtype: str, columns: dict[str, np.ndarray]) -> np.n
     return matrix
 
 
-def _big_bag(path: Path, synth, seconds: int = 60, rate_hz: int = 1000) -> Path:  # noqa: ANN001
+def _big_bag(path: Path, synth, seconds: int = 60, rate_hz: int = 1000) -> Path:
     n, axes = seconds * rate_hz, ["x", "y", "z"]
     program = synth.circle_program(n_axes=3)
     traj = synth.circle_trajectory(R_M, 3e-6, n=n, n_axes=3, dt_s=1.0 / rate_hz)
@@ -184,7 +184,7 @@ def _big_bag(path: Path, synth, seconds: int = 60, rate_hz: int = 1000) -> Path:
     return path
 
 
-def test_a_60s_1khz_3_axis_run_is_scored_completely(tmp_path: Path, synth) -> None:  # noqa: ANN001
+def test_a_60s_1khz_3_axis_run_is_scored_completely(tmp_path: Path, synth) -> None:
     """Every sample of a long run is scored (its speed is measured by ``cnc-contour bench scoring``)."""
     bag = _big_bag(tmp_path / "big", synth)
     score = score_run(read_bag(bag, commands=False))

@@ -8,9 +8,9 @@ import subprocess
 import sys
 from pathlib import Path
 
+from cnc_contour_control.testing import wait_until
 from cnc_tools.runs.dds import loopback_env
 from cnc_tools.runs.shm import SHM_DIR, fast_dds_segments, is_stale, remove_stale_segments
-from cnc_tools.testing import wait_until
 
 
 def _segment(directory: Path, name: str) -> Path:

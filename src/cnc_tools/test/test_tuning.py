@@ -8,13 +8,18 @@ import numpy as np
 import pytest
 import yaml
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.cli.main import main
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.scenario import load_scenario
 from cnc_tools.tuning import paper003_model as p3
-from cnc_tools.tuning.objectives import (AnalyticObjective, CircularObjective, check_constraints, constraint_values,
-                                         model_at)
+from cnc_tools.tuning.objectives import (
+    AnalyticObjective,
+    CircularObjective,
+    check_constraints,
+    constraint_values,
+    model_at,
+)
 from cnc_tools.tuning.output import write_outputs
 from cnc_tools.tuning.problem import Constraint, DesignVariable, overrides_of, parse_constraint, parse_variable
 from cnc_tools.tuning.solve import solve

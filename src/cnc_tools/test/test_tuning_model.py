@@ -8,7 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy import signal
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.tuning import paper003_model as p3
 
 

@@ -4,15 +4,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.force import force_law_config
 from cnc_contour_control.force.settings import ForceRegulatorSettings
-from cnc_plant_sim.cutting import CuttingConfig, cutting_force_n
-from cnc_plant_sim.plant import make_plant
+from cnc_plant_sim.models.plant import make_plant
+from cnc_plant_sim.process.cutting import CuttingConfig, cutting_force_n
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine, tick_count
 from cnc_tools.runs.graph_nodes import graph_specs

@@ -6,7 +6,7 @@ from typing import Any
 
 import pytest
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.force.preview_settings import PreviewSettings
 from cnc_contour_control.force.settings import ForceRegulatorSettings
 from cnc_tools.analysis.force import force_figures

@@ -7,9 +7,9 @@ import control as ct
 import numpy as np
 import pytest
 
-from cnc_contour_control.accel_decel import filter_coefficients
-from cnc_contour_control.units import M_PER_PULSE_PAPER002
-from cnc_contour_control.velocity_models import PAPER002_MODELS, PiVelocityLoop
+from cnc_contour_control.core.units import M_PER_PULSE_PAPER002
+from cnc_contour_control.core.velocity_models import PAPER002_MODELS, PiVelocityLoop
+from cnc_contour_control.motion.accel_decel import filter_coefficients
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.scenario import load_scenario
 

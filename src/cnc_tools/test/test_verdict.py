@@ -8,7 +8,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cnc_contour_control import topics as t
+from cnc_contour_control.core import topics as t
 from cnc_tools.analysis.verdict import Status, judge
 from cnc_tools.bagio.bag import BagWriter
 from cnc_tools.bagio.synthetic import (
@@ -130,7 +130,7 @@ def test_statuses_in_the_runs_namespace_are_read(tmp_path: Path) -> None:
     assert verdict.complete, verdict.describe()
 
 
-def test_statuses_of_another_run_id_are_not_this_runs(synth) -> None:  # noqa: ANN001
+def test_statuses_of_another_run_id_are_not_this_runs(synth) -> None:
     run = synth.make_run(synth.circle_program(), synth.circle_trajectory(0.02, 1e-6, n=50))
     run = run.with_(summary={"status": "finished", "ticks": 50, t.RUN_ID_KEY: "run_a"})
     foreign = Status(2, "/cnc/plant", "plant: fault of another run", {t.RUN_ID_KEY: "run_b"})
@@ -155,7 +155,7 @@ def test_a_recorded_nan_is_reported_with_its_time_and_topic_not_a_traceback(
     assert "5 samples with a non-finite position not scored" in out and "verdict: FAULTED" in out
 
 
-def test_nan_in_the_reference_and_everywhere_is_scored_without_error(synth) -> None:  # noqa: ANN001
+def test_nan_in_the_reference_and_everywhere_is_scored_without_error(synth) -> None:
     from cnc_tools.analysis.scoring import score_run
 
     traj = synth.circle_trajectory(0.02, 3e-6, n=200)
@@ -182,7 +182,7 @@ def test_an_engine_record_is_judged_by_its_own_summary() -> None:
     assert "/cnc/reference holds 0 messages for 31 ticks" in judge(cut).reasons
 
 
-def test_a_stale_status_is_no_fault_but_an_error_is(synth) -> None:  # noqa: ANN001
+def test_a_stale_status_is_no_fault_but_an_error_is(synth) -> None:
     run = synth.make_run(synth.circle_program(), synth.circle_trajectory(0.02, 1e-6, n=50))
     run = run.with_(summary={"status": "finished", "ticks": 50, t.RUN_ID_KEY: "run_a"})
     stale = Status(3, "/cnc/servo_x", "waiting for /cnc/joint_states: 0 of 1 publishers", {t.RUN_ID_KEY: "run_a"})

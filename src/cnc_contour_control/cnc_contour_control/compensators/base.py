@@ -32,10 +32,10 @@ from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 from cnc_contour_control.compensators.state_file import load_state, save_state
-from cnc_contour_control.config import require_finite
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.params import check_ranges, param
-from cnc_contour_control.slots import SlotsRecord
+from cnc_contour_control.core.config import require_finite
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.params import check_ranges, param
+from cnc_contour_control.core.slots import SlotsRecord
 
 _AXIS_FIELDS = ("ref_position_m", "position_m", "tracking_error_m")
 

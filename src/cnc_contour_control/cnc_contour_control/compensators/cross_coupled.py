@@ -27,7 +27,7 @@ from pathlib import Path
 
 from cnc_contour_control.compensators.base import MAX_GAIN, AxisCorrection, CompensatorSample, check_sample, factors_for
 from cnc_contour_control.compensators.state_file import load_state, save_state
-from cnc_contour_control.params import param
+from cnc_contour_control.core.params import param
 
 _WHO = "ccc compensator"
 #: Largest gain a config accepts (any unit).

@@ -33,9 +33,9 @@ import numpy as np
 
 from cnc_contour_control.compensators.base import MAX_GAIN, AxisCorrection, CompensatorSample, check_sample, factors_for
 from cnc_contour_control.compensators.state_file import FloatArray, load_state, save_state
-from cnc_contour_control.config import require_positive
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.params import param
+from cnc_contour_control.core.config import require_positive
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import param
 
 _WHO = "ilc compensator"
 

@@ -59,8 +59,8 @@ import numpy as np
 
 from cnc_contour_control.compensators.base import CompensatorSample, check_sample, checked_factors, factors_for
 from cnc_contour_control.compensators.state_file import FloatArray, load_state, save_state
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import check_ranges, param
 
 _WHO = "neural compensator"
 #: Paper 001's learning rate as printed (errors in mm); the default is 100 times smaller (module docstring).

@@ -5,7 +5,7 @@ commands (stage 4 of the tick). A scenario chooses one by name: ``none``
 (zeros), ``ccc`` (Koren's cross-coupled controller), ``ilc`` (run-to-run
 learning in contour space) or ``neural`` (paper 001's online network). A new
 one is a module with a config dataclass (fields declared with
-:func:`~cnc_contour_control.params.param`) and a class keeping
+:func:`~cnc_contour_control.core.params.param`) and a class keeping
 :class:`~cnc_contour_control.compensators.base.Compensator`, plus one line in
 :data:`COMPENSATORS`.
 """
@@ -19,7 +19,7 @@ from cnc_contour_control.compensators.base import Compensator, NoCompensatorConf
 from cnc_contour_control.compensators.cross_coupled import CrossCoupledCompensator, CrossCoupledConfig
 from cnc_contour_control.compensators.ilc import IlcConfig, IterativeLearningCompensator
 from cnc_contour_control.compensators.neural import NeuralCompensator, NeuralConfig
-from cnc_contour_control.config import build_config, require_choice, require_positive
+from cnc_contour_control.core.config import build_config, require_choice, require_positive
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 
 #: An expected shape: a length per dimension, None where any length is accepted.
 Shape = tuple[int | None, ...]

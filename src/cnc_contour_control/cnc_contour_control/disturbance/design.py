@@ -31,9 +31,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from cnc_contour_control.config import require_range
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.velocity_models import DiscreteVelocityModel
+from cnc_contour_control.core.config import require_range
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.velocity_models import DiscreteVelocityModel
 
 #: Largest |L| a low-pass may reach above DC (1 plus rounding).
 LOWPASS_PEAK_LIMIT = 1.0 + 1e-9

@@ -16,7 +16,7 @@ from collections import deque
 from collections.abc import Sequence
 from operator import mul
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 
 
 class IirFilter:

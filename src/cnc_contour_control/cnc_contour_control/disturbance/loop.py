@@ -119,3 +119,13 @@ def inertia_perturbed(model: Tf, inertia_error: float) -> Tf:
     n = max(len(a), len(b))
     b, a = np.pad(b, (0, n - len(b))), np.pad(a, (0, n - len(a)))
     return b.copy(), (1.0 + inertia_error) * (a - b) + b
+
+
+#: Frequency grid points between 0 and Nyquist (both excluded).
+GRID_POINTS = 2000
+
+
+def frequency_grid_hz(sample_time_s: float, points: int = GRID_POINTS) -> np.ndarray:
+    """Frequencies (0, Nyquist) exclusive [Hz], ``points`` of them."""
+    nyquist = 0.5 / sample_time_s
+    return np.linspace(nyquist / points, nyquist * (1.0 - 1.0 / points), points)

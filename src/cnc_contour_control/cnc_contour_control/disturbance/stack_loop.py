@@ -11,7 +11,7 @@ P_v and P_x are the true plant's sampled velocity and position responses
 (ZOH, as the servo holds its command), P_n the canceller's model; the loop is
 interconnected without minimisation (:func:`control.interconnect`), so
 :func:`~cnc_contour_control.disturbance.loop.is_stable` is internal stability.
-:func:`stack_figures` gives, as :func:`~cnc_contour_control.disturbance.report.
+:func:`stack_figures` gives, as :func:`~cnc_contour_control.laws.loop_report.
 loop_figures` does for paper 002's cascade: |S|∞ (S = e/r), the disturbance
 peak (max |x/d| with the PDC over |x/d| without) and the removal at f_d,
 Eq. 13's margin max |H P_n Δ| with Δ = P_v/P_n − 1 (< 1 required) and
@@ -29,8 +29,7 @@ import numpy as np
 from scipy import signal
 
 from cnc_contour_control.disturbance.design import response
-from cnc_contour_control.disturbance.loop import Tf, is_stable, responses, tf
-from cnc_contour_control.disturbance.report import frequency_grid_hz
+from cnc_contour_control.disturbance.loop import Tf, frequency_grid_hz, is_stable, responses, tf
 
 
 def pid_transfer(kp: float, ki_per_s: float, kd_s: float, sample_time_s: float) -> Tf:

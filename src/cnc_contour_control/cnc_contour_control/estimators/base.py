@@ -37,8 +37,8 @@ import math
 from collections.abc import Sequence
 from typing import Protocol
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.slots import SlotsRecord
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.slots import SlotsRecord
 
 __all__ = ["ContourEstimate", "ContourEstimator", "check_plane", "check_sample"]
 

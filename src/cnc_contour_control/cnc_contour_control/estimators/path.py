@@ -25,10 +25,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.estimators.base import ContourEstimate, check_plane, check_sample
-from cnc_contour_control.geometry import FloatArray, IntArray, POSITION_TOLERANCE_M, Program, Segment, as_points
-from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.motion.geometry import POSITION_TOLERANCE_M, FloatArray, IntArray, Program, Segment, as_points
 
 
 @dataclass(frozen=True)

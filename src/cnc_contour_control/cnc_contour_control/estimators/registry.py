@@ -3,7 +3,7 @@
 ``window`` is paper 001's variable-window search over the stored references
 (:mod:`.window`); ``path`` measures against the programmed segment, as the
 scorer does (:mod:`.path`). A new estimator is a module with a config
-dataclass (fields declared with :func:`~cnc_contour_control.params.param`) and
+dataclass (fields declared with :func:`~cnc_contour_control.core.params.param`) and
 a class keeping :class:`~cnc_contour_control.estimators.base.ContourEstimator`,
 plus one line in :data:`ESTIMATORS`.
 """
@@ -13,11 +13,11 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.config import build_config, require_choice
+from cnc_contour_control.core.config import build_config, require_choice
 from cnc_contour_control.estimators.base import ContourEstimator
 from cnc_contour_control.estimators.path import PathEstimator, PathEstimatorConfig
 from cnc_contour_control.estimators.window import WindowEstimator, WindowEstimatorConfig
-from cnc_contour_control.geometry import Program
+from cnc_contour_control.motion.geometry import Program
 
 
 @dataclass(frozen=True)

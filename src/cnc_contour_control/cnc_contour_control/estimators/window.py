@@ -27,9 +27,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from operator import mul, sub
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.estimators.base import ContourEstimate, check_plane, check_sample
-from cnc_contour_control.params import check_ranges, param
 
 _dist = math.dist
 

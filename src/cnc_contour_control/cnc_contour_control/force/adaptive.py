@@ -17,11 +17,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cnc_contour_control.config import require_positive
+from cnc_contour_control.core.config import require_positive
+from cnc_contour_control.core.force_model import FirstOrderLag, TurningModelConfig
+from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.force.base import check_sample
-from cnc_contour_control.force.model import FirstOrderLag, TurningModelConfig
 from cnc_contour_control.force.smc import nested_model
-from cnc_contour_control.params import check_ranges, param
 
 
 @dataclass(frozen=True)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from typing import Protocol, runtime_checkable
 
-from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.core.errors import ConfigError, FaultError
 
 
 @runtime_checkable

@@ -3,7 +3,7 @@
 Feedback alone cannot beat the floor of a depth step (the force rises through
 the τ_c lag while the feed falls only through τ_s). Knowing the step ahead,
 the override can fall *before* it. Around each step of a
-:class:`~cnc_contour_control.force.model.DepthSchedule` the plan chooses the
+:class:`~cnc_contour_control.core.force_model.DepthSchedule` the plan chooses the
 override ratios ``r_j`` (one per update period, held) that minimise the
 largest force error on the model (Eqs. 1-4)::
 
@@ -31,10 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.force.model import DepthSchedule, FirstOrderLag, TurningModelConfig
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.force_model import DepthSchedule, FirstOrderLag, TurningModelConfig
+from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.force.quantiser import Quantiser, QuantiserConfig
-from cnc_contour_control.params import check_ranges, param
 
 
 @dataclass(frozen=True)

@@ -20,12 +20,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.force.model import DepthSchedule, TurningModelConfig
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.force_model import DepthSchedule, TurningModelConfig
+from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.force.preview import PreviewConfig, StepPlan, plan_schedule
 from cnc_contour_control.force.regulator import ForceRegulatorConfig
-from cnc_contour_control.params import check_ranges, param
 
 
 @dataclass(frozen=True)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.params import check_ranges, param
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import check_ranges, param
 
 
 @dataclass(frozen=True)

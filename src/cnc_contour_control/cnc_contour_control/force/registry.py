@@ -5,7 +5,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.config import build_config, require_choice
+from cnc_contour_control.core.config import build_config, require_choice
 from cnc_contour_control.force.adaptive import AdaptiveConfig, AdaptiveLaw
 from cnc_contour_control.force.base import ForceLaw
 from cnc_contour_control.force.pi import PiConfig, PiLaw

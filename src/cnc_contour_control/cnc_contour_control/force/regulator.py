@@ -15,12 +15,12 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
-from cnc_contour_control.config import build_config
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.force.base import check_sample
 from cnc_contour_control.force.preview import StepPlan
 from cnc_contour_control.force.quantiser import Quantiser, QuantiserConfig
 from cnc_contour_control.force.registry import force_law_config, make_force_law
-from cnc_contour_control.params import check_ranges, param
 
 
 @dataclass(frozen=True)

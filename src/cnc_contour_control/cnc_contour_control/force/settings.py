@@ -22,12 +22,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import check_ranges, config_values, param
 from cnc_contour_control.force.preview_settings import PreviewSettings
 from cnc_contour_control.force.registry import force_law_config
 from cnc_contour_control.force.regulator import ForceRegulator, ForceRegulatorConfig
-from cnc_contour_control.params import check_ranges, config_values, param
 
 
 @dataclass(frozen=True)

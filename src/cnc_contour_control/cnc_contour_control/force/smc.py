@@ -8,7 +8,7 @@ One update, with x = F_c [N], x_d = F_ref [N] (ẋ_d = ẍ_d = 0 between updates
     u = [−f̂ − λ ẋ − k sat(s/Φ)] / b̂,   Φ = ε F_ref λ                           (Eqs. 9, 11)
     ratio = u / (f_prog N)
 
-a1, a2, b̂ from :class:`~cnc_contour_control.force.model.TurningModelConfig`
+a1, a2, b̂ from :class:`~cnc_contour_control.core.force_model.TurningModelConfig`
 (the nominal parameters); d̂ = sqrt(d_min d_max) (the geometric mean, for
 which b̂/b spans [1/β, β]) until a preview sets it. Paper: λ = 20 /s,
 η = 0.1 N/s², ε = 5 %.
@@ -20,10 +20,10 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.config import build_config, require_positive
+from cnc_contour_control.core.config import build_config, require_positive
+from cnc_contour_control.core.force_model import TurningModelConfig
+from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.force.base import check_sample, sat
-from cnc_contour_control.force.model import TurningModelConfig
-from cnc_contour_control.params import check_ranges, param
 
 
 def nested_model(value: TurningModelConfig | Mapping[str, Any]) -> TurningModelConfig:

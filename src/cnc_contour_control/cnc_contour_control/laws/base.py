@@ -22,8 +22,8 @@ from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.slots import SlotsRecord
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.slots import SlotsRecord
 
 
 class LawSample(SlotsRecord):

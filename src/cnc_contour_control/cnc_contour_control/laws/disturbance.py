@@ -10,7 +10,7 @@ One sample (counts and counts/s; the command is a velocity command)::
 
 ``y`` is the measured velocity, ``v`` the applied command (``LawSample.
 applied_command``, after saturation and quantisation), P_n the nominal
-closed velocity loop of :data:`~cnc_contour_control.velocity_models.
+closed velocity loop of :data:`~cnc_contour_control.core.velocity_models.
 PAPER002_MODELS` (its one sample of delay makes every path causal). The
 design (``cnc_contour_control.disturbance.design``) runs when the config is
 built, so a config that cannot be designed (f_d at Nyquist, a bad L, an
@@ -26,7 +26,10 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from cnc_contour_control.config import require_choice, require_finite
+from cnc_contour_control.core.config import require_choice, require_finite
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.params import check_ranges, param
+from cnc_contour_control.core.velocity_models import PAPER002_MODELS, DiscreteVelocityModel
 from cnc_contour_control.disturbance.design import (
     SPARE_DOF_CHOICES,
     PdcDesign,
@@ -38,10 +41,7 @@ from cnc_contour_control.disturbance.design import (
     strip_delay,
 )
 from cnc_contour_control.disturbance.filters import FirFilter, IirFilter
-from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.laws.base import LawOutput, LawSample, require_config, spindle_redesign
-from cnc_contour_control.params import check_ranges, param
-from cnc_contour_control.velocity_models import PAPER002_MODELS, DiscreteVelocityModel
 
 #: Relative tolerance on a sample period against the model's.
 PERIOD_TOLERANCE = 1e-6

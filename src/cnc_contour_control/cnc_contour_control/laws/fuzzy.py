@@ -32,10 +32,10 @@ from bisect import bisect_right
 from collections.abc import Mapping, Sequence
 from typing import Any, Union
 
-from cnc_contour_control.config import require_finite, require_positive
-from cnc_contour_control.errors import ConfigError, FaultError
+from cnc_contour_control.core.config import require_finite, require_positive
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.laws.base import LawOutput, LawSample, require_config
-from cnc_contour_control.params import check_ranges, param
 
 #: Names of the seven fuzzy sets, from most negative to most positive.
 SET_NAMES: tuple[str, ...] = ("NL", "NM", "NS", "ZR", "PS", "PM", "PL")

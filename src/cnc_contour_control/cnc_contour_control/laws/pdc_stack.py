@@ -12,7 +12,7 @@ itself. One sample (law units: velocity in counts/s, command in drive units)::
 P_n is the plant from the drive input to the axis velocity in law units,
 given as z⁻¹ coefficients at the servo's sample time (``model_numerator``,
 ``model_denominator``, ``model_sample_time_s``, numerator[0] = 0: the command
-acts one sample later); :mod:`cnc_plant_sim.nominal_models` derives it from a
+acts one sample later); :mod:`cnc_plant_sim.models.nominal_models` derives it from a
 plant config (ZOH of the drive's transfer function, scipy.signal). H = L·W is
 :func:`~cnc_contour_control.disturbance.design.design_pdc`'s, with L, W's
 taps and the RLS settings at :class:`~cnc_contour_control.laws.disturbance.
@@ -31,7 +31,10 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.config import require_choice, require_finite
+from cnc_contour_control.core.config import require_choice, require_finite
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.params import check_ranges, param
+from cnc_contour_control.core.velocity_models import DiscreteVelocityModel
 from cnc_contour_control.disturbance.design import (
     SPARE_DOF_CHOICES,
     PdcDesign,
@@ -40,13 +43,10 @@ from cnc_contour_control.disturbance.design import (
     strip_delay,
 )
 from cnc_contour_control.disturbance.filters import FirFilter, IirFilter
-from cnc_contour_control.errors import ConfigError, FaultError
 from cnc_contour_control.laws.base import LawOutput, LawSample, require_config, spindle_redesign
 from cnc_contour_control.laws.disturbance import PERIOD_TOLERANCE, PdcConfig
 from cnc_contour_control.laws.fuzzy import FuzzyConfig, FuzzyLaw
 from cnc_contour_control.laws.pid import PidConfig, PidLaw
-from cnc_contour_control.params import check_ranges, param
-from cnc_contour_control.velocity_models import DiscreteVelocityModel
 
 #: L, W's taps and the RLS settings of every stack: PdcConfig's defaults.
 PDC_DEFAULTS: dict[str, Any] = {f.name: f.default for f in dataclasses.fields(PdcConfig)}

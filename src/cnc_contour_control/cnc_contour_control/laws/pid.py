@@ -21,9 +21,9 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cnc_contour_control.config import require_positive
+from cnc_contour_control.core.config import require_positive
+from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.laws.base import LawOutput, LawSample, require_config
-from cnc_contour_control.params import check_ranges, param
 
 #: Largest gain a config accepts (any unit).
 MAX_GAIN = 1.0e6

@@ -5,7 +5,7 @@ A feedback law turns one :class:`~cnc_contour_control.laws.base.LawSample`
 reference motion) into a feedback command in drive units (DAC for paper 000),
 before the servo adds feedforward and compensation, saturates and quantises.
 A new law is a module with a config dataclass (fields declared with
-:func:`~cnc_contour_control.params.param`) and a class keeping
+:func:`~cnc_contour_control.core.params.param`) and a class keeping
 :class:`~cnc_contour_control.laws.base.FeedbackLaw`, plus one line in
 :data:`LAWS`.
 """
@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.config import build_config, require_choice
+from cnc_contour_control.core.config import build_config, require_choice
 from cnc_contour_control.laws.base import FeedbackLaw
 from cnc_contour_control.laws.disturbance import (
     DobConfig,

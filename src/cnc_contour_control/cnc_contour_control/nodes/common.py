@@ -17,18 +17,18 @@ import rclpy
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.duration import Duration
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from cnc_contour_control.errors import CncError, FaultError
-from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, join_ns, split_ns
-from cnc_contour_control.nodes.lifecycle import ManagedNode
+from cnc_contour_control.core.errors import CncError, FaultError
+from cnc_contour_control.core.lockstep import NS_PER_S, StampMatcher, join_ns, split_ns
+from cnc_contour_control.core.topics import RUN_ID_KEY, qualify
 from cnc_contour_control.nodes import fast_cdr, local_bus
-from cnc_contour_control.topics import RUN_ID_KEY, qualify
+from cnc_contour_control.nodes.lifecycle import ManagedNode
 
 #: Lockstep data: reliable and deep, so nothing is dropped while a stage is busy.
 LOCKSTEP_QOS = QoSProfile(

@@ -1,6 +1,6 @@
 """Compensator node: joint state + reference + contour error -> ``compensation`` every tick, learning online.
 
-When the plant announces the end of the run (:data:`~cnc_contour_control.topics.RUN_FINISHED`
+When the plant announces the end of the run (:data:`~cnc_contour_control.core.topics.RUN_FINISHED`
 on ``/diagnostics``), the compensator makes its run-to-run update, writes its
 learned state to ``state_out`` (if set), reports it and exits with code 0, so
 the next run can start from it (``state_in``).
@@ -10,13 +10,14 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from cnc_contour_interfaces.msg import Compensation, ContourError, Reference
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.compensators import CompensatorSample, compensator_config_class
-from cnc_contour_control.cross_axis import CompensatorSettings
-from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
+from cnc_contour_control.core.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
+from cnc_contour_control.core.topics import DIAGNOSTICS, RUN_FINISHED, RUN_ID_KEY
+from cnc_contour_control.graph.cross_axis import CompensatorSettings
+from cnc_contour_control.graph.stage_params import CompensatorRunParams
 from cnc_contour_control.nodes.common import SuiteNode, spin_node
 from cnc_contour_control.nodes.conversions import (
     compensation_to_msg,
@@ -26,17 +27,16 @@ from cnc_contour_control.nodes.conversions import (
 )
 from cnc_contour_control.nodes.method_params import method_parameters
 from cnc_contour_control.nodes.parameters import declare_config
-from cnc_contour_control.stage_params import CompensatorRunParams
-from cnc_contour_control.topics import DIAGNOSTICS, RUN_FINISHED, RUN_ID_KEY
+from cnc_contour_interfaces.msg import Compensation, ContourError, Reference
 
 
 class CompensatorNode(SuiteNode):
     """Publishes ``compensation`` for every tick whose joint state, reference and contour error it holds.
 
-    Parameters: :class:`~cnc_contour_control.stage_params.CompensatorRunParams`,
+    Parameters: :class:`~cnc_contour_control.graph.stage_params.CompensatorRunParams`,
     ``method``, ``state_in``, ``state_out``, ``freeze`` (may change while
     running) and the method's config as ``params.*``
-    (:class:`~cnc_contour_control.cross_axis.CompensatorSettings`).
+    (:class:`~cnc_contour_control.graph.cross_axis.CompensatorSettings`).
     """
 
     def __init__(self, **kwargs: Any) -> None:

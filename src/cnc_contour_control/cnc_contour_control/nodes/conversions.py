@@ -5,16 +5,16 @@ import math
 from collections.abc import Sequence
 from typing import NoReturn
 
-from cnc_contour_interfaces.msg import AxisCommand, Compensation, ContourError, Path, PathSegment, Reference
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.axis.servo import ServoOutput
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.lockstep import require_finite_values, require_same_axes
 from cnc_contour_control.estimators import ContourEstimate
-from cnc_contour_control.geometry import ArcSegment, Program
-from cnc_contour_control.interpolation import ReferenceSample
-from cnc_contour_control.lockstep import require_finite_values, require_same_axes
+from cnc_contour_control.motion.geometry import ArcSegment, Program
+from cnc_contour_control.motion.interpolation import ReferenceSample
 from cnc_contour_control.nodes.common import ns_to_stamp
-from cnc_contour_control.servo import ServoOutput
+from cnc_contour_interfaces.msg import AxisCommand, Compensation, ContourError, Path, PathSegment, Reference
 
 
 def reference_to_msg(sample: ReferenceSample, axes: Sequence[str], stamp_ns: int, frame_id: str) -> Reference:

@@ -4,26 +4,26 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from cnc_contour_interfaces.msg import ContourError, Reference
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.cross_axis import EstimatorSettings
+from cnc_contour_control.core.lockstep import StampMatcher, seconds_to_ns, stamp_horizon_ns
 from cnc_contour_control.estimators import estimator_config_class
-from cnc_contour_control.lockstep import StampMatcher, seconds_to_ns, stamp_horizon_ns
+from cnc_contour_control.graph.cross_axis import EstimatorSettings
+from cnc_contour_control.graph.stage_params import EstimatorRunParams
+from cnc_contour_control.motion.program_file import read_program_file
 from cnc_contour_control.nodes.common import SuiteNode, spin_node
 from cnc_contour_control.nodes.conversions import estimate_to_msg, joint_positions, reference_positions
 from cnc_contour_control.nodes.method_params import method_parameters
 from cnc_contour_control.nodes.parameters import declare_config
-from cnc_contour_control.program_file import read_program_file
-from cnc_contour_control.stage_params import EstimatorRunParams
+from cnc_contour_interfaces.msg import ContourError, Reference
 
 
 class EstimatorNode(SuiteNode):
     """Publishes ``contour_error`` for every tick whose joint state and reference it holds.
 
-    Parameters: :class:`~cnc_contour_control.stage_params.EstimatorRunParams`,
+    Parameters: :class:`~cnc_contour_control.graph.stage_params.EstimatorRunParams`,
     ``method`` and the method's config as ``params.*``
-    (:class:`~cnc_contour_control.cross_axis.EstimatorSettings`).
+    (:class:`~cnc_contour_control.graph.cross_axis.EstimatorSettings`).
     """
 
     def __init__(self, **kwargs: Any) -> None:

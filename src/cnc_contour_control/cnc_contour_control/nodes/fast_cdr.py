@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 from rosidl_parser import definition as idl
 
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.core.errors import FaultError
 
 #: Fixed-size basic types: (struct code, size = alignment, array.array typecode or None).
 _BASIC: dict[str, tuple[str, int, str | None]] = {
@@ -302,7 +302,7 @@ def _build(msg_type: type) -> Codec | None:
     except Unsupported:
         return None
     namespace = dict(generator.consts)
-    exec(compile("\n\n".join(generator.sources), f"<fast_cdr {msg_type.__name__}>", "exec"), namespace)  # noqa: S102
+    exec(compile("\n\n".join(generator.sources), f"<fast_cdr {msg_type.__name__}>", "exec"), namespace)
     return Codec(msg_type, namespace[f"enc_{base}"], namespace[f"dec_{base}"])
 
 

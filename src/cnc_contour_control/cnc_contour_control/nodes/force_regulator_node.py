@@ -19,20 +19,20 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from cnc_contour_interfaces.msg import FeedOverride
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 
-from cnc_contour_control.config import build_config, require_choice
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.core.config import build_config, require_choice
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
+from cnc_contour_control.core.topics import DIAGNOSTICS, RUN_FINISHED, RUN_ID_KEY
 from cnc_contour_control.force import FORCE_LAWS, ForceRegulator, ForceRegulatorConfig, OverrideSample
 from cnc_contour_control.force.preview_settings import PreviewSettings
 from cnc_contour_control.force.settings import PREVIEW, ForceSetpoint
-from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
+from cnc_contour_control.graph.stage_params import LockstepInputs
 from cnc_contour_control.nodes.common import SuiteNode, ns_to_stamp, spin_node, wall_time_s
 from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config
-from cnc_contour_control.stage_params import LockstepInputs
-from cnc_contour_control.topics import DIAGNOSTICS, RUN_FINISHED, RUN_ID_KEY
+from cnc_contour_interfaces.msg import FeedOverride
 
 #: The nested parameters holding the law's config fields.
 LAW_PARAMS = "law_params"

@@ -1,14 +1,14 @@
 """Interpolator node: part program -> per-axis reference every tick, and the latched path.
 
 With ``feed_override_source`` other than ``none`` it follows the live feed
-override (:class:`~cnc_contour_control.feed_override.LiveReference`): the
+override (:class:`~cnc_contour_control.motion.feed_override.LiveReference`): the
 requests come from ``feed_override.schedule_*`` or the ``feed_override`` topic
-(:class:`~cnc_contour_control.feed_override.OverrideInbox`), the applied ratio
+(:class:`~cnc_contour_control.motion.feed_override.OverrideInbox`), the applied ratio
 is echoed in ``reference.feed_override_ratio``.
 
 With ``program_source: action`` it reads no program at start-up: it runs
 RunProgram goals one after another (:mod:`~cnc_contour_control.nodes.program_action`,
-:class:`~cnc_contour_control.program_session.ProgramSession`), answers every
+:class:`~cnc_contour_control.motion.program_session.ProgramSession`), answers every
 tick in between with a hold reference, and republishes ``path`` for each program.
 """
 from __future__ import annotations
@@ -17,20 +17,22 @@ import math
 from collections import deque
 from typing import Any
 
-from cnc_contour_interfaces.msg import FeedOverride, Path, Reference
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.feed_override import LiveReference, OverrideConfig, OverrideInbox, check_source
-from cnc_contour_control.geometry import Program
-from cnc_contour_control.interpolation import (
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.lockstep import StampMatcher, ns_to_s, stamp_horizon_ns
+from cnc_contour_control.graph.stage_params import InterpolatorRunParams
+from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig, OverrideInbox, check_source
+from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.interpolation import (
     AxisLimits,
     Interpolator,
     InterpolatorConfig,
     ReferenceSample,
     with_planning_tolerance,
 )
-from cnc_contour_control.lockstep import StampMatcher, ns_to_s, stamp_horizon_ns
+from cnc_contour_control.motion.program_file import read_program_file
+from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
 from cnc_contour_control.nodes.common import (
     LATCHED_QOS,
     SuiteNode,
@@ -41,9 +43,7 @@ from cnc_contour_control.nodes.common import (
 from cnc_contour_control.nodes.conversions import joint_positions, program_to_path, reference_to_msg
 from cnc_contour_control.nodes.parameters import declare_config
 from cnc_contour_control.nodes.program_action import ProgramActionServer
-from cnc_contour_control.program_file import read_program_file
-from cnc_contour_control.program_session import ProgramSession, ProgramSessionParams
-from cnc_contour_control.stage_params import InterpolatorRunParams
+from cnc_contour_interfaces.msg import FeedOverride, Path, Reference
 
 #: Axis limits of a node started without them: 6000 mm/min and 1000 mm/s^2 on every axis.
 DEFAULT_MAX_VELOCITY_M_S = 0.1

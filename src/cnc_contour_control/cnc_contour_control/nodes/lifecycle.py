@@ -27,7 +27,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
 
 SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
 
@@ -117,7 +117,7 @@ class ManagedNode(LifecycleNode):
         self.report_status(DiagnosticStatus.ERROR, message)
         return FAILURE
 
-    def _LifecycleNodeMixin__on_change_state(self, request: Any, response: Any) -> Any:  # noqa: N802
+    def _LifecycleNodeMixin__on_change_state(self, request: Any, response: Any) -> Any:
         """The ``~/change_state`` service: a transition the state machine does not allow is refused, not raised.
 
         (rclpy raises out of the service callback, which would end the node's spin; the label form already

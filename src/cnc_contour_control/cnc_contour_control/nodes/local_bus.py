@@ -37,12 +37,12 @@ from rclpy.serialization import serialize_message
 from cnc_contour_control.nodes import fast_cdr
 
 #: Buses by the context their members share (one per composed process).
-_BUSES: dict[int, "LocalBus"] = {}
+_BUSES: dict[int, LocalBus] = {}
 #: Deliveries the host makes per turn before it lets the executor run timers and DDS events.
 DRAIN_BATCH = 64
 
 
-def attach(context: Any, bus: "LocalBus") -> None:
+def attach(context: Any, bus: LocalBus) -> None:
     """Serve every SuiteNode built on ``context`` from now on through ``bus``."""
     _BUSES[id(context)] = bus
 
@@ -52,7 +52,7 @@ def detach(context: Any) -> None:
     _BUSES.pop(id(context), None)
 
 
-def bus_of(context: Any) -> "LocalBus | None":
+def bus_of(context: Any) -> LocalBus | None:
     """The bus attached to ``context``, or None (a separate process: plain rclpy)."""
     return _BUSES.get(id(context))
 
@@ -102,7 +102,7 @@ class BusPublisher:
     is the rclpy publisher's.
     """
 
-    def __init__(self, bus: "LocalBus", node: Any, publisher: Any, msg_type: type) -> None:
+    def __init__(self, bus: LocalBus, node: Any, publisher: Any, msg_type: type) -> None:
         self.bus, self.node, self.publisher, self.msg_type = bus, node, publisher, msg_type
         self.topic = publisher.topic_name
         self.dds = fast_cdr.fast_publisher(publisher, msg_type)

@@ -1,4 +1,4 @@
-"""Config classes as declared ROS parameters, and back: the ROS side of :mod:`cnc_contour_control.params`.
+"""Config classes as declared ROS parameters, and back: the ROS side of :mod:`cnc_contour_control.core.params`.
 
 One parameter per config field, nested sections as dotted names (``gains.kp``,
 as control_toolbox names its PID gains), each with a descriptor made from the
@@ -44,9 +44,9 @@ from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValu
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from cnc_contour_control.config import build_config
-from cnc_contour_control.errors import CncError, ConfigError
-from cnc_contour_control.params import ParamSpec, flat_specs
+from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.errors import CncError, ConfigError
+from cnc_contour_control.core.params import ParamSpec, flat_specs
 
 C = TypeVar("C")
 Type = Parameter.Type
@@ -69,7 +69,7 @@ class Section:
     Attributes
     ----------
     cls : type
-        The config dataclass (fields declared with :func:`~cnc_contour_control.params.param`).
+        The config dataclass (fields declared with :func:`~cnc_contour_control.core.params.param`).
     prefix : str
         Dotted prefix of the parameter names.
     defaults : Mapping
@@ -243,7 +243,7 @@ class ConfigParameters(Generic[C]):
         The node that declares them.
     build : callable
         Nested mapping of the values (the sections' shape) -> validated config;
-        raises a :class:`~cnc_contour_control.errors.CncError` for a bad value.
+        raises a :class:`~cnc_contour_control.core.errors.CncError` for a bad value.
     """
 
     def __init__(self, node: Node, build: Callable[[dict[str, Any]], C]) -> None:

@@ -1,6 +1,6 @@
 """The interpolator's RunProgram action server: goals to a :class:`ProgramSession`, its outcomes to results.
 
-Only translation: the session (:mod:`cnc_contour_control.program_session`)
+Only translation: the session (:mod:`cnc_contour_control.motion.program_session`)
 decides. Goals are judged in the goal callback (busy, malformed, not at the
 machine: rejected, the reason logged and reported WARN on ``/diagnostics``),
 so a rejection never disturbs the running program. The execute callback is a
@@ -8,7 +8,7 @@ coroutine awaiting the outcome, which the tick callback resolves: it works on
 the node's single-threaded executor (events or single).
 
 The machine's state comes from ``/diagnostics``: the plant's and the servos'
-latch reports of this namespace (:class:`~cnc_contour_control.safety.MachineWatch`).
+latch reports of this namespace (:class:`~cnc_contour_control.axis.safety.MachineWatch`).
 When the machine stops (an e-stop, a following-error trip) the running goal
 ends FAULTED naming the first node that stopped and its cause, the reference
 holds where the machine stands, and goals are rejected with the cause until
@@ -19,19 +19,19 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from cnc_contour_interfaces.action import RunProgram
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.task import Future
 
-from cnc_contour_control.errors import CncError
-from cnc_contour_control.feed_override import LiveReference
-from cnc_contour_control.geometry import Program
-from cnc_contour_control.program_goal import ProgramGoal, SegmentSpec
-from cnc_contour_control.program_session import OUTCOMES, ProgramFeedback, ProgramOutcome, ProgramSession
-from cnc_contour_control.safety import MachineWatch
-from cnc_contour_control.topics import RUN_ID_KEY
+from cnc_contour_control.axis.safety import MachineWatch
+from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.core.topics import RUN_ID_KEY
+from cnc_contour_control.motion.feed_override import LiveReference
+from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.program_goal import ProgramGoal, SegmentSpec
+from cnc_contour_control.motion.program_session import OUTCOMES, ProgramFeedback, ProgramOutcome, ProgramSession
+from cnc_contour_interfaces.action import RunProgram
 
 #: The action's name, in the node's namespace.
 ACTION_NAME = "run_program"

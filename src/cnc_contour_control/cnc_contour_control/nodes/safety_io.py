@@ -1,7 +1,7 @@
 """A node's safety interface: the e-stop topic, ``~/enable`` and ``~/reset``, and per-second diagnostics.
 
-The logic is :class:`~cnc_contour_control.safety.EstopLatch` and
-:class:`~cnc_contour_control.tick_stats.TickStats`; this module only wires
+The logic is :class:`~cnc_contour_control.axis.safety.EstopLatch` and
+:class:`~cnc_contour_control.core.tick_stats.TickStats`; this module only wires
 them to ROS: ``estop`` (std_msgs/Bool, true = e-stop), ``~/enable``
 (std_srvs/SetBool), ``~/reset`` (std_srvs/Trigger). A node that may trip the
 machine (``trips_machine``: a servo with ``ferror_action: latch``) also
@@ -9,7 +9,7 @@ publishes ``estop`` (:meth:`SafetyInterface.trip_machine`). Every change of the 
 and every closed statistics window is a status on ``/diagnostics`` stamped in
 the run's time, so the recorder puts it in the bag. :class:`PartnerMonitor`
 feeds the publishers of a node's lockstep inputs to
-:class:`~cnc_contour_control.safety.PartnerWatch`.
+:class:`~cnc_contour_control.axis.safety.PartnerWatch`.
 """
 from __future__ import annotations
 
@@ -19,10 +19,10 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from std_msgs.msg import Bool
 from std_srvs.srv import SetBool, Trigger
 
+from cnc_contour_control.axis.safety import EstopLatch, FerrorTrip, LatchAnswer, PartnerWatch
+from cnc_contour_control.core.tick_stats import TickStats
+from cnc_contour_control.core.topics import qualify
 from cnc_contour_control.nodes.common import SuiteNode
-from cnc_contour_control.safety import EstopLatch, FerrorTrip, LatchAnswer, PartnerWatch
-from cnc_contour_control.tick_stats import TickStats
-from cnc_contour_control.topics import qualify
 
 #: Message of the per-second status (diagnostic_updater's periodic status).
 RUNNING = "running"

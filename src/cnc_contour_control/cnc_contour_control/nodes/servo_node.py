@@ -1,8 +1,8 @@
 """Servo node: one axis's position loop. Joint state + reference (+ compensation) -> command.
 
 The reference is the Reference topic's, or a trajectory_msgs/JointTrajectory's sampled at each tick
-(``reference_source``, cnc_contour_control.trajectory_reference). The law is frozen while the e-stop latch
-blocks commands (cnc_contour_control.servo_hold); an input's publisher leaving mid-tick is a fault naming it.
+(``reference_source``, cnc_contour_control.motion.trajectory_reference). The law is frozen while the e-stop latch
+blocks commands (cnc_contour_control.axis.servo_hold); an input's publisher leaving mid-tick is a fault naming it.
 A following-error trip faults (``ferror_action: fault``) or latches and e-stops the machine (``latch``).
 """
 from __future__ import annotations
@@ -10,14 +10,19 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from cnc_contour_interfaces.msg import AxisCommand, Compensation, Reference
 from diagnostic_msgs.msg import DiagnosticStatus
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.axis.safety import EstopLatch, FerrorActionParams
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
+from cnc_contour_control.axis.servo_hold import HeldServo, HoldParams
+from cnc_contour_control.axis.spindle_override import law_receiver
+from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.core.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
+from cnc_contour_control.graph.stage_params import SERVO_GAINS, SERVO_NODE_SKIPS, ServoRunParams
 from cnc_contour_control.laws import law_config_class
-from cnc_contour_control.lockstep import NS_PER_S, StampMatcher, seconds_to_ns, stamp_horizon_ns
+from cnc_contour_control.motion.trajectory_reference import ReferenceSourceParams, TrajectoryFollower
 from cnc_contour_control.nodes.common import (
     SuiteNode,
     spin_node,
@@ -34,12 +39,7 @@ from cnc_contour_control.nodes.parameters import ConfigParameters, Section, decl
 from cnc_contour_control.nodes.safety_io import PartnerMonitor, SafetyInterface
 from cnc_contour_control.nodes.spindle_parameter import watch_spindle_rpm
 from cnc_contour_control.nodes.trajectory_io import subscribe_trajectory
-from cnc_contour_control.safety import EstopLatch, FerrorActionParams
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_contour_control.servo_hold import HeldServo, HoldParams
-from cnc_contour_control.spindle_override import law_receiver
-from cnc_contour_control.stage_params import SERVO_GAINS, SERVO_NODE_SKIPS, ServoRunParams
-from cnc_contour_control.trajectory_reference import ReferenceSourceParams, TrajectoryFollower
+from cnc_contour_interfaces.msg import AxisCommand, Compensation, Reference
 
 
 def servo_parameters(node: SuiteNode, axis: str) -> ConfigParameters[ServoConfig]:

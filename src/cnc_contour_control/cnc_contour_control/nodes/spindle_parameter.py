@@ -7,13 +7,13 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 
-from cnc_contour_control.nodes.common import SuiteNode, describe
-from cnc_contour_control.spindle_override import (
+from cnc_contour_control.axis.spindle_override import (
     SPINDLE_RPM_DESCRIPTION,
     SPINDLE_RPM_PARAMETER,
     SPINDLE_RPM_RANGE,
     SpindleOverride,
 )
+from cnc_contour_control.nodes.common import SuiteNode, describe
 
 
 def watch_spindle_rpm(node: SuiteNode, receiver: Callable[[float], object], who: str) -> SpindleOverride:

@@ -5,10 +5,10 @@ from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from cnc_contour_control.errors import FaultError
-from cnc_contour_control.lockstep import NS_PER_S
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.lockstep import NS_PER_S
+from cnc_contour_control.motion.trajectory_reference import TrajectoryFollower
 from cnc_contour_control.nodes.common import SuiteNode, stamp_to_ns
-from cnc_contour_control.trajectory_reference import TrajectoryFollower
 
 #: A planner publishes a trajectory once: reliable, volatile (matches any reliable writer), a few kept.
 TRAJECTORY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,

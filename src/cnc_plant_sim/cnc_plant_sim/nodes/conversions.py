@@ -3,15 +3,15 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from cnc_contour_interfaces.msg import AxisCommand
 from geometry_msgs.msg import WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.errors import FaultError
-from cnc_contour_control.lockstep import require_finite_values
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.lockstep import require_finite_values
 from cnc_contour_control.nodes.common import ns_to_stamp
-from cnc_plant_sim.cutting import TOOL_FRAME
+from cnc_contour_interfaces.msg import AxisCommand
+from cnc_plant_sim.process.cutting import TOOL_FRAME
 
 
 def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float], velocities_m_s: Sequence[float], stamp_ns: int) -> JointState:

@@ -1,6 +1,6 @@
 """Plant node: simulated feed drives. Owns /clock, publishes joint_states (and tool_position with machine
 faults, cutting_force with a cutting process), applies commands (AxisCommand per axis, or JointState:
-cnc_plant_sim.command_source). A commanding node leaving the graph mid-run stops the machine with a fault."""
+cnc_plant_sim.run.command_source). A commanding node leaving the graph mid-run stops the machine with a fault."""
 from __future__ import annotations
 
 import json
@@ -8,15 +8,15 @@ import os
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_interfaces.msg import AxisCommand
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.errors import CncError
-from cnc_contour_control.lockstep import NS_PER_S, StampMatcher
-from cnc_contour_control.topics import RUN_FINISHED, TICKS_KEY
+from cnc_contour_control.axis.safety import EstopLatch
+from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.core.lockstep import NS_PER_S, StampMatcher
+from cnc_contour_control.core.topics import RUN_FINISHED, TICKS_KEY
 from cnc_contour_control.nodes.common import (
     LOCKSTEP_QOS,
     ReaderGate,
@@ -30,20 +30,19 @@ from cnc_contour_control.nodes.common import (
 from cnc_contour_control.nodes.parameters import ConfigParameters, Section, declare_config, nested
 from cnc_contour_control.nodes.safety_io import PartnerMonitor, SafetyInterface
 from cnc_contour_control.nodes.spindle_parameter import watch_spindle_rpm
-from cnc_contour_control.safety import EstopLatch
-from cnc_plant_sim.axis import AxisConfig
-from cnc_plant_sim.command_source import CommandSourceParams, command_interface
-from cnc_plant_sim.cutting import CuttingConfig, cutting_plant
-from cnc_plant_sim.friction import friction_config_class
-from cnc_plant_sim.machine_faults import AxisFaults, FaultedPlant, MachineFaults, tool_positions_m
-from cnc_plant_sim.nodes.conversions import (clock_msg, command_value, joint_command_values, joint_state_msg,
-                                             wrench_msg)
-from cnc_plant_sim.periodic_load import set_spindle_rpm
-from cnc_plant_sim.plant import PLANTS, PlantConfig, make_plant
-from cnc_plant_sim.run_clock import RunClock
-from cnc_plant_sim.run_params import PlantRunParams
-from cnc_plant_sim.turning import TurningConfig
-from cnc_plant_sim.watchdog import CommandWatchdog
+from cnc_contour_interfaces.msg import AxisCommand
+from cnc_plant_sim.models.axis import AxisConfig
+from cnc_plant_sim.models.friction import friction_config_class
+from cnc_plant_sim.models.machine_faults import AxisFaults, FaultedPlant, MachineFaults, tool_positions_m
+from cnc_plant_sim.models.periodic_load import set_spindle_rpm
+from cnc_plant_sim.models.plant import PLANTS, PlantConfig, make_plant
+from cnc_plant_sim.nodes.conversions import clock_msg, command_value, joint_command_values, joint_state_msg, wrench_msg
+from cnc_plant_sim.process.cutting import CuttingConfig, cutting_plant
+from cnc_plant_sim.process.turning import TurningConfig
+from cnc_plant_sim.run.command_source import CommandSourceParams, command_interface
+from cnc_plant_sim.run.run_clock import RunClock
+from cnc_plant_sim.run.run_params import PlantRunParams
+from cnc_plant_sim.run.watchdog import CommandWatchdog
 
 #: Per-axis overrides of the model are the parameters ``axis_overrides.<axis>.<key>`` (keys of the model's
 #: ``PLANTS[model].axis_config``, :class:`AxisConfig` for feed drives) and

@@ -34,8 +34,8 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares, minimize
 
-from cnc_contour_control.config import require_choice, require_finite, require_positive
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.config import require_choice, require_finite, require_positive
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.analysis.circular import fit_circle
 
 FloatArray = NDArray[np.float64]

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.analysis.ballbar import UM_PER_M, CircleTrace, FloatArray
 
 #: Plane axis name -> (column of the trace's points, the radial projection of that axis).

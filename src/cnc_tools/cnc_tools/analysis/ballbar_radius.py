@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.config import require_choice, require_non_negative, require_positive
+from cnc_contour_control.core.config import require_choice, require_non_negative, require_positive
 from cnc_tools.analysis.ballbar import CircleTrace
 
 M_TO_UM = 1e6

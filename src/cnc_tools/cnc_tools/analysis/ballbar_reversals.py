@@ -39,9 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cnc_contour_control.errors import ConfigError
-from cnc_tools.analysis.ballbar import (DIRECTIONS, UM_PER_M, BallbarDiagnosis, CircleTrace, FloatArray,
-                                        fit_circle_ls)
+from cnc_contour_control.core.errors import ConfigError
+from cnc_tools.analysis.ballbar import DIRECTIONS, UM_PER_M, BallbarDiagnosis, CircleTrace, FloatArray, fit_circle_ls
 
 #: Reversal angles (degrees, about the centre) of each plane axis (a registry).
 REVERSAL_ANGLES_DEG: dict[str, tuple[float, float]] = {"x": (0.0, 180.0), "y": (90.0, 270.0)}

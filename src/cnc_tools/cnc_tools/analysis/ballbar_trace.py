@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cnc_contour_control.errors import CncError
-from cnc_contour_control.geometry import ArcSegment
+from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.motion.geometry import ArcSegment
 from cnc_tools.analysis.ballbar import CircleTrace
 from cnc_tools.analysis.circular import Circle, circle_of
 from cnc_tools.run_record import RunRecord

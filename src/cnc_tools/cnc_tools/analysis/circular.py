@@ -25,8 +25,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from cnc_contour_control.config import require_range
-from cnc_contour_control.geometry import ArcSegment, Program
+from cnc_contour_control.core.config import require_range
+from cnc_contour_control.motion.geometry import ArcSegment, Program
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

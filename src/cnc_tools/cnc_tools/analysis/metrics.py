@@ -14,8 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from cnc_contour_control.config import require_choice, require_positive
-from cnc_contour_control.units import M_PER_BLU_PAPER000, M_PER_UM
+from cnc_contour_control.core.config import require_choice, require_positive
+from cnc_contour_control.core.units import M_PER_BLU_PAPER000, M_PER_UM
 
 FloatArray = NDArray[np.float64]
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cnc_contour_control.units import M_PER_UM
+from cnc_contour_control.core.units import M_PER_UM
 from cnc_tools.analysis.metrics import evaluate, get_metrics, trapezoid_weights_s
 from cnc_tools.run_record import RunRecord
 

@@ -28,11 +28,11 @@ from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
-from cnc_contour_control.config import require_choice, require_positive
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.units import M_PER_MM, M_PER_UM
-from cnc_tools.run_record import RecordedRun
+from cnc_contour_control.core.config import require_choice, require_positive
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.units import M_PER_MM, M_PER_UM
 from cnc_tools.analysis.scoring import Score, score_run, tracking_errors
+from cnc_tools.run_record import RecordedRun
 
 #: Share of the contour's size the largest magnified error should span when M is chosen automatically.
 AUTO_ERROR_SHARE = 0.08

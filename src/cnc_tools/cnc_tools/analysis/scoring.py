@@ -22,14 +22,14 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 from numpy.typing import NDArray
 
-from cnc_contour_control.geometry import ArcSegment, Program
-from cnc_contour_control.units import M_PER_BLU_PAPER000, M_PER_MM, M_PER_UM
-from cnc_tools.run_record import BagIntegrity, RecordedRun
+from cnc_contour_control.core.units import M_PER_BLU_PAPER000, M_PER_MM, M_PER_UM
+from cnc_contour_control.motion.geometry import ArcSegment, Program
 from cnc_tools.analysis.circular import CircularTest, analyse_circle, circle_of
 from cnc_tools.analysis.force import ForceFigures, force_figures
 from cnc_tools.analysis.metrics import Metric, evaluate, get_metrics, length_units, trapezoid_weights_s
 from cnc_tools.analysis.reference_deviation import ReferenceDeviation, reference_deviation
 from cnc_tools.analysis.verdict import Verdict
+from cnc_tools.run_record import BagIntegrity, RecordedRun
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

@@ -4,11 +4,11 @@ A bag whose index matches its ``metadata.yaml`` says only that the file is
 intact, not that the run behind it ended well. The verdict asks the run:
 
 * **its end**: the plant's ``summary.json`` (status ``finished`` with ``ticks``)
-  or its :data:`~cnc_contour_control.topics.RUN_FINISHED` status on
-  ``/diagnostics`` with :data:`~cnc_contour_control.topics.TICKS_KEY`; neither
+  or its :data:`~cnc_contour_control.core.topics.RUN_FINISHED` status on
+  ``/diagnostics`` with :data:`~cnc_contour_control.core.topics.TICKS_KEY`; neither
   means the run did not finish (killed, interrupted) or its end is unknown;
 * **every per-tick topic** of the run's pipeline
-  (:meth:`~cnc_contour_control.stages.Pipeline.per_tick_topics`) holds one
+  (:meth:`~cnc_contour_control.core.stages.Pipeline.per_tick_topics`) holds one
   message per finished tick, with contiguous stamps (lockstep: spaced by T)
   shared with ``joint_states``;
 * **faults**: in ``summary.json`` and as ERROR statuses on ``/diagnostics``;
@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control import topics as t
-from cnc_contour_control.stages import pipeline
+from cnc_contour_control.core import topics as t
+from cnc_contour_control.core.stages import pipeline
 from cnc_tools.run_record import IntArray, RunRecord
 
 #: Verdicts, best first.

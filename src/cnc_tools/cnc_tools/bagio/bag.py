@@ -21,37 +21,37 @@ import math
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import cast
 from types import TracebackType
+from typing import cast
 
 import numpy as np
 from rosbags.interfaces import Connection, Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.rosbag2 import StoragePlugin, Writer, WriterError
 from rosbags.typesys.store import Typestore
 
-from cnc_contour_control import topics
-from cnc_contour_control.errors import BagError, CncError
-from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
+from cnc_contour_control.core import topics
+from cnc_contour_control.core.errors import BagError, CncError
+from cnc_contour_control.core.lockstep import NS_PER_S
+from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program
 from cnc_tools.bagio.mcap_storage import CheckedMcapStorage, with_ros_distro
 from cnc_tools.bagio.raw_bag import RawBag, locate, read_raw
 from cnc_tools.bagio.recording import in_some_namespace, run_namespace
+from cnc_tools.bagio.typestore import ColumnBlock, decode_columns, project_typestore
 from cnc_tools.run_record import (
     BagIntegrity,
     CommandSeries,
     CompensationSeries,
     EstimateSeries,
     FeedOverrideSeries,
-    ForceSeries,
-    RunRecord,
     FloatArray,
+    ForceSeries,
     IntArray,
     JointStateSeries,
     RecordedRun,
     ReferenceSeries,
+    RunRecord,
     ToolPositionSeries,
 )
-from cnc_tools.bagio.typestore import ColumnBlock, decode_columns, project_typestore
-from cnc_contour_control.lockstep import NS_PER_S
 
 __all__ = [
     "PATH_TYPE", "TRANSIENT_LOCAL_QOS", "BagIntegrity", "BagWriter", "CommandSeries", "FloatArray", "IntArray",
@@ -221,7 +221,7 @@ _DECODED = (topics.JOINT_STATES.name, topics.REFERENCE.name, topics.PATH.name, t
 
 @dataclass(frozen=True)
 class TopicNames:
-    """The suite's topics (:mod:`cnc_contour_control.topics`) under a namespace (default ``/cnc``)."""
+    """The suite's topics (:mod:`cnc_contour_control.core.topics`) under a namespace (default ``/cnc``)."""
 
     namespace: str = topics.DEFAULT_NAMESPACE
 
@@ -435,7 +435,7 @@ def _program(raw: RawBag, topic: str) -> Program:
         return program_from_path(store.deserialize_cdr(messages[0], raw.msgtypes[topic]))
     except CncError as err:
         raise BagError(f"{topic}: the recorded program is invalid: {err}") from err
-    except Exception as err:  # noqa: BLE001 - a corrupt message may break the deserialiser anyhow
+    except Exception as err:
         raise BagError(f"{topic}: cannot decode the recorded program ({type(err).__name__}: {err})") from err
 
 

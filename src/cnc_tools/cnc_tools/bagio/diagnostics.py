@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from cnc_contour_control import topics as t
-from cnc_contour_control.errors import BagError
+from cnc_contour_control.core import topics as t
+from cnc_contour_control.core.errors import BagError
 from cnc_tools.analysis.verdict import Status
 from cnc_tools.bagio.raw_bag import locate, read_raw
 from cnc_tools.bagio.recording import in_some_namespace
@@ -38,7 +38,7 @@ def read_statuses(bag: str | Path) -> tuple[str, tuple[Status, ...]]:
         for index, data in enumerate(raw.data[topic]):
             try:
                 message = store.deserialize_cdr(data, msgtype)
-            except Exception as err:  # noqa: BLE001 - a damaged message may break the deserialiser anyhow
+            except Exception as err:
                 raise BagError(f"{bag}: {topic} message {index} cannot be decoded ({type(err).__name__}: {err})") from err
             statuses += [Status(int(s.level), str(s.name), str(s.message), {kv.key: kv.value for kv in s.values})
                          for s in message.status]

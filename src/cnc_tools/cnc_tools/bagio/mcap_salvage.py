@@ -16,7 +16,7 @@ from pathlib import Path
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-from cnc_contour_control.errors import BagError
+from cnc_contour_control.core.errors import BagError
 from cnc_tools.bagio.typestore import project_typestore
 
 MAGIC = b"\x89MCAP0\r\n"
@@ -237,5 +237,5 @@ def scan_typestore(scan: SalvageScan) -> Typestore:
                 return project_typestore()
             store.register(get_types_from_msg(text, name))
         return store
-    except Exception:  # noqa: BLE001 - a damaged schema falls back to the project's definitions
+    except Exception:
         return project_typestore()

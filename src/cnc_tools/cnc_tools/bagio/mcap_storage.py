@@ -16,9 +16,7 @@ from __future__ import annotations
 
 from io import StringIO
 from pathlib import Path
-from typing import cast
-
-from typing import BinaryIO, Protocol
+from typing import BinaryIO, Protocol, cast
 
 from mcap.writer import CompressionType
 from mcap.writer import Writer as McapFileWriter
@@ -26,7 +24,7 @@ from rosbags.interfaces import Connection, ConnectionExtRosbag2, MessageDefiniti
 from rosbags.rosbag2.enums import CompressionMode
 from ruamel.yaml import YAML
 
-from cnc_contour_control.errors import BagError
+from cnc_contour_control.core.errors import BagError
 from cnc_tools.bagio.mcap_writer import McapWriter
 
 #: Largest chunk before it is closed [bytes]: about 100 ticks of a 2-axis run (1 s at T = 10 ms; was 1 MiB).

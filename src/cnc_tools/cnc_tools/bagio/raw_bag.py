@@ -16,10 +16,10 @@ from rosbags.highlevel import AnyReader
 from rosbags.typesys.store import Typestore
 from ruamel.yaml import YAML
 
-from cnc_contour_control.errors import BagError
+from cnc_contour_control.core.errors import BagError
 from cnc_tools.bagio.mcap_salvage import crc_problem, scan_mcap, scan_typestore
-from cnc_tools.run_record import BagIntegrity
 from cnc_tools.bagio.typestore import project_typestore
+from cnc_tools.run_record import BagIntegrity
 
 TopicFilter = Callable[[str], bool]
 
@@ -79,7 +79,7 @@ def _metadata_counts(folder: Path) -> tuple[dict[str, int] | None, list[str], tu
         info = YAML(typ="safe").load(meta_path.read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
         counts = {str(t["topic_metadata"]["name"]): int(t["message_count"]) for t in info["topics_with_message_count"]}
         return counts, [Path(str(p)).name for p in info.get("relative_file_paths", [])], ()
-    except Exception as err:  # noqa: BLE001 - any malformed YAML is reported, never raised raw
+    except Exception as err:
         return None, [], (f"{meta_path} is unreadable ({type(err).__name__}: {err})",)
 
 
@@ -156,7 +156,7 @@ def read_raw(source: BagSource, wanted: TopicFilter) -> tuple[RawBag, BagIntegri
         return _read_scanned(source, wanted, crc)
     try:
         raw, summary_counts = _read_indexed(source, wanted)
-    except Exception as err:  # noqa: BLE001 - a damaged file may make rosbags raise anything; the scan decides
+    except Exception as err:
         return _read_scanned(source, wanted, f"{type(err).__name__}: {err}")
     expected = source.metadata_counts if source.metadata_counts is not None else summary_counts
     found = {topic: len(data) for topic, data in raw.data.items()}

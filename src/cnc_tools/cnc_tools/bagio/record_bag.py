@@ -1,7 +1,7 @@
 """A run record written as the bag the node graph would have recorded (engine runs get a bag too).
 
 Every series of the record goes to its topic (names and types from
-:mod:`cnc_contour_control.topics`) with log time = the header stamp, as the
+:mod:`cnc_contour_control.core.topics`) with log time = the header stamp, as the
 recorder writes them, so :func:`cnc_tools.bagio.bag.read_bag` gives the record
 back and ``cnc-contour replay`` republishes an engine run like a graph run.
 """
@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control import topics
-from cnc_contour_control.lockstep import split_ns
+from cnc_contour_control.core import topics
+from cnc_contour_control.core.lockstep import split_ns
 from cnc_tools.bagio.bag import BagWriter
 from cnc_tools.bagio.synthetic import path_message
 from cnc_tools.bagio.typestore import project_typestore
@@ -121,7 +121,7 @@ def _tagged(order: int, topic: str, stream: Iterator[tuple[int, Any]]) -> Iterat
 
 def write_record_bag(record: RunRecord, path: Path, namespace: str = topics.DEFAULT_NAMESPACE) -> Path:
     """Write ``record`` to a new bag folder ``path`` (refused if it exists) and return it."""
-    q = lambda name: topics.qualify(namespace, name)  # noqa: E731
+    q = lambda name: topics.qualify(namespace, name)
     streams: dict[str, Iterator[tuple[int, Any]]] = {
         q(topics.JOINT_STATES.name): _joint_states(record), q(topics.REFERENCE.name): _references(record)}
     streams.update({q(topics.command_topic(axis)): _commands(s) for axis, s in record.commands.items()})

@@ -1,7 +1,7 @@
 """What a run records: topics and their types, log times, and when a recording is complete (ROS-free).
 
-The topic sets come from the stage pipeline (:mod:`cnc_contour_control.stages`)
-and the one home of topic names (:mod:`cnc_contour_control.topics`); nothing
+The topic sets come from the stage pipeline (:mod:`cnc_contour_control.core.stages`)
+and the one home of topic names (:mod:`cnc_contour_control.core.topics`); nothing
 here spells a topic. A run's topics live under its namespace; ``/clock`` and
 ``/diagnostics`` are absolute in the nodes and the runner remaps them into the
 run's namespace, so a bag holds either ``<ns>/clock`` (runs since isolation)
@@ -15,10 +15,10 @@ import struct
 from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 
-from cnc_contour_control import topics as t
-from cnc_contour_control.errors import BagError
-from cnc_contour_control.lockstep import join_ns
-from cnc_contour_control.stages import pipeline
+from cnc_contour_control.core import topics as t
+from cnc_contour_control.core.errors import BagError
+from cnc_contour_control.core.lockstep import join_ns
+from cnc_contour_control.core.stages import pipeline
 
 
 def run_topics(namespace: str, axes: Sequence[str], optional_stages: Collection[str] = (),

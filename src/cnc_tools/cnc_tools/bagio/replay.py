@@ -25,12 +25,12 @@ from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from cnc_contour_control.config import require_range
-from cnc_contour_control.errors import BagError, ConfigError
+from cnc_contour_control.core.config import require_range
+from cnc_contour_control.core.errors import BagError, ConfigError
+from cnc_contour_control.core.lockstep import NS_PER_S
 from cnc_tools.bagio.bag import PATH_TYPE
 from cnc_tools.bagio.raw_bag import locate, read_raw
 from cnc_tools.run_record import BagIntegrity
-from cnc_contour_control.lockstep import NS_PER_S
 
 #: Bounds of ``rate`` (the node's parameter range too).
 RATE_BOUNDS = (1e-3, 1e4)

@@ -10,10 +10,10 @@ import numpy as np
 from numpy.typing import NDArray
 from rosbags.typesys.store import Typestore
 
-from cnc_contour_control.geometry import ArcSegment, LineSegment, Program
+from cnc_contour_control.core.lockstep import seconds_to_ns, split_ns
+from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program
 from cnc_tools.bagio.bag import BagIntegrity, BagWriter, JointStateSeries, RecordedRun, ReferenceSeries
 from cnc_tools.bagio.typestore import project_typestore
-from cnc_contour_control.lockstep import seconds_to_ns, split_ns
 
 NS = "/cnc"
 TOPICS = {

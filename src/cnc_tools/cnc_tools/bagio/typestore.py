@@ -27,7 +27,7 @@ from rosbags.interfaces import Nodetype
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-from cnc_contour_control.errors import BagError, ConfigError
+from cnc_contour_control.core.errors import BagError, ConfigError
 
 #: ROS package that holds the project's message definitions.
 INTERFACES_PACKAGE = "cnc_contour_interfaces"

@@ -25,11 +25,11 @@ from pathlib import Path
 from mcap.reader import make_reader
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from cnc_contour_control.errors import BagError
+from cnc_contour_control.core.errors import BagError
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.bagio.bag import BagWriter
 from cnc_tools.bagio.mcap_storage import LibraryMcapStorage
 from cnc_tools.bagio.synthetic import circle_program, circle_trajectory, write_run_bag
-from cnc_tools.bench.report import format_table, machine, write_json
 
 #: Messages written per side and round (10 s of a 1 kHz 2-axis run at 5 messages per tick).
 MESSAGES = 50_000

@@ -3,7 +3,7 @@
 Per program of :mod:`cnc_tools.bench.blending_corpus`, at ``path_tolerance_mm``
 0.01, paper 000's limits (2000 mm/min, 250 mm/s² per axis) and arcs planned with the
 combined acceleration budget (``arc_combined_budget``, centripetal fraction 0.8,
-the default 8 speed bands per arc: ``arc_speed_bands``; :mod:`cnc_contour_control.arc_budget`):
+the default 8 speed bands per arc: ``arc_speed_bands``; :mod:`cnc_contour_control.motion.arc_budget`):
 
 - worst velocity and acceleration ratio per axis, analytic and finite
   difference of the sampled positions (goal <= 1 + 1e-9);
@@ -16,9 +16,9 @@ the default 8 speed bands per arc: ``arc_speed_bands``; :mod:`cnc_contour_contro
   10 %) and, for the polygon circles, the true arc's time (goal within 10 %);
 - planning time per segment against program length (polygons of 0.2 mm sides;
   CPU time, so that other processes' load does not count, beside the 1-minute load
-  average; planning is NumPy over whole programs: :mod:`cnc_contour_control.plan_arrays`,
-  :mod:`cnc_contour_control.blend_assembly`, :mod:`cnc_contour_control.segment_batch`), whole and streaming
-  (a window of ``STREAM_WINDOW`` segments, :mod:`cnc_contour_control.plan_stream`): CPU time to the first
+  average; planning is NumPy over whole programs: :mod:`cnc_contour_control.motion.plan_arrays`,
+  :mod:`cnc_contour_control.motion.blend_assembly`, :mod:`cnc_contour_control.motion.segment_batch`), whole and streaming
+  (a window of ``STREAM_WINDOW`` segments, :mod:`cnc_contour_control.motion.plan_stream`): CPU time to the first
   sample beside the CPU time of the whole plan.
 """
 from __future__ import annotations
@@ -32,10 +32,10 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.geometry import Program
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.bench.blending_corpus import CORPUS, polygon, true_circle
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
 from cnc_tools.bench.time_optimal import time_optimal_s
 
 TOLERANCE_MM = 0.01
@@ -117,7 +117,7 @@ def planning_cost(sizes: tuple[int, ...], windows: tuple[int | None, ...] = (Non
     """Plan time per programmed segment for polygons of 0.2 mm sides with ``sizes`` sides, per look-ahead window.
 
     Per size and window (None: the default window, the whole program planned at construction; a window shorter
-    than the program streams, :mod:`cnc_contour_control.plan_stream`): CPU time to the first sample (construction
+    than the program streams, :mod:`cnc_contour_control.motion.plan_stream`): CPU time to the first sample (construction
     and ``sample(0)``), CPU and wall time to the whole plan (streaming: planned to the end by ``duration_s``).
     """
     rows = []

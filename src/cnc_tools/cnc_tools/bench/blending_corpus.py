@@ -12,7 +12,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from cnc_contour_control.geometry import ArcSegment, LineSegment, Program, Segment
+from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program, Segment
 
 FEED_M_S = 1300.0 / 60000.0
 CIRCLE_RADIUS_M = 0.02

@@ -28,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
 from cnc_contour_control.compensators import CompensatorSample, make_compensator
-from cnc_contour_control.errors import CncError
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
+from cnc_contour_control.core.errors import CncError
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 
 DT_S = 0.001
 AXES = ("x", "y")

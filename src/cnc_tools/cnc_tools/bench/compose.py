@@ -39,10 +39,10 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bench.lockstep import children_cpu_s
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph

@@ -26,8 +26,8 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.bench.lockstep import GraphFigures, graph_run, measure_graph
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.scenario import Scenario, load_scenario
 

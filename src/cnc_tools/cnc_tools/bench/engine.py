@@ -22,8 +22,8 @@ from io import BytesIO
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import CncError
-from cnc_tools.bench.report import format_table, machine, write_json
+from cnc_contour_control.core.errors import CncError
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.runs.folders import project_root
 
 #: The last commit before the reshape of issue 7 (its engine is the yardstick).

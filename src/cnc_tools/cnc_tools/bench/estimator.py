@@ -23,9 +23,9 @@ import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
+from cnc_contour_control.axis.servo import ServoController
 from cnc_contour_control.estimators import ESTIMATORS, make_estimator
-from cnc_contour_control.servo import ServoController
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.reproductions.paper001.fidelity import (
     CONTOURS,
     GOAL_MAX_UM,

@@ -33,10 +33,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import CncError
-from cnc_contour_control.stages import pipeline
+from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.core.stages import pipeline
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.bench.engine import BASELINE_COMMIT, PACKAGES, extract_src
-from cnc_tools.bench.report import format_table, machine, write_json
 from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import POLL_S
@@ -207,7 +207,7 @@ def run_side(side: Side, run_dir: Path, record: bool, plan: Plan) -> dict[str, A
     run_dir.mkdir(parents=True, exist_ok=True)
     with open(run_dir / "runner.out", "wb") as out, open(run_dir / "runner.log", "wb") as err:
         child = subprocess.Popen(command, stdout=out, stderr=err, env=side.env, start_new_session=True,
-                                 preexec_fn=die_with_parent())  # noqa: PLW1509
+                                 preexec_fn=die_with_parent())
         returncode = _wait_child(child)
     output, errors = (run_dir / "runner.out").read_text(), (run_dir / "runner.log").read_text(errors="replace")
     if returncode != 0:

@@ -29,9 +29,9 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.bench.hop_terms import HOP_RATIO_GOAL, HOPS, scenario_at
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
 from cnc_tools.runs.dds import profile_path
 from cnc_tools.runs.folders import project_root, timestamp
 

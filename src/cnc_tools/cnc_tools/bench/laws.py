@@ -10,10 +10,10 @@ import argparse
 import math
 import timeit
 
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
 from cnc_contour_control.laws import LawSample, make_law
 from cnc_contour_control.laws.fuzzy_gains import format_gains_table
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 
 RATIO_GOAL = 3.0
 LAW_PARAMS = {"pid": {"kp": 2.4, "ki": 10.0, "kd": 0.067}, "fuzzy": {}}  # Table 4 at T = 10 ms

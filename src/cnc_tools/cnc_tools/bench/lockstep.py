@@ -32,12 +32,12 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.bench.hop_terms import HOP_RATIO_GOAL, HOPS, SCENARIO, scenario_at
 from cnc_tools.bench.peers import round_trips
 from cnc_tools.bench.relay import relay_ticks
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
-from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph
 from cnc_tools.runs.scenario import Scenario
 

@@ -15,7 +15,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.core.errors import FaultError
 from cnc_tools.runs.dds import loopback_env
 
 

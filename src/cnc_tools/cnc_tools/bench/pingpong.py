@@ -25,7 +25,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
-from cnc_contour_control.lockstep import join_ns, split_ns
+
+from cnc_contour_control.core.lockstep import join_ns, split_ns
 
 #: Exit code of a ping that got no answer in time.
 EXIT_TIMEOUT = 3

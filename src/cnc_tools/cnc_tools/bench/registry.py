@@ -10,7 +10,7 @@ import argparse
 import importlib
 from collections.abc import Callable, Iterator, Mapping
 
-from cnc_contour_control.config import require_choice
+from cnc_contour_control.core.config import require_choice
 
 #: A bench: parsed options in, exit code out.
 Bench = Callable[[argparse.Namespace], int]

@@ -34,8 +34,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import FaultError
-from cnc_contour_control.lockstep import join_ns, split_ns
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.lockstep import join_ns, split_ns
 
 #: Exit code of a plant whose commands did not come in time.
 EXIT_TIMEOUT = 3
@@ -87,10 +87,10 @@ def _role(node: Any, executor: Any, args: argparse.Namespace) -> int:
 
 def _answer(node: Any, args: argparse.Namespace) -> None:
     """The interpolator's or a servo's subscriptions and publisher."""
-    from cnc_contour_interfaces.msg import AxisCommand, Reference
     from sensor_msgs.msg import JointState
 
     from cnc_contour_control.nodes.common import LOCKSTEP_QOS
+    from cnc_contour_interfaces.msg import AxisCommand, Reference
 
     if args.role == "interpolator":
         reference = node.create_publisher(Reference, "reference", LOCKSTEP_QOS)
@@ -131,11 +131,11 @@ class _RelayPlant:
     """Publishes a tick, waits for both axes' commands of its stamp, and so on."""
 
     def __init__(self, node: Any, executor: Any, args: argparse.Namespace) -> None:
-        from cnc_contour_interfaces.msg import AxisCommand
         from rosgraph_msgs.msg import Clock
         from sensor_msgs.msg import JointState
 
         from cnc_contour_control.nodes.common import LOCKSTEP_QOS
+        from cnc_contour_interfaces.msg import AxisCommand
 
         self.executor, self.args = executor, args
         self.step_ns = round(args.sample_time_s * 1e9)
@@ -143,7 +143,7 @@ class _RelayPlant:
         self.clock_pub = node.create_publisher(Clock, "clock", LOCKSTEP_QOS)
         self.state = JointState(name=list(AXES), position=[0.0, 0.0], velocity=[0.0, 0.0])
         self.clock = Clock()
-        self.answered: dict[str, int] = {axis: -1 for axis in AXES}
+        self.answered: dict[str, int] = dict.fromkeys(AXES, -1)
         for axis in AXES:
             node.create_subscription(AxisCommand, f"servo/{axis}/command", self._on_command(axis), LOCKSTEP_QOS)
 

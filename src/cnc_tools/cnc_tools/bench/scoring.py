@@ -18,9 +18,9 @@ from pathlib import Path
 
 from rosbags.highlevel import AnyReader
 
-from cnc_tools.bagio.bag import read_bag
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
 from cnc_tools.analysis.scoring import score_run
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
+from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.synthetic import circle_program, circle_trajectory, write_run_bag
 from cnc_tools.bagio.typestore import project_typestore
 

@@ -18,8 +18,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import CncError
-from cnc_tools.bench.report import format_table, machine, write_json
+from cnc_contour_control.core.errors import CncError
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.executor import DaskExecutor, Executor, LocalExecutor
 from cnc_tools.runs.folders import project_root

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from cnc_tools.bench.report import format_table, machine, write_json
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.runs.executor import LocalExecutor
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.scenario import load_scenario

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import BagError, CncError
+from cnc_contour_control.core.errors import BagError, CncError
 from cnc_tools.analysis.ballbar import (
     CYCLIC_HARMONICS,
     SAME_CIRCLE_TOLERANCE_M,
@@ -28,8 +28,7 @@ from cnc_tools.analysis.ballbar import (
 )
 from cnc_tools.analysis.ballbar_cyclic import PLANE_AXES, CyclicFit, fit_cyclic_error
 from cnc_tools.analysis.ballbar_radius import measured_radius_loss_um, model_from_scenario, predict_radius_loss
-from cnc_tools.analysis.ballbar_reversals import (WINDOW_DEG, ReversalDiagnosis, diagnose_reversals,
-                                                  write_polar_plot)
+from cnc_tools.analysis.ballbar_reversals import WINDOW_DEG, ReversalDiagnosis, diagnose_reversals, write_polar_plot
 from cnc_tools.analysis.ballbar_trace import (  # noqa: F401 - measured_positions, arc_samples: re-exported
     SAMPLE_RULE,
     BagTrace,

@@ -9,7 +9,7 @@ from typing import Any
 
 import yaml
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
 
 #: A subcommand's handler: parsed arguments in, exit code out.
 Handler = Callable[[argparse.Namespace], int]

@@ -24,15 +24,15 @@ from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 
-from cnc_contour_control.errors import CncError, ConfigError, FaultError
-from cnc_plant_sim.friction import PiecewiseQuadraticFriction
-from cnc_plant_sim.plant import make_plant
+from cnc_contour_control.core.errors import CncError, ConfigError, FaultError
+from cnc_plant_sim.models.friction import PiecewiseQuadraticFriction
+from cnc_plant_sim.models.plant import make_plant
+from cnc_tools.bagio.bag import RecordedRun, read_bag
 from cnc_tools.identification import friction as fid
 from cnc_tools.identification import friction_curve as fcurve
-from cnc_tools.bagio.bag import RecordedRun, read_bag
-from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID, loopback_env
 from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph
 from cnc_tools.runs.scenario import load_scenario
 

@@ -5,7 +5,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
 from cnc_tools.cli.registry import COMMANDS
 
 

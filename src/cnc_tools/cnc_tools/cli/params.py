@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
 from cnc_tools.cli.common import parse_overrides
 from cnc_tools.runs.graph_nodes import NAMESPACE, graph_nodes, write_params_dir
 from cnc_tools.runs.scenario import load_scenario

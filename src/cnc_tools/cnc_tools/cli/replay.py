@@ -4,7 +4,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.bagio.replay import Recording, ReplayConfig, ReplaySchedule, load_recording
 
 

@@ -5,7 +5,7 @@ import argparse
 import json
 from pathlib import Path
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
 from cnc_tools.cli.common import parse_overrides
 from cnc_tools.runs.backends import run_on_engine
 from cnc_tools.runs.compose import COMPOSE_MODES

@@ -13,8 +13,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.program_file import GCODE_SUFFIXES
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.program_file import GCODE_SUFFIXES
 
 #: Result outcome -> exit code (COMPLETED, CANCELED, FAULTED).
 EXIT_CODES = {0: 0, 1: 1, 2: 3}

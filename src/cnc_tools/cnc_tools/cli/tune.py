@@ -12,14 +12,21 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
 from cnc_tools.cli.common import parse_overrides
 from cnc_tools.runs.executor import Executor, make_executor
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.scenario import Scenario, load_scenario
 from cnc_tools.tuning import paper003_model as p3
-from cnc_tools.tuning.objectives import (CIRCLE_FIGURES, CONSTRAINT_FIGURES, OBJECTIVES, check_constraints,
-                                         constraint_values, make_objective, model_at)
+from cnc_tools.tuning.objectives import (
+    CIRCLE_FIGURES,
+    CONSTRAINT_FIGURES,
+    OBJECTIVES,
+    check_constraints,
+    constraint_values,
+    make_objective,
+    model_at,
+)
 from cnc_tools.tuning.output import result_table, write_outputs
 from cnc_tools.tuning.problem import Constraint, DesignVariable, check_unique, parse_constraint, parse_variable
 from cnc_tools.tuning.solve import ConstraintFunction, solve

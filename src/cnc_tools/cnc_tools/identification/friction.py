@@ -7,7 +7,7 @@ steady state the drive ``dP/dt = K (u − F_d)`` gives Eq. (1) of the paper,
 
     F_d = K_p e_ss − V_r / (K K_e)
 
-Units (the plant's, see :mod:`cnc_plant_sim.axis`): ``e_ss`` and ``V_r`` in
+Units (the plant's, see :mod:`cnc_plant_sim.models.axis`): ``e_ss`` and ``V_r`` in
 servo counts and counts/s, ``K`` in BLU/s per DAC unit, ``K_e`` the encoder
 gain in counts per BLU (``counts_per_m · blu_m``; 1 for paper 000, whose
 servo counts are BLU), ``F_d`` and ``u`` in DAC units. ``K`` is the plant's
@@ -26,7 +26,7 @@ drifts, or does not move at ``V_r`` is flagged, not hidden (:data:`STATUSES`).
 
 The fitted curve has the form of Eq. (15) per branch: a quadratic in V up to
 a break speed and a constant beyond (the break chosen by least squares). It
-is written as a ``table`` friction (:class:`~cnc_plant_sim.friction.TableFriction`)
+is written as a ``table`` friction (:class:`~cnc_plant_sim.models.friction.TableFriction`)
 usable as a plant friction model or as a feedforward table.
 """
 from __future__ import annotations
@@ -40,10 +40,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from cnc_contour_control.config import require_choice, require_non_negative, require_positive
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.units import M_PER_MM
-from cnc_plant_sim.friction import FrictionModel, make_friction
+from cnc_contour_control.core.config import require_choice, require_non_negative, require_positive
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.units import M_PER_MM
+from cnc_plant_sim.models.friction import FrictionModel, make_friction
 from cnc_tools.runs.scenario import Scenario, build_scenario
 
 FloatArray = npt.NDArray[np.float64]

@@ -11,10 +11,11 @@ from typing import Any
 import numpy as np
 import yaml
 
-from cnc_contour_control.errors import ConfigError
-from cnc_plant_sim.friction import TableFriction
-from cnc_plant_sim.friction import table as table_friction
+from cnc_contour_control.core.errors import ConfigError
+from cnc_plant_sim.models.friction import TableFriction
+from cnc_plant_sim.models.friction import table as table_friction
 from cnc_tools.identification.friction import FloatArray, FrictionPoint
+
 
 # =========================================================================== the curve
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from cnc_contour_control.config import require_choice
+from cnc_contour_control.core.config import require_choice
 
 #: (package, executable) -> ``module:Class`` of the node that executable spins.
 NODE_CLASSES: dict[tuple[str, str], str] = {

@@ -33,12 +33,18 @@ from typing import Any
 import rclpy
 from rclpy.executors import ExternalShutdownException
 
-from cnc_contour_control.errors import CncError
+from cnc_contour_control.core.errors import CncError
 from cnc_contour_control.nodes import local_bus
-from cnc_contour_control.nodes.common import (EXIT_FAULT, StopSignals, SuiteNode, flush_and_destroy, make_executor,
-                                              wall_time_s)
+from cnc_contour_control.nodes.common import (
+    EXIT_FAULT,
+    StopSignals,
+    SuiteNode,
+    flush_and_destroy,
+    make_executor,
+    wall_time_s,
+)
 from cnc_tools.nodes.composable import node_class
-from cnc_tools.runs.compose import HOST, MemberExit, read_host_spec, write_exits
+from cnc_tools.nodes.host_spec import HOST, MemberExit, read_host_spec, write_exits
 
 #: Exit code of a member whose callback raised an error that is not the suite's (Python's own for a traceback).
 EXIT_RAISED = 1
@@ -83,7 +89,7 @@ class ComposedHost:
         except CncError as err:
             self._note(name, EXIT_FAULT, f"FAULT: {err}")
             return
-        except Exception as err:  # noqa: BLE001 - a member's crash while starting is its end, as in its own process
+        except Exception as err:
             self._note(name, EXIT_RAISED, f"{type(err).__name__}: {err}", err)
             return
         self.live[name] = node
@@ -98,7 +104,7 @@ class ComposedHost:
                 self.executor.spin_once(timeout_sec=0.0 if self.bus is not None and self.bus.pending else 0.1)
             except (KeyboardInterrupt, ExternalShutdownException):
                 return
-            except Exception as err:  # noqa: BLE001 - attributed to the member that raised it, or re-raised
+            except Exception as err:
                 self._raised(err)
             for name in [n for n, node in self.live.items() if node.finished]:
                 node = self.live[name]

@@ -21,7 +21,7 @@ from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.parameter import Parameter
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.nodes.common import SuiteNode, describe, spin_node, wall_time_s
 
 #: The transitions an autostart drives, in order, with their names as the log says them.

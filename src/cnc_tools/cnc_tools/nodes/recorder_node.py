@@ -6,14 +6,28 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.parameter import Parameter
 
-from cnc_contour_control.errors import BagError
-from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, message_class, spin_node, wall_time_s
-from cnc_contour_control.stages import STAGES
-from cnc_contour_control import topics
-from cnc_contour_control.topics import DIAGNOSTICS, RUN_FINISHED, RUN_ID_KEY, TICKS_KEY
+from cnc_contour_control.core import topics
+from cnc_contour_control.core.errors import BagError
+from cnc_contour_control.core.stages import STAGES
+from cnc_contour_control.core.topics import DIAGNOSTICS, RUN_FINISHED, RUN_ID_KEY, TICKS_KEY
+from cnc_contour_control.nodes.common import (
+    LATCHED_QOS,
+    LOCKSTEP_QOS,
+    SuiteNode,
+    describe,
+    message_class,
+    spin_node,
+    wall_time_s,
+)
 from cnc_tools.bagio.bag import BagWriter
-from cnc_tools.bagio.recording import Completion, header_stamp_ns, is_latched, is_wall_stamped, per_tick_topics, run_topics
-
+from cnc_tools.bagio.recording import (
+    Completion,
+    header_stamp_ns,
+    is_latched,
+    is_wall_stamped,
+    per_tick_topics,
+    run_topics,
+)
 
 #: Wall seconds between flushes of the bag to disk (what a SIGKILLed recorder can lose at most).
 FLUSH_PERIOD_S = 1.0

@@ -5,8 +5,16 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 
-from cnc_contour_control.errors import BagError
-from cnc_contour_control.nodes.common import LATCHED_QOS, LOCKSTEP_QOS, SuiteNode, describe, message_class, spin_node, wall_time_s
+from cnc_contour_control.core.errors import BagError
+from cnc_contour_control.nodes.common import (
+    LATCHED_QOS,
+    LOCKSTEP_QOS,
+    SuiteNode,
+    describe,
+    message_class,
+    spin_node,
+    wall_time_s,
+)
 from cnc_tools.bagio.replay import (
     RATE_BOUNDS,
     SECONDS_MAX,

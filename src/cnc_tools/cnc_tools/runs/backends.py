@@ -15,8 +15,8 @@ from typing import Any
 
 import yaml
 
-from cnc_contour_control.config import require_choice
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.core.config import require_choice
+from cnc_contour_control.core.errors import FaultError
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.scenario import Scenario

@@ -7,7 +7,7 @@ so the topics, the bag and the verdicts are the same. The modes:
 
 * ``none``: one process per node (what the runner always did);
 * ``loop``: the nodes of the per-tick loop (every stage of the pipeline,
-  :data:`cnc_contour_control.stages.PIPELINE`: plant, interpolator, servos,
+  :data:`cnc_contour_control.core.stages.PIPELINE`: plant, interpolator, servos,
   estimator, compensator, force regulator) in one process; the recorder apart;
 * ``all``: every node of the run in one process, the recorder included.
 
@@ -19,23 +19,19 @@ supervises members as it supervises processes.
 """
 from __future__ import annotations
 
-import json
-import os
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import yaml
 
-from cnc_contour_control.config import require_choice
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.stages import PIPELINE
+from cnc_contour_control.core.config import require_choice
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.stages import PIPELINE
 from cnc_tools.nodes.composable import check_composable
+from cnc_tools.nodes.host_spec import HOST, exits_path, spec_path
 from cnc_tools.runs.graph_nodes import NodeSpec
 
-#: Name of the composed process (its log, spec and exits files are named after it).
-HOST = "composed"
 #: The loop's node kinds: every stage of the pipeline.
 LOOP_EXECUTABLES = frozenset((stage.package, stage.executable) for stage in PIPELINE)
 
@@ -72,16 +68,6 @@ def group_nodes(nodes: Sequence[NodeSpec], mode: str) -> list[ProcessGroup]:
     return [ProcessGroup(HOST, members), *alone] if members else alone
 
 
-def spec_path(run_dir: Path, process: str) -> Path:
-    """The host's spec file in the run folder."""
-    return run_dir / f"{process}.compose.yaml"
-
-
-def exits_path(run_dir: Path, process: str) -> Path:
-    """The file where the host notes its members' ends."""
-    return run_dir / f"{process}.exits.json"
-
-
 def write_host_spec(run_dir: Path, group: ProcessGroup, arguments: Mapping[str, Sequence[str]]) -> Path:
     """Write ``<process>.compose.yaml``: each member's package, executable, name and ROS arguments."""
     nodes = [{"package": spec.package, "executable": spec.executable, "name": spec.name,
@@ -90,35 +76,3 @@ def write_host_spec(run_dir: Path, group: ProcessGroup, arguments: Mapping[str, 
     path.write_text(yaml.safe_dump({"process": group.name, "exits_file": str(exits_path(run_dir, group.name)),
                                     "nodes": nodes}, sort_keys=False))
     return path
-
-
-@dataclass(frozen=True)
-class MemberExit:
-    """How a member of a composed process ended: its exit code, as its own process would have, and last line."""
-
-    code: int
-    message: str
-
-
-def read_exits(path: Path) -> dict[str, MemberExit]:
-    """The members that ended so far (none while the file is absent)."""
-    try:
-        raw = json.loads(path.read_text())
-    except (OSError, ValueError):
-        return {}
-    return {name: MemberExit(int(entry["code"]), str(entry["message"])) for name, entry in raw.items()}
-
-
-def write_exits(path: Path, exits: Mapping[str, MemberExit]) -> None:
-    """Write the members' ends atomically (the runner polls the file)."""
-    partial = path.with_name(f".{path.name}.partial")
-    partial.write_text(json.dumps({name: {"code": e.code, "message": e.message} for name, e in exits.items()}))
-    os.replace(partial, path)
-
-
-def read_host_spec(path: Path) -> dict[str, Any]:
-    """A host spec as written by :func:`write_host_spec`."""
-    spec = yaml.safe_load(path.read_text())
-    if not isinstance(spec, dict) or not isinstance(spec.get("nodes"), list) or not spec["nodes"]:
-        raise ConfigError(f"composed host spec {path} must hold a non-empty list 'nodes', got {spec!r}")
-    return spec

@@ -1,7 +1,7 @@
 """The in-process engine: the run's stage pipeline stepped sample by sample, without DDS.
 
 Tick k (stamp t_k = k·T, integer nanoseconds as on the wire), in the order of
-:data:`cnc_contour_control.stages.PIPELINE`:
+:data:`cnc_contour_control.core.stages.PIPELINE`:
 
 1. the plant's state at t_k (what ``joint_states(k)`` carries);
 2. the interpolator's reference at t_k;
@@ -20,7 +20,7 @@ Speed: while no feed override can occur (no ``feed_override`` section, no
 force regulator), the reference depends on the stamp only and is computed for all ticks at once
 with :meth:`Interpolator.sample_array`, which agrees with the node's per-tick
 :meth:`Interpolator.sample` to 1e-12 m (``test_engine`` checks it); with a feed
-override it is stepped per tick (:class:`~cnc_contour_control.feed_override.LiveReference`,
+override it is stepped per tick (:class:`~cnc_contour_control.motion.feed_override.LiveReference`,
 the request on ``Board.feed_override_request``). The node graph gives the same trajectories
 (``test_lockstep_graph_matches_engine_to_1e9``).
 """
@@ -33,10 +33,10 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.interpolation import with_planning_tolerance
-from cnc_contour_control.lockstep import NS_PER_S, duration_to_ns, seconds_to_ns
-from cnc_contour_control.stages import Pipeline
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.lockstep import NS_PER_S, duration_to_ns, seconds_to_ns
+from cnc_contour_control.core.stages import Pipeline
+from cnc_contour_control.motion.interpolation import with_planning_tolerance
 from cnc_tools.run_record import BagIntegrity, FloatArray, IntArray, JointStateSeries, RunRecord
 from cnc_tools.runs.engine_cross_axis import CompensatorStage, EstimatorStage
 from cnc_tools.runs.engine_force import ForceRegulatorStage
@@ -64,7 +64,7 @@ def tick_count(scenario: Scenario) -> int:
 def tick_stamps_s(n_ticks: int, sample_ns: int) -> FloatArray:
     """Stamps ``k·T`` of ticks 0..n_ticks-1 as seconds, shape (n_ticks,).
 
-    Converted as :func:`~cnc_contour_control.lockstep.ns_to_s` converts each
+    Converted as :func:`~cnc_contour_control.core.lockstep.ns_to_s` converts each
     integer-nanosecond stamp on the wire (the interpolator node samples there).
     """
     return (np.arange(n_ticks, dtype=np.int64) * sample_ns) * 1e-9
@@ -142,7 +142,7 @@ def _record(scenario: Scenario, stages: list[EngineStage], stamps_ns: IntArray, 
     summary = {"status": "finished", "ticks": ticks, "simulated_time_s": float(stamps_ns[-1]) / NS_PER_S,
                "wall_time_s": wall_time_s, "real_time_factor": simulated_s / wall_time_s if wall_time_s > 0 else
                float("nan"), "late_commands": 0, "faults": [], "ran_on": "engine", **parts.pop("summary", {})}
-    found = {name: ticks for name in scenario.pipeline().per_tick_topics()}
+    found = dict.fromkeys(scenario.pipeline().per_tick_topics(), ticks)
     integrity = BagIntegrity(True, "engine", found, dict(found), "engine (in-process, no bag)")
     joint_states: JointStateSeries = parts.pop("joint_states")
     return RunRecord(name=scenario.name, source=run_dir or Path("engine"),

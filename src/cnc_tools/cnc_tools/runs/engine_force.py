@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.stages import Pipeline
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.stages import Pipeline
 from cnc_tools.run_record import FeedOverrideSeries, IntArray
 from cnc_tools.runs.engine_stages import Board
 from cnc_tools.runs.scenario import Scenario

@@ -9,22 +9,29 @@ them), so the node graph and the engine give the same trajectories.
 """
 from __future__ import annotations
 
-from collections.abc import Callable
 import dataclasses
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import numpy as np
 
-from cnc_contour_control.feed_override import LiveReference
-from cnc_contour_control.interpolation import Interpolator, ReferenceSample
-from cnc_contour_control.safety import check_following_error, limit_of
-from cnc_contour_control.servo import ServoController, ServoOutput
-from cnc_contour_control.stages import Pipeline
-from cnc_plant_sim.cutting import cutting_plant
-from cnc_plant_sim.machine_faults import tool_positions_m
-from cnc_plant_sim.plant import make_plant
-from cnc_tools.run_record import (CommandSeries, FloatArray, ForceSeries, IntArray, JointStateSeries,
-                                  ReferenceSeries, ToolPositionSeries)
+from cnc_contour_control.axis.safety import check_following_error, limit_of
+from cnc_contour_control.axis.servo import ServoController, ServoOutput
+from cnc_contour_control.core.stages import Pipeline
+from cnc_contour_control.motion.feed_override import LiveReference
+from cnc_contour_control.motion.interpolation import Interpolator, ReferenceSample
+from cnc_plant_sim.models.machine_faults import tool_positions_m
+from cnc_plant_sim.models.plant import make_plant
+from cnc_plant_sim.process.cutting import cutting_plant
+from cnc_tools.run_record import (
+    CommandSeries,
+    FloatArray,
+    ForceSeries,
+    IntArray,
+    JointStateSeries,
+    ReferenceSeries,
+    ToolPositionSeries,
+)
 from cnc_tools.runs.scenario import Scenario
 
 

@@ -45,7 +45,7 @@ from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from types import TracebackType
 from typing import Any, Protocol, TextIO, TypeVar
 
-from cnc_contour_control.errors import CncError, ConfigError
+from cnc_contour_control.core.errors import CncError, ConfigError
 
 __all__ = ["DaskExecutor", "Executor", "ItemError", "LocalExecutor", "SCHEDULER_PATTERN", "SchedulerUnreachableError",
            "check_scheduler", "make_executor"]

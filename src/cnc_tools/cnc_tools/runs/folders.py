@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import os
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 
@@ -13,4 +13,4 @@ def project_root() -> Path:
 
 def timestamp() -> str:
     """A sortable UTC timestamp for run folders."""
-    return datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%S_%fZ")
+    return datetime.now(UTC).strftime("%Y%m%dT%H%M%S_%fZ")

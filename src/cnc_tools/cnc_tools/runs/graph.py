@@ -24,9 +24,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import CncError, FaultError
-from cnc_contour_control.graph_files import write_params_file
-from cnc_tools.runs.compose import HOST, MemberExit, ProcessGroup, exits_path, group_nodes, read_exits, write_host_spec
+from cnc_contour_control.core.errors import CncError, FaultError
+from cnc_contour_control.graph.graph_files import write_params_file
+from cnc_tools.nodes.host_spec import HOST, MemberExit, exits_path, read_exits
+from cnc_tools.runs.compose import ProcessGroup, group_nodes, write_host_spec
 from cnc_tools.runs.dds import loopback_env
 from cnc_tools.runs.graph_nodes import NAMESPACE, NodeSpec, graph_nodes, recorder_spec, write_params_dir
 from cnc_tools.runs.lifetime import RunInterrupted, StopSignals, die_with_parent, read_summary, settle_summary
@@ -135,7 +136,7 @@ class GraphRun:
         command = self._command(group)
         with open(self.run_dir / f"{group.name}.log", "wb") as log:  # the child keeps its own descriptor
             return subprocess.Popen(command, stdout=log, stderr=subprocess.STDOUT, env=self.env,
-                                    start_new_session=True, preexec_fn=self._preexec)  # noqa: PLW1509
+                                    start_new_session=True, preexec_fn=self._preexec)
 
     def _write_pids(self) -> None:
         """``pids.json``: the runner's pid and every node's, for people and tests watching a run."""

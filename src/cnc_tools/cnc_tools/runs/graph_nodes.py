@@ -1,21 +1,21 @@
 """The node processes of a scenario's graph and their parameters (what the runner starts).
 
 Which nodes: one per stage of the scenario's pipeline
-(:func:`cnc_contour_control.stages.pipeline`), one per axis for a per-axis
+(:func:`cnc_contour_control.core.stages.pipeline`), one per axis for a per-axis
 stage (the servo). Their parameters: the node's configs as plain values in the
-configs' own units (:func:`cnc_contour_control.params.config_values`), under
+configs' own units (:func:`cnc_contour_control.core.params.config_values`), under
 the names the node declares them by, from the same config classes
 (:mod:`cnc_contour_control.nodes.parameters`): the algorithm's config and the
-stage's run parameters (:mod:`cnc_contour_control.stage_params`), built and so
+stage's run parameters (:mod:`cnc_contour_control.graph.stage_params`), built and so
 validated here before any process starts. Nothing is renamed or converted on
 the way but what the servo node declares differently
-(:func:`~cnc_contour_control.stage_params.servo_config_values`: ``axis`` and
+(:func:`~cnc_contour_control.graph.stage_params.servo_config_values`: ``axis`` and
 ``gains.*``). Each stage also gets the readers it waits for before it
 publishes: the pipeline's readers of its per-tick outputs, plus the run's
 extra readers (a recorder, a test probe).
 
 :func:`write_params_dir` writes the parameter files and the node list that
-``contour_graph.launch.py`` starts (:mod:`cnc_contour_control.graph_files`).
+``contour_graph.launch.py`` starts (:mod:`cnc_contour_control.graph.graph_files`).
 """
 from __future__ import annotations
 
@@ -26,21 +26,21 @@ from typing import Any
 
 import yaml
 
-from cnc_contour_control import topics
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.graph_files import params_yaml, write_manifest, write_params_file
-from cnc_contour_control.params import config_values
-from cnc_contour_control.stage_params import (
+from cnc_contour_control.core import topics
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import config_values
+from cnc_contour_control.core.stages import Pipeline, Stage
+from cnc_contour_control.graph.graph_files import params_yaml, write_manifest, write_params_file
+from cnc_contour_control.graph.stage_params import (
+    TIMEOUT_RANGE_S,
     CompensatorRunParams,
     EstimatorRunParams,
     InterpolatorRunParams,
     LockstepInputs,
-    TIMEOUT_RANGE_S,
     ServoRunParams,
     servo_config_values,
 )
-from cnc_contour_control.stages import Pipeline, Stage
-from cnc_plant_sim.run_params import PlantRunParams
+from cnc_plant_sim.run.run_params import PlantRunParams
 from cnc_tools.runs.scenario import Scenario
 
 NAMESPACE = topics.DEFAULT_NAMESPACE

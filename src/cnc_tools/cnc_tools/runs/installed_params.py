@@ -1,7 +1,7 @@
 """The parameter files the packages install (``share/<package>/config/``), made from scenarios by the runner's code.
 
 Each entry of :data:`INSTALLED` is a scenario whose graph is installed as one
-ROS 2 parameters file (:mod:`cnc_contour_control.graph_params`) beside its
+ROS 2 parameters file (:mod:`cnc_contour_control.graph.graph_params`) beside its
 program::
 
     src/cnc_contour_control/config/paper000_circle_high.params.yaml           /**, /cnc/plant, /cnc/servo_x, ...
@@ -25,8 +25,8 @@ import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.graph_params import graph_params_yaml
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.graph.graph_params import graph_params_yaml
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.graph_nodes import NAMESPACE, NodeSpec, graph_specs, recorder_spec, write_program
 from cnc_tools.runs.scenario import load_scenario

@@ -11,8 +11,8 @@ from __future__ import annotations
 import re
 import secrets
 
-from cnc_contour_control import topics as t
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core import topics as t
+from cnc_contour_control.core.errors import ConfigError
 
 #: Topics the nodes publish under absolute names; the runner moves them into the run's namespace.
 REMAPPED = (t.CLOCK.name, t.DIAGNOSTICS.name)

@@ -11,20 +11,26 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.config import build_config, read_yaml_mapping, require_choice, require_non_negative, require_positive
-from cnc_contour_control.cross_axis import CompensatorSettings, EstimatorSettings
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.axis.servo import ServoConfig
+from cnc_contour_control.core.config import (
+    build_config,
+    read_yaml_mapping,
+    require_choice,
+    require_non_negative,
+    require_positive,
+)
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.lockstep import seconds_to_ns
+from cnc_contour_control.core.stages import Pipeline, pipeline
+from cnc_contour_control.core.units import mm_min_to_m_s, mm_s2_to_m_s2
 from cnc_contour_control.force.settings import ForceRegulatorSettings
-from cnc_contour_control.feed_override import LiveReference, OverrideConfig, planning_limits
-from cnc_contour_control.geometry import Program
-from cnc_contour_control.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_contour_control.lockstep import seconds_to_ns
-from cnc_contour_control.program import load_program
-from cnc_contour_control.stages import Pipeline, pipeline
-from cnc_contour_control.servo import ServoConfig
-from cnc_contour_control.units import mm_min_to_m_s, mm_s2_to_m_s2
-from cnc_plant_sim.plant import PlantConfig
-from cnc_plant_sim.run_params import PlantRunParams
+from cnc_contour_control.graph.cross_axis import CompensatorSettings, EstimatorSettings
+from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig, planning_limits
+from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.program import load_program
+from cnc_plant_sim.models.plant import PlantConfig
+from cnc_plant_sim.run.run_params import PlantRunParams
 
 MODES = ("lockstep", "realtime")
 #: Scenario sections that switch on an optional stage of the pipeline (the section's name is the stage's).
@@ -174,7 +180,7 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         feed_override=feed_override,
         **_cross_axis(raw),
     )
-    scenario.override_source  # noqa: B018 -- refuses a schedule beside a force regulator
+    scenario.override_source
     _check_force_loop(scenario)
     return scenario
 

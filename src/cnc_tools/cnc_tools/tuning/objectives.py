@@ -23,8 +23,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from cnc_contour_control.config import require_choice
-from cnc_contour_control.errors import CncError, ConfigError
+from cnc_contour_control.core.config import require_choice
+from cnc_contour_control.core.errors import CncError, ConfigError
 from cnc_tools.analysis.ballbar import BallbarDiagnosis, diagnose_circles
 from cnc_tools.analysis.ballbar_trace import trace_of
 from cnc_tools.runs.engine import run_engine
@@ -33,7 +33,7 @@ from cnc_tools.tuning import paper003_model as p3
 from cnc_tools.tuning.problem import Constraint, DesignVariable, lookup, overrides_of
 
 #: Scenario key -> fields of :class:`Paper003Model` it sets: the paper-003 plant's keys
-#: (``cnc_plant_sim.velocity_loop``: per axis ``ki`` = K1, ``kp`` = K2; the servo's ``p`` law's ``kp`` = k).
+#: (``cnc_plant_sim.models.velocity_loop``: per axis ``ki`` = K1, ``kp`` = K2; the servo's ``p`` law's ``kp`` = k).
 ANALYTIC_PATHS: dict[str, tuple[str, ...]] = {
     **{f"plant.axis_overrides.{axis}.ki": ("k1",) for axis in ("*", "x", "y")},
     **{f"plant.axis_overrides.{axis}.kp": ("k2",) for axis in ("*", "x", "y")},

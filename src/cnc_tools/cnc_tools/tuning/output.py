@@ -7,8 +7,8 @@ from typing import Any
 
 import yaml
 
-from cnc_contour_control.errors import CncError
-from cnc_tools.bench.report import format_table
+from cnc_contour_control.core.errors import CncError
+from cnc_tools.analysis.tables import format_table
 from cnc_tools.runs.scenario import Scenario, build_scenario, merge
 from cnc_tools.tuning.problem import overrides_of
 from cnc_tools.tuning.solve import TuningResult

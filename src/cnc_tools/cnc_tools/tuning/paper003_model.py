@@ -30,8 +30,8 @@ from dataclasses import dataclass, replace
 import control
 import numpy as np
 
-from cnc_contour_control.config import require_choice, require_non_negative, require_positive
-from cnc_contour_control.velocity_models import PAPER003_TORQUE_PER_INERTIA
+from cnc_contour_control.core.config import require_choice, require_non_negative, require_positive
+from cnc_contour_control.core.velocity_models import PAPER003_TORQUE_PER_INERTIA
 
 #: The paper's circular-test grid: feeds [mm/min], radii [mm], directions.
 GRID_FEEDS_MM_MIN: tuple[float, ...] = (1000.0, 4000.0, 8000.0)

@@ -131,7 +131,7 @@ def _cells(row: dict[str, Any], keys: tuple[str, ...]) -> list[object]:
 
 def readings_tables() -> str:
     """The three checks as aligned tables, the paper's numbers beside ours."""
-    from cnc_tools.bench.report import format_table
+    from cnc_tools.analysis.tables import format_table
 
     radius_keys = ("lag", "form", "std_um", "opt_um", "ratio", "t_ip_fit_s", "std_fit_um", "opt_fit_um")
     loop_keys = ("position_gain_1_s", "std_um", "opt_um", "ratio")

@@ -15,7 +15,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _VARIABLE = re.compile(rf"^(?P<path>[A-Za-z_][\w.*]*)=(?P<low>{_NUMBER}):(?P<high>{_NUMBER})$")

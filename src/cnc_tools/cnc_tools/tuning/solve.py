@@ -9,7 +9,6 @@ smallest total violation seen, never an exception.
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
@@ -17,8 +16,8 @@ from typing import Any
 import numpy as np
 from scipy.optimize import Bounds, NonlinearConstraint, differential_evolution
 
-from cnc_contour_control.config import require_positive
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.config import require_positive
+from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.runs.executor import Executor
 from cnc_tools.tuning.problem import Constraint, DesignVariable, check_unique
 

@@ -15,9 +15,9 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.reproductions.paper000.runs import CONTROLLERS, VIEWS, Controller
 from cnc_tools.reproductions.paper000.sweep import Case, Settings, Sweep, run_sweep, settings_of, table5_cases
-from cnc_tools.bench.report import format_table, machine, write_json
 
 #: Seeds when ``--seeds`` is not given.
 DEFAULT_SEEDS = 3

@@ -31,7 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.units import M_PER_BLU_PAPER000
+from cnc_contour_control.core.units import M_PER_BLU_PAPER000
+from cnc_tools.analysis.report import write_report
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.reproductions.paper000.data import EXPERIMENTS, TABLE5, Table5Row
 from cnc_tools.reproductions.paper000.runs import CONTROLLERS, VIEWS
 from cnc_tools.reproductions.paper000.sweep import (
@@ -45,10 +47,8 @@ from cnc_tools.reproductions.paper000.sweep import (
     table5_cases,
     wins,
 )
-from cnc_tools.bench.report import format_table, machine, write_json
-from cnc_tools.runs.folders import project_root
 from cnc_tools.run_record import RecordedRun
-from cnc_tools.analysis.report import write_report
+from cnc_tools.runs.folders import project_root
 
 #: Seeds of ``paper000`` when ``--seeds`` is not given.
 DEFAULT_SEEDS = 5

@@ -34,10 +34,10 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.config import require_choice
-from cnc_contour_control.errors import CncError, ConfigError
+from cnc_contour_control.core.config import require_choice
+from cnc_contour_control.core.errors import CncError, ConfigError
 from cnc_tools.analysis.scoring import score_run
-from cnc_tools.bench.report import format_table, machine, write_json
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.reproductions.paper000.data import TABLE2_AXES, TABLE5, Table5Row
 from cnc_tools.reproductions.paper000.runs import VIEWS, apply_view, blu, get_controller, scenario_for
 from cnc_tools.reproductions.paper000.sweep import stat_text, wins

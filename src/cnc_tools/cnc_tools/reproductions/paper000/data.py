@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.laws.pid import pid_gains_from_per_sample
 
 #: Table 4: the PID gains and the FLC's equivalent gains (per sample, at the paper's T).

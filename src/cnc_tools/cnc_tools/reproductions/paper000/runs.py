@@ -23,19 +23,19 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.config import require_choice
-from cnc_contour_control.errors import BagError
-from cnc_contour_control.geometry import LineSegment, Program, Segment
+from cnc_contour_control.core.config import require_choice
+from cnc_contour_control.core.errors import BagError
+from cnc_contour_control.core.lockstep import NS_PER_S
+from cnc_contour_control.core.units import M_PER_BLU_PAPER000
 from cnc_contour_control.laws.fuzzy import RULE_BASES
-from cnc_contour_control.lockstep import NS_PER_S
-from cnc_contour_control.units import M_PER_BLU_PAPER000
-from cnc_plant_sim.plant import PlantConfig
+from cnc_contour_control.motion.geometry import LineSegment, Program, Segment
+from cnc_plant_sim.models.plant import PlantConfig
+from cnc_tools.analysis.scoring import Score, score_run
 from cnc_tools.reproductions.paper000.data import TABLE4_PID_PARAMS
-from cnc_tools.runs.engine import run_engine
 from cnc_tools.run_record import RecordedRun, RunRecord
 from cnc_tools.runs.backends import run_scenario
+from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.scenario import Scenario, load_scenario
-from cnc_tools.analysis.scoring import Score, score_run
 
 
 # =========================================================================== controllers

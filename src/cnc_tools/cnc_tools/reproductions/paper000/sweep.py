@@ -15,7 +15,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
+from cnc_tools.analysis.scoring import Score
 from cnc_tools.reproductions.paper000.data import TABLE5
 from cnc_tools.reproductions.paper000.runs import (
     Controller,
@@ -26,9 +27,8 @@ from cnc_tools.reproductions.paper000.runs import (
     run_and_score,
     scenario_for,
 )
-from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.run_record import RecordedRun
-from cnc_tools.analysis.scoring import Score
+from cnc_tools.runs.folders import project_root, timestamp
 
 
 @dataclass(frozen=True)

@@ -31,12 +31,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.reproductions.paper001.data import TABLES, ContourResult, paper_result
 from cnc_tools.reproductions.paper001.runs import (
     LATE_FROM_S,
     STACKS,
-    RunMeasure,
     Session,
     SessionSpec,
     run_sessions,
@@ -278,7 +277,7 @@ def sensitivity_rows(sessions: Mapping[str, Session], plan: Plan) -> list[dict[s
 def print_sensitivities(rows: Sequence[Mapping[str, Any]], plan: Plan) -> None:
     """One line per variant: what changed and the circle's changes against the PID."""
     first, last = plan.checkpoints
-    print(f"\nsensitivities (circle; one change against the stated stack; Δ against the PID alone)")
+    print("\nsensitivities (circle; one change against the stated stack; Δ against the PID alone)")
     cells = []
     for r in rows:
         changed = ", ".join(f"{k} {v:.7g}" for k, v in r["params"].items()) or "-"

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 
 #: Table 1, per axis: m, B, f_c, f_s, α (units not stated).
 TABLE1_AXES: dict[str, dict[str, float]] = {

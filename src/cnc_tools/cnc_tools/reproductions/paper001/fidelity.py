@@ -36,9 +36,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.units import M_PER_UM
 from cnc_contour_control.estimators import ContourEstimator, make_estimator, signed_contour_error
-from cnc_contour_control.units import M_PER_UM
 from cnc_tools.analysis.scoring import contour_error_series
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine

@@ -35,12 +35,12 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
-from cnc_contour_control.errors import FaultError
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.units import M_PER_MM, M_PER_UM
 from cnc_contour_control.laws.pid import pid_gains_from_per_sample
-from cnc_contour_control.units import M_PER_MM, M_PER_UM
-from cnc_plant_sim.mass_friction import LENGTH_UNITS, MassFrictionAxisConfig, paper001_axes
+from cnc_plant_sim.models.mass_friction import LENGTH_UNITS, MassFrictionAxisConfig, paper001_axes
 from cnc_tools.analysis.scoring import contour_error_series, tracking_errors
-from cnc_tools.bench.report import format_table
+from cnc_tools.analysis.tables import format_table
 from cnc_tools.reproductions.paper001.data import SAMPLE_TIME_S, SCENARIOS, TABLE1_PID, paper_result
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine

@@ -33,8 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.errors import ConfigError, FaultError
-from cnc_contour_control.units import M_PER_MM
+from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.units import M_PER_MM
 from cnc_tools.analysis.scoring import contour_error_series
 from cnc_tools.reproductions.paper001.data import SCENARIOS, TABLE1_NETWORK
 from cnc_tools.reproductions.paper001.readings import measure

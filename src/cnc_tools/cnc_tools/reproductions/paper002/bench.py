@@ -32,11 +32,11 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.disturbance.report import design_report, loop_figures
-from cnc_contour_control.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.laws import law_config
 from cnc_contour_control.laws.disturbance import PdcConfig, PositionLoopConfig
-from cnc_tools.bench.report import format_table, machine, write_json
+from cnc_contour_control.laws.loop_report import design_report, loop_figures
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.reproductions.paper002 import data, figures, online, tables
 from cnc_tools.reproductions.paper002.cases import CONTOURS, INERTIA_ERRORS, LAWS, Plan, all_cases, make_plan
 from cnc_tools.reproductions.paper002.runs import METHODS, PDC_LAWS, Result, law_params, run_case

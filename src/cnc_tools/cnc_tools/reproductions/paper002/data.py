@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 
-from cnc_contour_control.units import M_PER_PULSE_PAPER002
+from cnc_contour_control.core.units import M_PER_PULSE_PAPER002
 
 #: Section IV: RMS position error at constant speed [pulse], (a)-(f).
 PAPER_RMS_PULSE: dict[str, float] = {"a": 0.1271, "b": 0.9406, "c": 1.5144, "d": 0.8987, "e": 0.2616, "f": 0.1802}

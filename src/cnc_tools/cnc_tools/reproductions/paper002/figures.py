@@ -8,9 +8,9 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.disturbance.loop import closed_loop, responses
-from cnc_contour_control.disturbance.report import frequency_grid_hz, loop_blocks, pdc_frequency_responses
+from cnc_contour_control.disturbance.loop import closed_loop, frequency_grid_hz, responses
 from cnc_contour_control.laws.disturbance import PdcConfig, PositionLoopConfig
+from cnc_contour_control.laws.loop_report import loop_blocks, pdc_frequency_responses
 from cnc_tools.reproductions.paper002.runs import METHODS, Result
 
 #: Half-width of the zoomed trace windows [s].

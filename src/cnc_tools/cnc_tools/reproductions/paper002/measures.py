@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from cnc_contour_control.errors import ConfigError
-from cnc_contour_control.geometry import Program
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.geometry import Program
 from cnc_tools.run_record import RunRecord
 
 FloatArray = npt.NDArray[np.float64]

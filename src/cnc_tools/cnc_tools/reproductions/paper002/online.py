@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from cnc_tools.bench.report import format_table, goal_text
+from cnc_tools.analysis.tables import format_table, goal_text
 from cnc_tools.reproductions.paper002 import data
 from cnc_tools.reproductions.paper002.cases import SPINDLE_OFFSETS, Plan
 from cnc_tools.reproductions.paper002.measures import recovery_time_s, sliding_lock_in

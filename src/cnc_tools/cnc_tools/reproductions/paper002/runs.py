@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.velocity_models import PAPER002_MODELS
-from cnc_plant_sim.velocity_loop import pi_loop_from_discrete
+from cnc_contour_control.core.velocity_models import PAPER002_MODELS
+from cnc_plant_sim.models.velocity_loop import pi_loop_from_discrete
 from cnc_tools.reproductions.paper002 import data
 from cnc_tools.reproductions.paper002.measures import (
     FloatArray,

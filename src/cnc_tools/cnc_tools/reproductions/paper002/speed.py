@@ -20,10 +20,10 @@ import timeit
 from collections.abc import Callable
 from typing import Any
 
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
 from cnc_contour_control.laws import LawSample, make_law
 from cnc_contour_control.laws.disturbance import DisturbanceLaw
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.reproductions.paper002 import data
 from cnc_tools.reproductions.paper002.runs import KP_PER_S, METHODS, law_params
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from cnc_tools.bench.report import format_table, goal_text
+from cnc_tools.analysis.tables import format_table, goal_text
 from cnc_tools.reproductions.paper002 import data
 from cnc_tools.reproductions.paper002.cases import CONTOURS, INERTIA_ERRORS, LAWS, SPINDLE_OFFSETS, Plan
 from cnc_tools.reproductions.paper002.runs import METHODS, PDC_LAWS, Result

@@ -2,7 +2,7 @@
 
 Beyond paper 002 (issue 10, item 3). Each :class:`Target` is a paper's
 contour run (its scenario) with a periodic load ``A sin(2π f_d t + θ)`` at
-the plant input (``plant.periodic_load``, :mod:`cnc_plant_sim.periodic_load`;
+the plant input (``plant.periodic_load``, :mod:`cnc_plant_sim.models.periodic_load`;
 A in the plant's command unit, θ 0 on X and 1 rad on Y as paper 002's
 scenario) and three runs on the engine:
 
@@ -10,7 +10,7 @@ scenario) and three runs on the engine:
 - ``law``: the paper's own law under the load;
 - ``law+pdc``: the same law with the PDC stacked on it (``pid_pdc`` /
   ``fuzzy_pdc``, :mod:`cnc_contour_control.laws.pdc_stack`), P_n of each
-  axis derived from the plant config (:func:`cnc_plant_sim.nominal_models.
+  axis derived from the plant config (:func:`cnc_plant_sim.models.nominal_models.
   drive_velocity_model`: the nominal drive, ZOH at the servo's period; the
   run's plant is drawn with the paper's random variation, so P_n is off by
   up to ±5 % in K and τ on paper 000).
@@ -34,13 +34,12 @@ from typing import Any
 from cnc_contour_control.disturbance.loop import tf
 from cnc_contour_control.disturbance.stack_loop import StackBlocks, pid_transfer, sampled_plant, stack_figures
 from cnc_contour_control.laws import law_config
-from cnc_plant_sim.nominal_models import canceller_model_params, continuous_velocity_model, drive_velocity_model
-from cnc_plant_sim.plant import PlantConfig
-from cnc_tools.bench.report import format_table, machine, write_json
+from cnc_plant_sim.models.nominal_models import canceller_model_params, continuous_velocity_model, drive_velocity_model
+from cnc_plant_sim.models.plant import PlantConfig
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.reproductions.paper000.runs import CONTROLLERS
 from cnc_tools.reproductions.paper002 import data
-from cnc_tools.reproductions.paper002.measures import constant_speed_mask, lock_in_amplitude, rms, \
-    signed_contour_error
+from cnc_tools.reproductions.paper002.measures import constant_speed_mask, lock_in_amplitude, rms, signed_contour_error
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.scenario import Scenario, load_scenario

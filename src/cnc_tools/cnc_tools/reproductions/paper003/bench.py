@@ -26,10 +26,9 @@ import os
 import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
-from pathlib import Path
 from typing import Any
 
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.reproductions.paper003 import data
 from cnc_tools.reproductions.paper003.goals import (
     SearchPlan,

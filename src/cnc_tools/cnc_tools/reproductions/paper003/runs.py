@@ -38,7 +38,7 @@ from typing import Any
 
 import numpy as np
 
-from cnc_contour_control.errors import CncError, ConfigError
+from cnc_contour_control.core.errors import CncError, ConfigError
 from cnc_tools.analysis.ballbar_trace import measured_positions
 from cnc_tools.reproductions.paper003 import data
 from cnc_tools.run_record import RunRecord

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from cnc_contour_control.force import PreviewConfig
-from cnc_tools.bench.report import format_table, goal_text, machine, write_json
+from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.reproductions.paper004 import data
 from cnc_tools.reproductions.paper004.figures import write_figure
 from cnc_tools.reproductions.paper004.floors import StepFloor, level_forces_n, levels_in_band, step_floor

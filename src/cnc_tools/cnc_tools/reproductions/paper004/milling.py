@@ -3,7 +3,7 @@
 Issue 12's "beyond the paper": regulating the cutting force must not cost
 contour accuracy. ``scenarios/paper004_milling.yaml`` (a circle R 40 mm at
 1200 mm/min on paper 000's drives and PID, a 4-flute end mill, axial depth
-1 -> 2 -> 3 mm every 4 s; ``cnc_plant_sim/milling.py``) runs in the engine,
+1 -> 2 -> 3 mm every 4 s; ``cnc_plant_sim/process/milling.py``) runs in the engine,
 all rows in one invocation:
 
 - ``no regulator``: the programmed feed throughout (the force follows the depth);
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from cnc_tools.analysis.scoring import score_run
-from cnc_tools.bench.report import format_table, machine, write_json
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.folders import project_root

@@ -22,7 +22,7 @@ from cnc_contour_control.force import (
     TurningModelConfig,
     plan_schedule,
 )
-from cnc_plant_sim.turning import TurningConfig
+from cnc_plant_sim.process.turning import TurningConfig
 from cnc_tools.reproductions.paper004 import data
 from cnc_tools.reproductions.paper004.metrics import Segment, segments, switchings_per_s
 from cnc_tools.reproductions.paper004.sim import Loop, Traces, simulate

@@ -2,7 +2,7 @@
 
 Per sample of ``dt_s``: the applied override ratio r gives the commanded feed
 ``v_c = r f_prog N`` [mm/min]; the interpolator's lag τ_s (Eq. 1) gives the
-feed-axis velocity; :class:`cnc_plant_sim.turning.TurningProcess` gives the
+feed-axis velocity; :class:`cnc_plant_sim.process.turning.TurningProcess` gives the
 measured force; the :class:`~cnc_contour_control.force.ForceRegulator` reads
 it and sets the ratio for the next sample. :func:`simulate` returns the
 traces; :func:`feed_stop_response` is the same chain with the feed command
@@ -17,7 +17,7 @@ import numpy as np
 import numpy.typing as npt
 
 from cnc_contour_control.force import FirstOrderLag, ForceRegulator, TurningModelConfig
-from cnc_plant_sim.turning import MM_MIN_PER_M_S, TurningConfig, TurningProcess
+from cnc_plant_sim.process.turning import MM_MIN_PER_M_S, TurningConfig, TurningProcess
 
 
 @dataclass(frozen=True)

@@ -20,11 +20,12 @@ import tempfile
 import timeit
 from collections.abc import Callable
 from pathlib import Path
-from cnc_contour_control.errors import CncError
+
+from cnc_contour_control.axis.servo import ServoConfig, ServoController
+from cnc_contour_control.core.errors import CncError
 from cnc_contour_control.force import FORCE_LAWS
 from cnc_contour_control.force.settings import ForceRegulatorSettings
-from cnc_contour_control.servo import ServoConfig, ServoController
-from cnc_tools.bench.report import format_table, machine, write_json
+from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.runs.backends import run_scenario
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.scenario import Scenario, load_scenario

@@ -1,0 +1,162 @@
+"""Validation helpers shared by every frozen, validated config of the suite.
+
+Errors name the option, the bound and the value: ``"radius_mm must be > 0, got -3"``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+
+from cnc_contour_control.core.errors import CncError, ConfigError
+
+T = TypeVar("T")
+
+
+def _where(name: str, context: str) -> str:
+    return f"{context}.{name}" if context else name
+
+
+def require_finite(name: str, value: float, context: str = "") -> float:
+    """Return ``value`` as float, or raise naming ``name`` if it is not a finite number."""
+    try:
+        number = float(value)
+    except (TypeError, ValueError) as err:
+        raise ConfigError(f"{_where(name, context)} must be a number, got {value!r}") from err
+    if not math.isfinite(number):
+        raise ConfigError(f"{_where(name, context)} must be finite, got {value!r}")
+    return number
+
+
+def require_positive(name: str, value: float, context: str = "") -> float:
+    """Return ``value`` if it is finite and > 0."""
+    number = require_finite(name, value, context)
+    if number <= 0.0:
+        raise ConfigError(f"{_where(name, context)} must be > 0, got {value!r}")
+    return number
+
+
+def require_non_negative(name: str, value: float, context: str = "") -> float:
+    """Return ``value`` if it is finite and >= 0."""
+    number = require_finite(name, value, context)
+    if number < 0.0:
+        raise ConfigError(f"{_where(name, context)} must be >= 0, got {value!r}")
+    return number
+
+
+def require_range(name: str, value: float, low: float, high: float, context: str = "") -> float:
+    """Return ``value`` if ``low <= value <= high``."""
+    number = require_finite(name, value, context)
+    if not low <= number <= high:
+        raise ConfigError(f"{_where(name, context)} must be in [{low}, {high}], got {value!r}")
+    return number
+
+
+def require_choice(name: str, value: str, choices: Mapping[str, Any] | tuple[str, ...], context: str = "") -> str:
+    """Return ``value`` if it is one of ``choices`` (a registry or a tuple of names)."""
+    valid = sorted(choices)
+    if value not in valid:
+        raise ConfigError(f"{_where(name, context)} must be one of {valid}, got {value!r}")
+    return value
+
+
+def build_config(cls: type[T], mapping: Mapping[str, Any] | None, context: str = "") -> T:
+    """Build the frozen dataclass ``cls`` from ``mapping``; unknown keys are an error.
+
+    The dataclass validates its own values in ``__post_init__``.
+    """
+    mapping = dict(mapping or {})
+    fields = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(set(mapping) - fields)
+    if unknown:
+        raise ConfigError(
+            f"{_where(unknown[0], context)}: unknown key; valid keys are {sorted(fields)}"
+        )
+    try:
+        return cls(**mapping)
+    except TypeError as err:
+        raise ConfigError(f"{context or cls.__name__}: {err}") from err
+
+
+#: Largest scenario, program or G-code file read, bytes (4 MiB): far above any real one, and parsed in seconds.
+MAX_INPUT_FILE_BYTES = 4 * 1024 * 1024
+
+
+def read_text_file(path: str | Path, what: str, error: type[CncError] = ConfigError,
+                   limit_bytes: int = MAX_INPUT_FILE_BYTES) -> str:
+    """The UTF-8 text of ``path``; ``error`` naming ``what``, the file and the reason otherwise.
+
+    Refused: a missing file, one larger than ``limit_bytes`` (checked before
+    reading), and binary content (not UTF-8, or holding NUL bytes).
+    """
+    file = Path(path)
+    if not file.is_file():
+        raise error(f"{what} {str(file)!r} does not exist")
+    try:
+        size = file.stat().st_size
+        if size > limit_bytes:
+            raise error(f"{what} {str(file)!r} is {size} bytes; the limit is {limit_bytes} bytes "
+                        f"({limit_bytes / 2**20:g} MiB)")
+        data = file.read_bytes()
+    except OSError as err:
+        raise error(f"{what} {str(file)!r} cannot be read: {err.strerror}") from err
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise error(f"{what} {str(file)!r} is not a text file (not UTF-8 at byte {err.start})") from err
+    if "\0" in text:
+        raise error(f"{what} {str(file)!r} is not a text file (NUL character at offset {text.index(chr(0))})")
+    return text
+
+
+def read_yaml_mapping(path: str | Path, what: str, error: type[CncError] = ConfigError) -> dict[str, Any]:
+    """The mapping in the YAML file ``path``; ``error`` naming ``what`` and the file otherwise.
+
+    The file is read by :func:`read_text_file` (size limit, text only).
+    """
+    file = Path(path)
+    text = read_text_file(file, what, error)
+    try:
+        content = yaml.load(text, Loader=_SAFE_LOADER)
+    except yaml.YAMLError as err:
+        raise error(f"{what} {str(file)!r} is not valid YAML: {_one_line(err)}") from err
+    if not isinstance(content, dict):
+        raise error(f"{what} {str(file)!r} must hold a mapping, got {type(content).__name__}")
+    return content
+
+
+#: PyYAML's safe loader, libyaml's C implementation when installed (same results, several times faster).
+_SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
+def _one_line(err: Exception) -> str:
+    """An error's text on one line."""
+    return " ".join(str(err).split())
+
+
+def require_name(name: str, value: Any) -> str:
+    """Return ``value`` if it is a non-empty string, else a ConfigError naming ``name``."""
+    if not isinstance(value, str) or not value:
+        raise ConfigError(f"{name} must be a non-empty string, got {value!r}")
+    return value
+
+
+def require_names(name: str, values: Any) -> tuple[str, ...]:
+    """``values`` as a tuple of unique non-empty strings (at least one), else a ConfigError naming ``name``."""
+    if isinstance(values, str) or not isinstance(values, Sequence) or not values:
+        raise ConfigError(f"{name} must be a non-empty list of names, got {values!r}")
+    names = tuple(require_name(f"{name}[{i}]", v) for i, v in enumerate(values))
+    if len(set(names)) != len(names):
+        raise ConfigError(f"{name} must be unique, got {list(names)}")
+    return names
+
+
+def require_flag(name: str, value: Any) -> bool:
+    """Return ``value`` if it is a bool, else a ConfigError naming ``name``."""
+    if not isinstance(value, bool):
+        raise ConfigError(f"{name} must be true or false, got {value!r}")
+    return value

@@ -1,0 +1,193 @@
+"""Corner blending within a path tolerance (G64 P): corners rounded by tangent arcs.
+
+A line-line corner at point ``P`` between unit directions ``u1`` (in) and
+``u2`` (out), turning by ``θ``, is replaced by the circular arc of radius ``R``
+tangent to both lines at ``P - d u1`` and ``P + d u2``, with
+
+    d = R tan(θ/2)                   (trim of each neighbour, m)
+    e = R (1/cos(θ/2) - 1)           (distance from P to the arc's midpoint, m)
+
+``R`` is the largest radius with ``e <= tolerance`` and ``d <= length / 2`` of
+both neighbours. ``e`` bounds the arc's distance from the programmed path
+(which is ``R (1 - cos(θ/2)) <= e``), so the planned path stays within the
+tolerance everywhere. A line-arc or arc-arc corner in one coordinate plane
+gets the fillet circle tangent to both curves (:mod:`cnc_contour_control.motion.blend_fillet`),
+its deviation measured exactly and kept within the tolerance. A corner is left
+as it is (an exact stop for the planner, unless already tangent) when: a dwell
+(G4) sits at the junction, the turn is below ``min_angle_rad`` or within 1e-6
+rad of a reversal, the arc's chord would be under 2 µm (``2 POSITION_TOLERANCE_M``;
+an arc with closer ends is a full circle), the two lines do not span one
+coordinate plane (an :class:`ArcSegment` lies in one), or a helix or an
+out-of-plane line takes part. The blended program is a plain
+:class:`Program`, so every consumer (planner, ``path`` topic) takes it as is.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.arc import ArcSegment
+from cnc_contour_control.motion.blend_assembly import planned_segments
+from cnc_contour_control.motion.blend_fillet import lift, plan_fillet
+from cnc_contour_control.motion.blend_table import Blend, BlendTable
+from cnc_contour_control.motion.geometry import Dwell, LineSegment, Program, Segment
+from cnc_contour_control.motion.points import POSITION_TOLERANCE_M, FloatArray, IntArray
+from cnc_contour_control.motion.segment_tangents import junction_turns_rad
+
+_AXIS_EPS = 1.0e-12
+_REVERSAL_MARGIN_RAD = 1.0e-6
+#: Shortest chord of a blend arc, m: an :class:`ArcSegment` whose ends are within
+#: ``POSITION_TOLERANCE_M`` is a full circle, so smaller blends stay corners.
+_MIN_CHORD_M = 2.0 * POSITION_TOLERANCE_M
+
+
+@dataclass(frozen=True)
+class BlendedProgram:
+    """The programmed contour, the planned one (with blend arcs) and the blends.
+
+    With no blend ``planned`` is ``programmed`` itself (same object).
+    """
+
+    programmed: Program
+    planned: Program
+    #: The blends as arrays, in junction order (:attr:`blends` as objects).
+    table: BlendTable
+    tolerance_m: float
+    #: Per planned segment, the programmed segment it comes from (a blend arc: the one after its corner).
+    source_segment: tuple[int, ...] = ()
+
+    @functools.cached_property
+    def blends(self) -> tuple[Blend, ...]:
+        """The blends, one :class:`Blend` per rounded corner, in junction order."""
+        return self.table.rows()
+
+    def deviation_m(self, points: ArrayLike) -> FloatArray:
+        """Exact distance (m, shape ``(N,)``) of ``points`` (``(N, n_axes)``, m) from the programmed path."""
+        return self.programmed.contour_distance(points)[0]
+
+    def local_deviation_m(self, points: ArrayLike, planned_index: ArrayLike) -> FloatArray:
+        """Exact distance (m, ``(N,)``) of each point from the programmed segments its planned segment comes from.
+
+        A blend arc's point is measured to both segments of its corner, any other
+        point to its own programmed segment. It bounds :meth:`deviation_m` from
+        above in one pass over the samples (for long programs).
+        """
+        p = np.asarray(points, dtype=float)
+        index = np.asarray(planned_index, dtype=np.intp)
+        sources = np.asarray(self.source_segment or range(len(self.planned.segments)), dtype=np.intp)
+        out = np.full(len(p), np.inf)
+        for k in np.unique(index):
+            rows = np.flatnonzero(index == k)
+            source = int(sources[k])
+            around = (source - 1, source) if self.planned.segments[k] is not self.programmed.segments[source] \
+                and isinstance(self.planned.segments[k], ArcSegment) else (source,)
+            for j in around:
+                out[rows] = np.minimum(out[rows], self.programmed.segments[j].nearest(p[rows])[0])
+        return out
+
+
+def corner_trim_m(turn_rad: ArrayLike, tolerance_m: float, max_trim_m: ArrayLike) -> tuple[FloatArray, FloatArray]:
+    """Radius (m) and trim (m) of the blends of corners turning by ``turn_rad`` (scalars or arrays of one shape).
+
+    Parameters
+    ----------
+    turn_rad : float or ndarray
+        Angle between the incoming and outgoing directions, rad, in (0, π).
+    tolerance_m : float
+        Largest distance of the arc from the corner point, m, > 0.
+    max_trim_m : float or ndarray
+        Largest length the blend may take from each neighbour, m.
+    """
+    half = 0.5 * np.asarray(turn_rad, dtype=float)
+    radius = np.minimum(tolerance_m / (1.0 / np.cos(half) - 1.0), np.asarray(max_trim_m) / np.tan(half))
+    return radius, radius * np.tan(half)
+
+
+def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, tolerance_m: float) -> BlendTable:
+    """The tangent arcs of the line-line corners before segments ``junctions`` (closed form, all at once).
+
+    A corner whose lines move three or more axes, or whose arc's chord would be under 2 µm, is left out.
+    """
+    segments = program.segments
+    u1 = np.array([segments[k - 1].unit_vector for k in junctions]).reshape(len(junctions), program.n_axes)
+    u2 = np.array([segments[k].unit_vector for k in junctions]).reshape(u1.shape)
+    shorter = np.minimum([segments[k - 1].length_m for k in junctions], [segments[k].length_m for k in junctions])
+    radius, trim = corner_trim_m(turns_rad, tolerance_m, 0.5 * shorter)
+    moving = (np.abs(u1) > _AXIS_EPS) | (np.abs(u2) > _AXIS_EPS)
+    keep = np.flatnonzero((moving.sum(axis=1) == 2) & (2.0 * radius * np.sin(0.5 * turns_rad) > _MIN_CHORD_M))
+    first = np.argmax(moving, axis=1)
+    second = moving.shape[1] - 1 - np.argmax(moving[:, ::-1], axis=1)
+    rows = np.arange(len(junctions))
+    clockwise = u1[rows, first] * u2[rows, second] - u1[rows, second] * u2[rows, first] < 0.0
+    normal = u2 - np.einsum("ij,ij->i", u1, u2)[:, None] * u1
+    normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
+    corner = np.array([segments[k].start_m for k in junctions]).reshape(u1.shape)
+    start, end = corner - trim[:, None] * u1, corner + trim[:, None] * u2
+    center, deviation = start + radius[:, None] * normal, radius * (1.0 / np.cos(0.5 * turns_rad) - 1.0)
+    return BlendTable(junctions[keep], radius[keep], trim[keep], deviation[keep], trim[keep], start[keep], end[keep],
+                      center[keep], np.c_[first, second][keep], clockwise[keep])
+
+
+def _curve_corner(k: int, before: Segment, after: Segment, turn: float, tolerance_m: float) -> Blend | None:
+    """The fillet of a line-arc or arc-arc corner (:func:`blend_fillet.plan_fillet`), or None."""
+    planned = plan_fillet(before, after, tolerance_m, turn)
+    if planned is None:
+        return None
+    shape, corner = planned.shape, after.start_m
+    if float(np.hypot(*(shape.end - shape.start))) <= _MIN_CHORD_M:
+        return None
+    return Blend(k, shape.radius_m, shape.trim_before_m, planned.deviation_m, shape.trim_after_m,
+                 lift(shape.start, planned.plane, corner), lift(shape.end, planned.plane, corner),
+                 lift(shape.center, planned.plane, corner), planned.plane, planned.side < 0.0)
+
+
+def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float) -> BlendTable:
+    """The blends of every corner that gets one, in junction order."""
+    segments = program.segments
+    turns = junction_turns_rad(segments)
+    lines = np.array([isinstance(segment, LineSegment) for segment in segments])
+    free = program.junction_dwell_s[1:-1] == 0.0
+    corner = (turns > min_angle_rad) & (turns < math.pi - _REVERSAL_MARGIN_RAD) & free
+    line_pair = corner & lines[:-1] & lines[1:]
+    by_line = np.flatnonzero(line_pair)
+    by_line_table = _line_corners(program, by_line + 1, turns[by_line], tolerance_m) if by_line.size \
+        else BlendTable.empty(program.n_axes)
+    curves = [_curve_corner(int(k), segments[k - 1], segments[k], float(turns[k - 1]), tolerance_m)
+              for k in np.flatnonzero(corner & ~line_pair) + 1]
+    return by_line_table.merged(BlendTable.from_blends([b for b in curves if b is not None], program.n_axes))
+
+
+def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0.0) -> BlendedProgram:
+    """Round every blendable corner of ``program`` within ``tolerance_m`` (m, >= 0).
+
+    Parameters
+    ----------
+    program : Program
+        The programmed contour.
+    tolerance_m : float
+        Path tolerance, m; 0 leaves the program unchanged.
+    min_angle_rad : float
+        Corners turning by at most this angle (rad) are passed as tangent and not blended.
+
+    Returns
+    -------
+    BlendedProgram
+        ``planned`` has the blend arcs; its dwells are moved to the same junctions.
+    """
+    if not (math.isfinite(tolerance_m) and tolerance_m >= 0.0):
+        raise ConfigError(f"path tolerance_m must be finite and >= 0, got {tolerance_m}")
+    if tolerance_m == 0.0:
+        return BlendedProgram(program, program, BlendTable.empty(program.n_axes), 0.0)
+    blends = _plan_corners(program, tolerance_m, min_angle_rad)
+    if not len(blends):
+        return BlendedProgram(program, program, blends, tolerance_m)
+    segments, first_after, sources = planned_segments(program, blends)
+    first_after.append(len(segments))
+    dwells = tuple(Dwell(first_after[d.before_segment], d.duration_s, d.source_line) for d in program.dwells)
+    planned = Program(program.name, program.axis_names, tuple(segments), dwells, program.path_tolerance_m)
+    return BlendedProgram(program, planned, blends, tolerance_m, tuple(sources))

@@ -1,0 +1,493 @@
+"""Trajectory interpolation: a trapezoidal, acceleration-limited feed profile over a program.
+
+The path speed ``v(τ)`` is piecewise linear in the profile time ``τ``
+(accelerate, cruise, decelerate within each segment). The axis references are
+
+    position     p(τ) = P(s(τ))
+    velocity     v(τ) T(s)
+    acceleration a_t(τ) T(s) + v(τ)**2 K(s)
+
+with ``T`` the unit tangent and ``K`` the curvature vector of the segment.
+Per-axis limits hold because each segment's speed keeps ``v |T_j| <= vmax_j``
+and, on arcs, ``v**2 |K_j| <= f amax_j`` while ``|a_t T_j| <= (1 - f) amax_j``
+(``f`` = ``arc_centripetal_fraction``). Speed is zero at the program's start
+and end and at sharp corners; across tangent-continuous junctions it is
+continuous. A program's dwells (G4, ``Program.dwells``) are phases at rest
+at their junction, which is then a stop. A junction whose tangents differ by less than
+``corner_angle_tolerance_deg`` but not exactly gets a step in the axis
+velocities of at most ``v * angle``; that step is the one place where the
+finite-difference acceleration can exceed the limits. The default tolerance
+(1e-4 deg, 1.7 µrad) only absorbs rounding in exactly tangent geometry; raise
+it for G-code with few decimals, knowing the step it allows.
+
+With ``arc_combined_budget`` an arc's speed range is split into
+``arc_speed_bands`` bands, each with the budget at its highest speed
+(:func:`cnc_contour_control.motion.arc_budget.speed_bands`): its accelerate and
+decelerate phases are one constant-acceleration phase per band crossed.
+``look_ahead_segments`` caps each junction's speed so that the segments in
+that window can brake to rest (:func:`~cnc_contour_control.motion.plan_arrays.look_ahead_caps_m_s`).
+
+With a path tolerance (``path_tolerance_mm``, or the program's G64 P) the
+profile is planned over the blended program (:mod:`cnc_contour_control.motion.blending`:
+line-line corners rounded by tangent arcs): :attr:`Interpolator.program` is
+that planned program, :attr:`Interpolator.programmed_program` the one written.
+"""
+from __future__ import annotations
+
+import bisect
+import dataclasses
+import functools
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from cnc_contour_control.core.config import build_config, require_non_negative, require_positive
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import check_ranges, param
+from cnc_contour_control.motion.accel_decel import AccelDecelConfig, ReferenceFilter
+from cnc_contour_control.motion.blending import blend_program
+from cnc_contour_control.motion.geometry import Program, Segment
+from cnc_contour_control.motion.plan_arrays import (
+    SpeedBands,
+    banded_phases,
+    plan_banded_limits,
+    program_junction_speeds_m_s,
+)
+from cnc_contour_control.motion.plan_stream import start_stream, whole_plan
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class AxisLimits:
+    """Per-axis velocity and acceleration limits, one entry per axis.
+
+    Parameters
+    ----------
+    max_velocity_m_s : tuple of float
+        Largest axis speed, m/s, > 0.
+    max_acceleration_m_s2 : tuple of float
+        Largest axis acceleration, m/s^2, > 0.
+    """
+
+    max_velocity_m_s: tuple[float, ...] = param(
+        unit="m/s", read_only=True, description="largest speed of each axis, in axis order, each > 0")
+    max_acceleration_m_s2: tuple[float, ...] = param(
+        unit="m/s^2", read_only=True, description="largest acceleration of each axis, in axis order, each > 0")
+
+    def __post_init__(self) -> None:
+        velocity = _positive_tuple("max_velocity_m_s", self.max_velocity_m_s)
+        acceleration = _positive_tuple("max_acceleration_m_s2", self.max_acceleration_m_s2)
+        if len(velocity) != len(acceleration):
+            raise ConfigError(
+                f"max_acceleration_m_s2 must have one entry per axis ({len(velocity)}), got {len(acceleration)}")
+        object.__setattr__(self, "max_velocity_m_s", velocity)
+        object.__setattr__(self, "max_acceleration_m_s2", acceleration)
+
+    @property
+    def n_axes(self) -> int:
+        """Number of axes."""
+        return len(self.max_velocity_m_s)
+
+
+def _positive_tuple(name: str, values: ArrayLike) -> tuple[float, ...]:
+    if isinstance(values, (str, bytes)) or not isinstance(values, Iterable):
+        raise ConfigError(f"{name} must be a list with one value per axis, got {values!r}")
+    items = list(values)
+    if not items:
+        raise ConfigError(f"{name} must have at least one entry, got {values!r}")
+    return tuple(require_positive(f"{name}[{j}]", v) for j, v in enumerate(items))
+
+
+@dataclass(frozen=True)
+class InterpolatorConfig:
+    """Options of the feed-profile planner.
+
+    Parameters
+    ----------
+    corner_angle_tolerance_deg : float
+        Junctions whose tangent directions differ by at most this angle are
+        tangent-continuous (no stop), deg, in [0, 10]. Such a junction steps
+        the axis velocities by up to ``feed * angle`` (see the module notes).
+    arc_centripetal_fraction : float
+        Share of each axis's acceleration budget given to centripetal
+        acceleration on arcs, in [0.01, 0.99]; the rest is for speed changes.
+        (Near 0 or 1 one of the two budgets vanishes and an arc crawls.)
+    arc_combined_budget : bool
+        If True, an arc's tangential acceleration is bounded together with its
+        centripetal one, ``sqrt(a_t**2 + (v**2 κ)**2) <= amax`` per axis
+        (:mod:`cnc_contour_control.motion.arc_budget`), instead of only the split
+        ``(1 - f) amax``: faster speed changes on arcs, same limits.
+    arc_speed_bands : int
+        With ``arc_combined_budget``: bands of speed on each arc, in [1, 64],
+        each with the budget at its highest speed
+        (:func:`cnc_contour_control.motion.arc_budget.speed_bands`), so that an arc
+        speeds up and brakes harder the slower it goes. 1: one constant
+        tangential acceleration per arc (the budget at its cruise speed).
+    look_ahead_segments : int
+        Segments the planner sees ahead of each junction, in [1, 1e9]: the
+        speed there must allow a stop at the end of the last one (a look-ahead
+        buffer; :func:`cnc_contour_control.motion.plan_arrays.look_ahead_caps_m_s`).
+        The default (1e6) is longer than any braking distance of today's
+        programs: their plan is unchanged.
+    path_tolerance_mm : float
+        Largest distance of a corner blend from the programmed corner, mm, in
+        [0, 1000] (G64 P; :mod:`cnc_contour_control.motion.blending`). 0 plans the
+        program as written; a program's own ``path_tolerance_m`` (G64 P, G61)
+        takes precedence.
+    clamp_feed : bool
+        If True, slow a segment whose programmed feed exceeds the axis velocity
+        limits; if False, refuse the program.
+    accel_decel : AccelDecelConfig or Mapping
+        Acceleration/deceleration after interpolation (paper 003's T_ip), applied by
+        :meth:`Interpolator.reference` (:mod:`cnc_contour_control.motion.accel_decel`).
+    """
+
+    corner_angle_tolerance_deg: float = param(
+        1.0e-4, unit="deg", low=0.0, high=10.0, read_only=True,
+        description="junctions whose tangents differ by at most this angle are passed without a stop")
+    arc_centripetal_fraction: float = param(
+        0.5, low=0.01, high=0.99, read_only=True,
+        description="share of each axis's acceleration for centripetal use on arcs (the rest changes speed)")
+    arc_combined_budget: bool = param(
+        False, read_only=True,
+        description="bound an arc's tangential and centripetal acceleration together (faster speed changes on arcs)")
+    arc_speed_bands: int = param(
+        8, low=1, high=64, read_only=True,
+        description="with arc_combined_budget: speed bands per arc, each with the acceleration budget at its top "
+                    "speed")
+    look_ahead_segments: int = param(
+        1_000_000, low=1, high=1.0e9, read_only=True,
+        description="segments planned ahead of each junction; the speed there allows a stop at the last one's end")
+    path_tolerance_mm: float = param(
+        0.0, unit="mm", low=0.0, high=1000.0, read_only=True,
+        description="largest deviation of corner blends from the programmed path (G64 P; 0: no blending, the "
+                    "program's G64 P / G61 overrides it)")
+    clamp_feed: bool = param(
+        False, read_only=True, description="slow down a segment whose feed exceeds the axis limits instead of refusing it")
+    accel_decel: AccelDecelConfig = param(default_factory=AccelDecelConfig, read_only=True,
+                                          description="acceleration/deceleration after interpolation (T_ip)")
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.accel_decel, AccelDecelConfig):
+            object.__setattr__(self, "accel_decel", build_config(AccelDecelConfig, self.accel_decel, "accel_decel"))
+        check_ranges(self)
+        for name in ("clamp_feed", "arc_combined_budget"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        for name in ("arc_speed_bands", "look_ahead_segments"):
+            value = getattr(self, name)
+            if isinstance(value, float) and not value.is_integer():
+                raise ConfigError(f"{name} must be a whole number, got {value!r}")
+            object.__setattr__(self, name, int(value))
+
+
+@dataclass(frozen=True)
+class ReferenceSample:
+    """The reference at one instant; arrays have shape ``(n_axes,)``.
+
+    ``feed_m_s`` is the instantaneous path speed, ``programmed_feed_m_s`` the
+    current segment's programmed feed, ``profile_time_s`` the profile time τ
+    and ``feed_override_ratio`` the override applied (1.0 for :meth:`Interpolator.sample`).
+    """
+
+    position_m: FloatArray
+    velocity_m_s: FloatArray
+    acceleration_m_s2: FloatArray
+    path_length_m: float
+    segment_index: int
+    feed_m_s: float
+    programmed_feed_m_s: float
+    done: bool
+    profile_time_s: float = 0.0
+    feed_override_ratio: float = 1.0
+
+
+@dataclass(frozen=True)
+class ReferenceTrajectory:
+    """Many samples at once: ``(M,)`` per-sample values and ``(M, n_axes)`` axis arrays."""
+
+    time_s: FloatArray
+    position_m: FloatArray
+    velocity_m_s: FloatArray
+    acceleration_m_s2: FloatArray
+    path_length_m: FloatArray
+    segment_index: NDArray[np.intp]
+    feed_m_s: FloatArray
+    done: NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class SegmentLimits:
+    """Planning limits of one segment: cruise speed (m/s) and tangential acceleration (m/s^2)."""
+
+    speed_m_s: float
+    acceleration_m_s2: float
+
+
+def segment_limits(index: int, segment: Segment, limits: AxisLimits, config: InterpolatorConfig) -> SegmentLimits:
+    """Cruise speed and tangential acceleration that keep every axis within ``limits`` (:func:`plan_limits` of one).
+
+    Raises
+    ------
+    ProgramError
+        If the programmed feed exceeds the axis velocity limits and ``config.clamp_feed`` is False.
+    """
+    speed, accel, _ = _plan_limits([segment], limits, config, index)
+    return SegmentLimits(float(speed[0]), float(accel[0]))
+
+
+def _plan_limits(segments: Sequence[Segment], limits: AxisLimits, config: InterpolatorConfig,
+                 first_index: int = 0) -> tuple[FloatArray, FloatArray, SpeedBands]:
+    return plan_banded_limits(segments, np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
+                              config.arc_centripetal_fraction, config.arc_combined_budget, config.clamp_feed,
+                              first_index, config.arc_speed_bands)
+
+
+def planning_tolerance_m(program: Program, config: InterpolatorConfig) -> float:
+    """The blend tolerance, m: the program's (G64 P / G61) if it sets one, else ``config.path_tolerance_mm``."""
+    if program.path_tolerance_m is not None:
+        return program.path_tolerance_m
+    return config.path_tolerance_mm * 1.0e-3
+
+
+def with_planning_tolerance(program: Program, config: InterpolatorConfig) -> Program:
+    """``program`` carrying the tolerance it is planned with (:func:`planning_tolerance_m`) as ``path_tolerance_m``.
+
+    What a run records, so that the scorer can set the reference's deviation beside it. The same object
+    when the program already sets it (G64 P / G61).
+    """
+    tolerance_m = planning_tolerance_m(program, config)
+    if program.path_tolerance_m == tolerance_m:
+        return program
+    return dataclasses.replace(program, path_tolerance_m=tolerance_m)
+
+
+class Interpolator:
+    """Plans a trapezoidal feed profile over ``program`` and evaluates it analytically.
+
+    Parameters
+    ----------
+    program : Program
+        The contour.
+    limits : AxisLimits
+        Per-axis limits, one entry per program axis.
+    config : InterpolatorConfig, optional
+        Planner options.
+
+    Notes
+    -----
+    :meth:`sample` is stateless (time ``t_s`` from the profile's start).
+    :meth:`advance` keeps a profile time τ for feed override: each call moves
+    τ by ``override_ratio * dt_s`` and returns the sample at τ with velocity
+    and feed scaled by the ratio and acceleration by its square (the term from
+    a changing ratio, ``dk/dt * v``, is left out). Limits hold for ratios <= 1.
+
+    A window (``look_ahead_segments``) shorter than the program plans it streaming
+    (:mod:`cnc_contour_control.motion.plan_stream`): the constructor plans one chunk, :meth:`sample`,
+    :meth:`sample_array` and :meth:`advance` extend the plan as time reaches its end; :attr:`duration_s`,
+    :attr:`junction_speeds_m_s` and the other whole-plan arrays plan to the end on first use, :attr:`program`
+    and :attr:`blended` blend the whole program on first use.
+    """
+
+    def __init__(self, program: Program, limits: AxisLimits, config: InterpolatorConfig | None = None) -> None:
+        self.limits = limits
+        self.config = config if config is not None else InterpolatorConfig()
+        tolerance_rad = math.radians(self.config.corner_angle_tolerance_deg)
+        if limits.n_axes != program.n_axes:
+            raise ConfigError(
+                f"limits must have one entry per program axis ({program.n_axes}: {list(program.axis_names)}), "
+                f"got {limits.n_axes}")
+        #: The program as written; :attr:`program` is the planned one (with blends).
+        self.programmed_program = program
+        self._profile_time_s, self._accel_decel = 0.0, ReferenceFilter(self.config.accel_decel)
+        tolerance_m = planning_tolerance_m(program, self.config)
+        self._stream = start_stream(self, program, limits, tolerance_m)
+        if self._stream is not None:
+            return
+        self.blended = blend_program(program, tolerance_m, tolerance_rad)
+        self.program = self._view = program = self.blended.planned
+        self.cruise_speed_m_s, self.tangential_acceleration_m_s2, self.speed_bands = _plan_limits(
+            program.segments, limits, self.config)
+        self.junction_speeds_m_s = program_junction_speeds_m_s(program, self.cruise_speed_m_s, self.speed_bands,
+                                                               tolerance_rad, self.config.look_ahead_segments)
+        self._build_phases()
+        self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
+
+    def __getattr__(self, name: str) -> Any:
+        """Streaming: the whole plan's attributes, planned to the end on first use (:func:`plan_stream.whole_plan`)."""
+        if name.startswith("__") or self.__dict__.get("_stream") is None:
+            raise AttributeError(name)
+        self.__dict__.update(whole_plan(self, name))
+        return self.__dict__[name]
+
+    def planned_end_s(self, t_s: float) -> float:
+        """The profile's duration (s), or inf while a streaming plan has not reached it after planning past ``t_s``.
+
+        What a per-tick caller (feed override) bounds τ with without finishing a streaming plan (:attr:`duration_s`
+        does)."""
+        return self.duration_s if self._stream is None else self._stream.extend_to(t_s)
+
+    @functools.cached_property
+    def segment_limits(self) -> list[SegmentLimits]:
+        """Cruise speed and tangential acceleration per planned segment (:attr:`cruise_speed_m_s`, ...)."""
+        return [SegmentLimits(v, a) for v, a in zip(self.cruise_speed_m_s.tolist(),
+                                                     self.tangential_acceleration_m_s2.tolist())]
+
+    def _build_phases(self) -> None:
+        speeds = self.junction_speeds_m_s
+        lengths = np.array([segment.length_m for segment in self.program.segments])
+        self._phases = phases = banded_phases(lengths, speeds[:-1], speeds[1:], self.cruise_speed_m_s,
+                                              self.speed_bands, self.program.junction_dwell_s)
+        self._phase_start_s = phases.start_s[:-1].tolist()
+        self._phase_s0_m, self._phase_v0_m_s = phases.s0_m.tolist(), phases.v0_m_s.tolist()
+        self._phase_accel_m_s2, self._phase_segment = phases.accel_m_s2.tolist(), phases.segment.tolist()
+        self.duration_s = float(phases.start_s[-1])
+
+    @property
+    def phase_count(self) -> int:
+        """Number of constant-acceleration phases of the profile."""
+        return len(self._phases.start_s) - 1
+
+    def _path_state(self, t_s: float) -> tuple[int, float, float, float]:
+        """Segment index, local arc length (m), path speed (m/s) and path acceleration (m/s^2) at ``t_s``."""
+        if t_s < 0.0:
+            return 0, 0.0, 0.0, 0.0
+        k = max(bisect.bisect_right(self._phase_start_s, t_s) - 1, 0)
+        dt = max(t_s - self._phase_start_s[k], 0.0)
+        v0, accel = self._phase_v0_m_s[k], self._phase_accel_m_s2[k]
+        s_local = self._phase_s0_m[k] + v0 * dt + 0.5 * accel * dt * dt
+        return self._phase_segment[k], s_local, max(v0 + accel * dt, 0.0), accel
+
+    def sample(self, t_s: float) -> ReferenceSample:
+        """The reference at profile time ``t_s`` (s); before 0 holds the start, after the end holds the end."""
+        if math.isnan(t_s):
+            raise ConfigError(f"t_s must be a number, got {t_s}")
+        if t_s >= self.planned_end_s(t_s):
+            return self._end_sample()
+        index, s_local, speed, accel = self._path_state(t_s)
+        segment = self._view.segments[index]
+        s_local = min(max(s_local, 0.0), segment.length_m)
+        point, tangent, curvature = segment.frame(s_local)
+        return ReferenceSample(
+            position_m=point, velocity_m_s=speed * tangent,
+            acceleration_m_s2=accel * tangent + (speed * speed) * curvature,
+            path_length_m=float(self._view.segment_start_m[index]) + s_local, segment_index=index,
+            feed_m_s=speed, programmed_feed_m_s=segment.feed_m_s, done=False, profile_time_s=max(t_s, 0.0))
+
+    def _end_sample(self) -> ReferenceSample:
+        view, zeros = self._view, np.zeros(self._view.n_axes)
+        return ReferenceSample(
+            position_m=self._end_point_m.copy(), velocity_m_s=zeros, acceleration_m_s2=zeros.copy(),
+            path_length_m=view.total_length_m, segment_index=len(view.segments) - 1,
+            feed_m_s=0.0, programmed_feed_m_s=view.segments[-1].feed_m_s, done=True,
+            profile_time_s=self.duration_s)
+
+    def sample_array(self, times_s: ArrayLike) -> ReferenceTrajectory:
+        """The reference at many profile times at once.
+
+        Parameters
+        ----------
+        times_s : array_like, shape (M,)
+            Profile times, s.
+
+        Returns
+        -------
+        ReferenceTrajectory
+            Positions, velocities, accelerations of shape ``(M, n_axes)``.
+        """
+        t = np.asarray(times_s, dtype=float).reshape(-1)
+        end_s = self.planned_end_s(float(np.max(t, initial=0.0)))
+        clipped = np.clip(t, 0.0, end_s)
+        phases = self._phases if self._stream is None else self._stream.phases()
+        k = np.maximum(np.searchsorted(phases.start_s[:-1], clipped, side="right") - 1, 0)
+        dt = np.maximum(clipped - phases.start_s[k], 0.0)
+        v0, accel = phases.v0_m_s[k], phases.accel_m_s2[k]
+        s_local = phases.s0_m[k] + v0 * dt + 0.5 * accel * dt * dt
+        speed = np.maximum(v0 + accel * dt, 0.0)
+        index = phases.segment[k]
+        done = t >= end_s
+        speed[done], accel[done | (t < 0.0)] = 0.0, 0.0
+        arrays = self._axis_arrays(index, s_local, speed, accel, done)
+        path = self._view.segment_start_m[index] + np.clip(s_local, 0.0, None)
+        path[done] = self._view.total_length_m
+        return ReferenceTrajectory(t, *arrays, path, index, speed, done)
+
+    def _axis_arrays(self, index: NDArray[np.intp], s_local: FloatArray, speed: FloatArray,
+                     accel: FloatArray, done: NDArray[np.bool_]) -> tuple[FloatArray, FloatArray, FloatArray]:
+        n = self._view.n_axes
+        position, velocity, acceleration = (np.zeros((index.size, n)) for _ in range(3))
+        for i in np.unique(index):
+            rows = np.flatnonzero(index == i)
+            segment = self._view.segments[int(i)]
+            s = np.clip(s_local[rows], 0.0, segment.length_m)
+            tangent = segment.tangent(s)
+            position[rows] = segment.point(s)
+            velocity[rows] = speed[rows, None] * tangent
+            acceleration[rows] = accel[rows, None] * tangent + (speed[rows] ** 2)[:, None] * segment.curvature_vector(s)
+        position[done] = self._end_point_m
+        return position, velocity, acceleration
+
+    def reference(self, t_s: float) -> ReferenceSample:
+        """:meth:`sample` through the acceleration/deceleration (``config.accel_decel``): the servos' reference.
+
+        Call at successive tick times (the filter keeps its state; an earlier
+        time restarts it). Path length, segment, feed and ``done`` stay the
+        unfiltered profile's. ``accel_decel.kind`` ``none``: :meth:`sample` itself.
+        """
+        sample = self.sample(t_s)
+        if self.config.accel_decel.kind == "none":
+            return sample
+        n = self._view.n_axes
+        flat = self._accel_decel.step(t_s, sample.position_m.tolist() + sample.velocity_m_s.tolist()
+                                      + sample.acceleration_m_s2.tolist())
+        return dataclasses.replace(sample, position_m=np.array(flat[:n]), velocity_m_s=np.array(flat[n:2 * n]),
+                                   acceleration_m_s2=np.array(flat[2 * n:]))
+
+    def reference_array(self, times_s: ArrayLike) -> ReferenceTrajectory:
+        """:meth:`sample_array` through a fresh acceleration/deceleration filter, row by row as :meth:`reference` does."""
+        trajectory = self.sample_array(times_s)
+        if self.config.accel_decel.kind == "none":
+            return trajectory
+        n, accel_decel = self._view.n_axes, ReferenceFilter(self.config.accel_decel)
+        rows = np.hstack([trajectory.position_m, trajectory.velocity_m_s, trajectory.acceleration_m_s2]).tolist()
+        out = np.array([accel_decel.step(t, row) for t, row in zip(trajectory.time_s.tolist(), rows)], float)
+        out = out.reshape(len(rows), 3 * n)
+        return dataclasses.replace(trajectory, position_m=out[:, :n], velocity_m_s=out[:, n:2 * n],
+                                   acceleration_m_s2=out[:, 2 * n:])
+
+    def reset(self) -> None:
+        """Return the profile time τ of :meth:`advance` and the acceleration/deceleration to the program start."""
+        self._profile_time_s = 0.0
+        self._accel_decel = ReferenceFilter(self.config.accel_decel)
+
+    @property
+    def profile_time_s(self) -> float:
+        """The profile time τ reached by :meth:`advance`, s."""
+        return self._profile_time_s
+
+    def advance(self, dt_s: float, override_ratio: float = 1.0) -> ReferenceSample:
+        """Move τ by ``override_ratio * dt_s`` and return the time-scaled reference there.
+
+        Parameters
+        ----------
+        dt_s : float
+            Elapsed time, s, >= 0 (use 0 for the first tick).
+        override_ratio : float
+            Feed override, >= 0 (0 holds the feed, 1 is the programmed feed).
+        """
+        dt = require_non_negative("dt_s", dt_s)
+        ratio = require_non_negative("override_ratio", override_ratio)
+        tau_s = self._profile_time_s + ratio * dt
+        self._profile_time_s = min(tau_s, self.planned_end_s(tau_s))
+        base = self.sample(self._profile_time_s)
+        return ReferenceSample(
+            position_m=base.position_m, velocity_m_s=ratio * base.velocity_m_s,
+            acceleration_m_s2=(ratio * ratio) * base.acceleration_m_s2, path_length_m=base.path_length_m,
+            segment_index=base.segment_index, feed_m_s=ratio * base.feed_m_s,
+            programmed_feed_m_s=base.programmed_feed_m_s, done=base.done,
+            profile_time_s=self._profile_time_s, feed_override_ratio=ratio)

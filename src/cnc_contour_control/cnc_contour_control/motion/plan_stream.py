@@ -1,0 +1,317 @@
+"""Streaming planning: the feed profile planned chunk by chunk, a look-ahead window ahead of the tool.
+
+A controller's look-ahead buffer of ``W`` segments (``look_ahead_segments``)
+plans the speed at a junction from the segments it sees ahead and a stop at
+the last one's end (:func:`~cnc_contour_control.motion.plan_arrays.look_ahead_caps_m_s`).
+:class:`StreamPlan` does the same lazily: to commit the planned segments
+``J .. J + C - 1`` (a chunk, ``C = max(W, MIN_CHUNK_SEGMENTS)``) it
+
+1. blends the programmed segments it needs (:func:`blending.blend_program` on a
+   slice with two segments of context before and one after: a corner's blend
+   depends only on its two neighbours, a blend arc's start on the planned
+   path's end before it), and computes their limits (``plan_banded_limits``);
+2. runs the junction passes over ``J .. J + C + W`` from the committed entry
+   speed at ``J`` to a stop at the window's end, with the look-ahead caps;
+3. commits the speeds at ``J + 1 .. J + C`` and the chunk's phases.
+
+Why this equals the whole plan with the same window (in exact arithmetic):
+the backward pass's speed at junction ``k`` is the least over ``m >= k`` of
+``sqrt(cap_m² + Σ_{k..m-1} 2 a_i L_i)``; every term with ``m >= k + W`` and
+every look-ahead cap beyond ``k`` is at least junction ``k``'s own look-ahead
+cap (reaches are non-negative and increasing; a banded segment's reach is never
+below the lowest band's, which the caps use), so junction ``k``'s speed
+depends on the caps at ``k .. k + W - 1`` only: a stop at ``J + C + W`` changes
+nothing at or before ``J + C``. The forward pass is causal. Rounding differs
+(cumulative sums over a chunk, not the program): the samples agree to 1e-12
+(``test_plan_stream.py``). Committed segments never change.
+
+What differs from planning whole: a segment the limits refuse (a feed over
+them, ``clamp_feed`` false) raises its :class:`ProgramError` when the stream
+reaches it, from :meth:`StreamPlan.extend_to`, not at construction.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from cnc_contour_control.motion.blending import blend_program
+from cnc_contour_control.motion.geometry import Dwell, Program, Segment
+from cnc_contour_control.motion.plan_arrays import (
+    Phases,
+    SpeedBands,
+    banded_junction_speeds_m_s,
+    banded_phases,
+    look_ahead_caps_m_s,
+    plan_banded_limits,
+)
+from cnc_contour_control.motion.points import FloatArray
+from cnc_contour_control.motion.segment_tangents import junction_turns_rad
+
+#: Fewest planned segments committed per chunk: a short window still plans in blocks worth a NumPy pass (at 1024
+#: streaming costs what the whole plan does per segment, 256 took 1.5 times as much; bench ``blending``).
+MIN_CHUNK_SEGMENTS = 1024
+
+
+@dataclass(frozen=True)
+class StreamSettings:
+    """What a stream plans with: axis limits (m/s, m/s², ``(n_axes,)``), the planner's options, the tolerances.
+
+    ``n_bands`` is the width of every segment's :class:`SpeedBands` (the planner's ``arc_speed_bands`` with the
+    combined budget, else 1), ``tolerance_m`` the blend tolerance, ``corner_rad`` the tangent-corner angle.
+    """
+
+    max_velocity_m_s: FloatArray
+    max_acceleration_m_s2: FloatArray
+    centripetal_fraction: float
+    combined_budget: bool
+    clamp_feed: bool
+    n_bands: int
+    look_ahead_segments: int
+    tolerance_m: float
+    corner_rad: float
+
+
+class _Blocks:
+    """The planned program, blended and limited block by block as far as asked; per planned segment arrays."""
+
+    def __init__(self, program: Program, settings: StreamSettings) -> None:
+        self.program, self.settings = program, settings
+        self.segments: list[Segment] = []
+        self._next = 0  # programmed segments already turned into planned ones
+        self._carry_dwell_s = 0.0
+        self._columns: dict[str, np.ndarray] = {}
+        self._sizes: dict[str, int] = {}
+        self._total_m = 0.0
+
+    @property
+    def exhausted(self) -> bool:
+        """Whether every programmed segment has been planned."""
+        return self._next >= len(self.program.segments)
+
+    def ensure(self, count: int) -> None:
+        """Plan programmed segments until at least ``count`` planned ones exist or the program is exhausted."""
+        block = max(self.settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
+        while len(self.segments) < count and not self.exhausted:
+            self._add(self._next, min(self._next + block, len(self.program.segments)))
+
+    def _sub_program(self, first: int, stop: int) -> Program:
+        program = self.program
+        dwells = tuple(Dwell(d.before_segment - first, d.duration_s, d.source_line) for d in program.dwells
+                       if first < d.before_segment < stop)
+        return Program(program.name, program.axis_names, program.segments[first:stop], dwells,
+                       program.path_tolerance_m)
+
+    def _add(self, begin: int, end: int) -> None:
+        """Plan the pieces of programmed segments ``begin .. end - 1``."""
+        first, stop = max(begin - 2, 0), min(end + 1, len(self.program.segments))
+        blended = blend_program(self._sub_program(first, stop), self.settings.tolerance_m, self.settings.corner_rad)
+        sources = np.asarray(blended.source_segment or range(len(blended.planned.segments)), dtype=np.intp) + first
+        rows = np.flatnonzero((sources >= begin) & (sources < end))
+        new = [blended.planned.segments[i] for i in rows.tolist()]
+        dwell = self._dwells(sources[rows], begin, end)
+        self._append(new, dwell)
+        self._next = end
+
+    def _dwells(self, sources: np.ndarray, begin: int, end: int) -> FloatArray:
+        """Dwell before each new planned segment, s: a programmed junction's goes to the first planned piece after
+        it (the whole plan's ``first_after``); one after the block's last piece is carried to the next block."""
+        programmed = self.program.junction_dwell_s
+        dwell = np.zeros(len(sources) + 1)
+        dwell[0] = self._carry_dwell_s
+        for k in (np.flatnonzero(programmed[begin:end] > 0.0) + begin).tolist():
+            dwell[int(np.searchsorted(sources, k))] += programmed[k]
+        self._carry_dwell_s = float(dwell[-1]) + (float(programmed[-1]) if end == len(self.program.segments) else 0.0)
+        return dwell[:-1]
+
+    def _append(self, new: list[Segment], dwell: FloatArray) -> None:
+        s = self.settings
+        start = len(self.segments)
+        speed, _, bands = plan_banded_limits(new, s.max_velocity_m_s, s.max_acceleration_m_s2,
+                                             s.centripetal_fraction, s.combined_budget, s.clamp_feed, start,
+                                             s.n_bands)
+        if bands.n_bands != s.n_bands:
+            bands = SpeedBands.single(speed, bands.accel_m_s2[:, -1], s.n_bands)
+        turns = junction_turns_rad(self.segments[-1:] + new)  # the junctions before new[1:], or before new[0:]
+        smooth = (turns <= s.corner_rad) & (dwell[len(dwell) - len(turns):] == 0.0)
+        length = np.array([seg.length_m for seg in new])
+        ends = np.cumsum(np.concatenate(([self._total_m], length)))  # sequential: the whole program's cumsum
+        self._total_m = float(ends[-1])
+        for name, value in (("length", length), ("start", ends[:-1]), ("cruise", speed), ("edges", bands.edges_m_s),
+                            ("accel", bands.accel_m_s2), ("smooth", smooth), ("dwell", dwell)):
+            self._grow(name, np.asarray(value))
+        self.segments.extend(new)
+
+    def _grow(self, name: str, rows: np.ndarray) -> None:
+        """Append ``rows`` to column ``name`` (capacity doubled when full: amortised O(1) per row)."""
+        size = self._sizes.get(name, 0)
+        column = self._columns.get(name)
+        if column is None or size + len(rows) > len(column):
+            grown = np.empty((max(2 * (size + len(rows)), 1024),) + rows.shape[1:], dtype=rows.dtype)
+            if column is not None:
+                grown[:size] = column[:size]
+            self._columns[name] = column = grown
+        column[size:size + len(rows)] = rows
+        self._sizes[name] = size + len(rows)
+
+    def column(self, name: str) -> np.ndarray:
+        """One per-segment array over every planned segment so far, a view (``smooth``: per inner junction)."""
+        return self._columns[name][:self._sizes[name]]
+
+    def end_dwell_s(self) -> float:
+        """The dwell at the program's end, s (once exhausted)."""
+        return self._carry_dwell_s
+
+
+class StreamPlan:
+    """The phases of a program's feed profile, planned a chunk at a time as far as asked (:meth:`extend_to`).
+
+    The lists ``start_s``, ``s0_m``, ``v0_m_s``, ``accel_m_s2``, ``segment`` (one entry per committed phase, as
+    :class:`~cnc_contour_control.motion.plan_arrays.Phases` without the end time) and ``segments`` (the planned segments
+    so far) only grow; ``planned_until_s`` is the end of the committed phases, ``finished`` whether that is the
+    profile's end.
+    """
+
+    def __init__(self, program: Program, settings: StreamSettings) -> None:
+        self.settings = settings
+        self._blocks = _Blocks(program, settings)
+        self.segments = self._blocks.segments
+        self.start_s: list[float] = []
+        self.s0_m: list[float] = []
+        self.v0_m_s: list[float] = []
+        self.accel_m_s2: list[float] = []
+        self.segment: list[int] = []
+        self.junction_speeds_m_s: list[float] = [0.0]
+        self.planned_until_s = 0.0
+        self.finished = False
+        self._chunk = max(settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
+        self._phases: Phases | None = None
+        self._plan_chunk()
+
+    @property
+    def committed_segments(self) -> int:
+        """Planned segments whose speeds and phases are committed."""
+        return len(self.junction_speeds_m_s) - 1
+
+    def extend_to(self, t_s: float) -> float:
+        """Plan until the committed phases reach past ``t_s`` (s) or the end; the duration if known, else inf."""
+        while not self.finished and self.planned_until_s <= t_s:
+            self._plan_chunk()
+        return self.planned_until_s if self.finished else math.inf
+
+    def finish(self) -> float:
+        """Plan to the end; the profile's duration, s."""
+        return self.extend_to(math.inf)
+
+    def _plan_chunk(self) -> None:
+        j, window = self.committed_segments, self.settings.look_ahead_segments
+        blocks = self._blocks
+        blocks.ensure(j + self._chunk + window + 1)
+        total = len(blocks.segments)
+        end = min(j + self._chunk + window, total)
+        last = blocks.exhausted and end == total
+        commit = end - j if last else self._chunk
+        length, cruise = blocks.column("length")[j:end], blocks.column("cruise")[j:end]
+        bands = SpeedBands(blocks.column("edges")[j:end], blocks.column("accel")[j:end])
+        caps = look_ahead_caps_m_s(bands.accel_m_s2[:, -1], length, window)  # inf past J + C unless last
+        speeds = banded_junction_speeds_m_s(cruise, bands, length, blocks.column("smooth")[j:end - 1], caps,
+                                            self.junction_speeds_m_s[-1])
+        self._commit(j, commit, speeds, last)
+
+    def _commit(self, j: int, commit: int, speeds: FloatArray, last: bool) -> None:
+        blocks = self._blocks
+        dwell = np.append(blocks.column("dwell")[j:j + commit], blocks.end_dwell_s() if last else 0.0)
+        bands = SpeedBands(blocks.column("edges")[j:j + commit], blocks.column("accel")[j:j + commit])
+        phases = banded_phases(blocks.column("length")[j:j + commit], speeds[:commit], speeds[1:commit + 1],
+                               blocks.column("cruise")[j:j + commit], bands, dwell)
+        self.start_s.extend((phases.start_s[:-1] + self.planned_until_s).tolist())
+        self.s0_m.extend(phases.s0_m.tolist())
+        self.v0_m_s.extend(phases.v0_m_s.tolist())
+        self.accel_m_s2.extend(phases.accel_m_s2.tolist())
+        self.segment.extend((phases.segment + j).tolist())
+        self.junction_speeds_m_s.extend(speeds[1:commit + 1].tolist())
+        self.planned_until_s += float(phases.start_s[-1])
+        self.finished = last
+
+    @property
+    def n_axes(self) -> int:
+        """Number of axes."""
+        return self._blocks.program.n_axes
+
+    @property
+    def segment_start_m(self) -> FloatArray:
+        """Path length at the start of every planned segment so far, m (as :attr:`Program.segment_start_m`)."""
+        return self._blocks.column("start")
+
+    @property
+    def total_length_m(self) -> float:
+        """Length of the planned segments so far, m (the program's once :attr:`finished`)."""
+        return float(np.sum(self._blocks.column("length")))
+
+    def phases(self) -> Phases:
+        """The committed phases as arrays (``start_s`` ends with :attr:`planned_until_s`)."""
+        if self._phases is None or self._phases.segment.size != len(self.segment):
+            self._phases = Phases(np.array(self.start_s + [self.planned_until_s]), np.array(self.s0_m),
+                                  np.array(self.v0_m_s), np.array(self.accel_m_s2),
+                                  np.array(self.segment, dtype=np.intp))
+        return self._phases
+
+    def whole(self) -> dict[str, object]:
+        """Plan to the end; the whole plan's arrays by :class:`Interpolator` attribute name."""
+        self.finish()
+        edges, accel = self._blocks.column("edges"), self._blocks.column("accel")
+        last = self.segments[-1]
+        return {"duration_s": self.planned_until_s, "_phases": self.phases(), "_end_point_m": last.point(last.length_m),
+                "junction_speeds_m_s": np.array(self.junction_speeds_m_s),
+                "cruise_speed_m_s": self._blocks.column("cruise"), "tangential_acceleration_m_s2": accel[:, -1],
+                "speed_bands": SpeedBands(edges, accel)}
+
+
+def stream_settings(max_velocity_m_s: FloatArray, max_acceleration_m_s2: FloatArray, config: Any,
+                    tolerance_m: float) -> StreamSettings:
+    """The settings of an :class:`~cnc_contour_control.motion.interpolation.InterpolatorConfig` (``config``)."""
+    return StreamSettings(np.asarray(max_velocity_m_s, float), np.asarray(max_acceleration_m_s2, float),
+                          config.arc_centripetal_fraction, config.arc_combined_budget, config.clamp_feed,
+                          config.arc_speed_bands if config.arc_combined_budget else 1, config.look_ahead_segments,
+                          tolerance_m, math.radians(config.corner_angle_tolerance_deg))
+
+
+def start_stream(interpolator: Any, program: Program, limits: Any, tolerance_m: float) -> StreamPlan | None:
+    """A :class:`StreamPlan` for ``interpolator`` if its window is shorter than ``program``, else None (plan whole).
+
+    Hands the interpolator the stream's growing lists as its sampling views (``_view``: segments, path starts;
+    ``_phase_*``), so that its :meth:`sample` reads what is committed so far.
+    """
+    config = interpolator.config
+    if config.look_ahead_segments >= len(program.segments):
+        return None
+    stream = StreamPlan(program, stream_settings(limits.max_velocity_m_s, limits.max_acceleration_m_s2, config,
+                                                 tolerance_m))
+    interpolator.__dict__.update({"_view": stream, "_phase_start_s": stream.start_s, "_phase_s0_m": stream.s0_m,
+                                  "_phase_v0_m_s": stream.v0_m_s, "_phase_accel_m_s2": stream.accel_m_s2,
+                                  "_phase_segment": stream.segment})
+    return stream
+
+
+def whole_plan(interpolator: Any, name: str) -> dict[str, object]:
+    """The attributes of a streaming ``interpolator`` that need the whole plan, for attribute ``name``.
+
+    ``program`` and ``blended``: the whole program blended at once (the same segments as the stream's);
+    the profile's arrays (``duration_s``, ``junction_speeds_m_s``, ...): the stream planned to the end.
+
+    Raises
+    ------
+    AttributeError
+        If ``name`` is none of them.
+    """
+    stream: StreamPlan = interpolator.__dict__["_stream"]
+    if name in ("program", "blended"):
+        settings = stream.settings
+        blended = blend_program(interpolator.programmed_program, settings.tolerance_m, settings.corner_rad)
+        return {"blended": blended, "program": blended.planned}
+    if name in ("duration_s", "_phases", "_end_point_m", "junction_speeds_m_s", "cruise_speed_m_s",
+                "tangential_acceleration_m_s2", "speed_bands"):
+        return stream.whole()
+    raise AttributeError(f"{type(interpolator).__name__!r} object has no attribute {name!r}")

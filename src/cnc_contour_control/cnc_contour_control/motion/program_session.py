@@ -1,0 +1,339 @@
+"""Programs one after another on a running machine: the interpolator's action mode (ROS-free).
+
+A :class:`ProgramSession` answers every tick (lockstep stays intact, the plant
+keeps ticking). Idle, its reference holds the commanded position (at first
+the measured one) at rest. :meth:`ProgramSession.prepare` turns a goal into a
+planned program (a :class:`~cnc_contour_control.motion.feed_override.LiveReference`,
+so a malformed program or one beyond the axis limits is refused before it
+starts); :meth:`ProgramSession.start` queues it and it starts at the next
+tick, its times counted from that tick's stamp. Each tick
+
+    reference   LiveReference.step(t_k - t_start, request)
+    following   max_j |reference_j - position_j|
+    contour     Program.contour_distance(position)   (the program as written)
+
+with ``request`` the feed override asked (0 once cancelled: the feed-hold
+ramp stops the reference on the path within the acceleration limits). The
+program ends when its reference is at rest, at the end (completed) or on the
+path after a cancel (canceled), plus ``settle_time_s`` during which the
+following error is still scored; then the session holds the last reference.
+
+When the machine stops under a program (an e-stop, a following-error trip:
+:meth:`ProgramSession.machine_stopped`) the program ends at once as faulted
+with the cause, and until :meth:`ProgramSession.machine_running` the hold
+follows the measured position (LinuxCNC: while the machine is off the
+commanded position tracks the feedback), so the reference stands where the
+machine came to rest; a goal is refused with the cause meanwhile.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from cnc_contour_control.core.config import require_choice
+from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.core.lockstep import NS_PER_S, ns_to_s
+from cnc_contour_control.core.params import check_ranges, param
+from cnc_contour_control.core.units import mm_to_m
+from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
+from cnc_contour_control.motion.geometry import FloatArray, Program
+from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig, ReferenceSample
+from cnc_contour_control.motion.program_goal import ProgramGoal, goal_program
+
+#: Where the interpolator's program comes from: ``file`` the ``program_file`` parameter, run once at start-up;
+#: ``action`` RunProgram goals, any number in a row, holding position in between.
+PROGRAM_SOURCES = ("file", "action")
+#: How a program ended (the RunProgram result's outcome, in its constants' order).
+OUTCOMES = ("completed", "canceled", "faulted")
+#: A reference slower than this on every axis is at rest, m/s (an exponential accel_decel never reaches 0).
+STOPPED_SPEED_M_S = 1.0e-7
+#: Measured positions scored by one call of Program.contour_distance.
+SCORE_BATCH = 64
+
+
+@dataclass(frozen=True)
+class ProgramSessionParams:
+    """The interpolator's program source and the options of its action mode.
+
+    Parameters
+    ----------
+    program_source : str
+        One of :data:`PROGRAM_SOURCES`.
+    start_tolerance_mm : float
+        Largest distance of a segment path's or YAML program's start from the
+        machine, mm, in [0, 1000].
+    settle_time_s : float
+        Time scored after the reference came to rest before the goal ends, s, in [0, 60].
+    feedback_period_s : float
+        Wall time between two feedback messages, s, in [0.01, 10].
+    bag_path : str
+        Where a recorder writes the run (returned in each result; "": none).
+    """
+
+    program_source: str = param("file", read_only=True,
+                                description="file: program_file run once; action: RunProgram goals in a row")
+    start_tolerance_mm: float = param(1.0e-3, unit="mm", low=0.0, high=1000.0, read_only=True,
+                                      description="largest distance of a non-G-code goal's start from the machine")
+    settle_time_s: float = param(0.05, unit="s", low=0.0, high=60.0, read_only=True,
+                                 description="time scored after a goal's reference came to rest")
+    feedback_period_s: float = param(0.2, unit="s", low=0.01, high=10.0, read_only=True,
+                                     description="wall time between two RunProgram feedback messages")
+    bag_path: str = param("", read_only=True, description="the run's recording, returned in every result "
+                                                          "(empty: none)")
+
+    def __post_init__(self) -> None:
+        require_choice("program_source", self.program_source, PROGRAM_SOURCES)
+        if not isinstance(self.bag_path, str):
+            raise ConfigError(f"bag_path must be a path, got {self.bag_path!r}")
+        check_ranges(self)
+
+
+@dataclass(frozen=True)
+class ProgramFeedback:
+    """Progress of the running program (the RunProgram feedback; SI units)."""
+
+    line_number: int
+    segment_index: int
+    path_length_m: float
+    total_length_m: float
+    feed_m_s: float
+    feed_override_ratio: float
+    contour_error_m: float
+    following_error_m: float
+    elapsed_s: float
+
+
+@dataclass(frozen=True)
+class ProgramOutcome:
+    """How a program ended and its scores (the RunProgram result; SI units).
+
+    ``outcome`` is one of :data:`OUTCOMES`; errors are NaN for a program
+    that never ticked.
+    """
+
+    outcome: str
+    reason: str
+    program_name: str
+    max_contour_error_m: float
+    rms_contour_error_m: float
+    max_following_error_m: float
+    cycle_time_s: float
+    path_length_m: float
+    total_length_m: float
+    ticks: int
+
+
+class LiveScores:
+    """Contour and following error of the measured positions, accumulated tick by tick.
+
+    Parameters
+    ----------
+    program : Program
+        The program as written; the contour error is ``program.contour_distance``
+        (the scorer's), computed in batches of ``batch`` positions.
+    """
+
+    def __init__(self, program: Program, batch: int = SCORE_BATCH) -> None:
+        self.program, self.batch = program, int(batch)
+        self._pending: list[FloatArray] = []
+        self.ticks = 0
+        self.max_contour_m = self.max_following_m = 0.0
+        self.latest_contour_m = self.latest_following_m = math.nan
+        self._sum_square_m2 = 0.0
+        self._scored = 0
+
+    def add(self, position_m: FloatArray, reference_m: FloatArray) -> None:
+        """One tick: the measured position and the reference at the same stamp, m, shape ``(n_axes,)``."""
+        self.latest_following_m = float(np.max(np.abs(reference_m - position_m)))
+        self.max_following_m = max(self.max_following_m, self.latest_following_m)
+        self._pending.append(np.array(position_m, dtype=float))
+        self.ticks += 1
+        if len(self._pending) >= self.batch:
+            self.flush()
+
+    def flush(self) -> None:
+        """Score the positions not yet scored."""
+        if not self._pending:
+            return
+        distance_m, _ = self.program.contour_distance(np.vstack(self._pending))
+        self._pending.clear()
+        self.max_contour_m = max(self.max_contour_m, float(np.max(distance_m)))
+        self._sum_square_m2 += float(np.dot(distance_m, distance_m))
+        self._scored += distance_m.size
+        self.latest_contour_m = float(distance_m[-1])
+
+    @property
+    def rms_contour_m(self) -> float:
+        """Root mean square of the contour error over the scored ticks, m (NaN before any)."""
+        self.flush()
+        return math.sqrt(self._sum_square_m2 / self._scored) if self._scored else math.nan
+
+
+@dataclass
+class _Run:
+    """A planned program and where it stands."""
+
+    program: Program
+    live: LiveReference
+    scores: LiveScores
+    start_ns: int | None = None
+    stopping: bool = False
+    rest_ns: int | None = None
+    last: ReferenceSample | None = None
+    last_ns: int = 0
+
+
+class ProgramSession:
+    """Runs programs one after another and holds position in between (see the module notes).
+
+    Parameters
+    ----------
+    axes : sequence of str
+        Axis order of positions and programs.
+    limits : AxisLimits
+        The machine's axis limits.
+    interpolator_config : InterpolatorConfig
+        The planner's options (a goal's ``path_tolerance_mm`` > 0 replaces its tolerance).
+    override_config : OverrideConfig
+        The live feed override's options (the ramp of a cancel uses them too).
+    params : ProgramSessionParams
+    """
+
+    def __init__(self, axes: Sequence[str], limits: AxisLimits, interpolator_config: InterpolatorConfig,
+                 override_config: OverrideConfig, params: ProgramSessionParams) -> None:
+        self.axes = tuple(axes)
+        self.limits, self.interpolator_config, self.override_config = limits, interpolator_config, override_config
+        self.params = params
+        self.hold_position_m: FloatArray | None = None
+        self._run: _Run | None = None
+        self._started: _Run | None = None
+        self._outcome: ProgramOutcome | None = None
+        self.stop_cause = ""  # why the machine is stopped ("" while it runs)
+
+    @property
+    def busy(self) -> bool:
+        """True from :meth:`start` until the program's outcome is known."""
+        return self._run is not None
+
+    def prepare(self, goal: ProgramGoal) -> tuple[Program, LiveReference]:
+        """The goal's program and its planned reference; a ProgramError with the reason if it cannot run now."""
+        if self._run is not None:
+            raise ProgramError(f"busy: program {self._run.program.name!r} is running; cancel it or wait for its end")
+        if self.hold_position_m is None:
+            raise ProgramError("no joint_states yet: the machine's position is unknown")
+        if self.stop_cause:
+            raise ProgramError(f"the machine is stopped: {self.stop_cause}; reset and enable it first")
+        program = goal_program(goal, self.axes, self.hold_position_m, mm_to_m(self.params.start_tolerance_mm))
+        config = self.interpolator_config
+        if goal.path_tolerance_mm > 0.0:
+            config = dataclasses.replace(config, path_tolerance_mm=goal.path_tolerance_mm)
+        return program, LiveReference(program, self.limits, config, self.override_config)
+
+    def start(self, program: Program, live: LiveReference) -> None:
+        """Queue a prepared program: it starts at the next tick."""
+        if self._run is not None:
+            raise ProgramError(f"busy: program {self._run.program.name!r} is running")
+        self._run = _Run(program, live, LiveScores(program))
+
+    def cancel(self) -> bool:
+        """Stop the running program on its path (the feed-hold ramp); False if none runs."""
+        if self._run is None:
+            return False
+        self._run.stopping = True
+        return True
+
+    def abort(self, reason: str) -> None:
+        """End the running program at once as ``faulted`` (the node faulted; the reference stops here)."""
+        if self._run is not None:
+            self._finish(self._run, "faulted", reason)
+
+    def machine_stopped(self, cause: str) -> None:
+        """The machine stopped (``cause``): a running program ends as faulted; the hold follows the machine."""
+        self.stop_cause = cause or "the machine stopped"
+        if self._run is not None:
+            self._finish(self._run, "faulted", f"machine stopped: {self.stop_cause}")
+
+    def machine_running(self) -> None:
+        """The machine runs again (reset and enabled): the hold stays where the machine stands; goals welcome."""
+        self.stop_cause = ""
+
+    def step(self, stamp_ns: int, position_m: Sequence[float], requested_ratio: float = 1.0) -> ReferenceSample:
+        """The reference of the tick at ``stamp_ns`` [ns] given the measured ``position_m`` [m, (n_axes,)]."""
+        measured = np.asarray(position_m, dtype=float)
+        if self.hold_position_m is None or self.stop_cause:
+            self.hold_position_m = measured.copy()
+        if self.stop_cause and self._run is not None:  # started while the machine stopped: it cannot move
+            self.machine_stopped(self.stop_cause)
+        run = self._run
+        if run is None:
+            return self._hold_sample(self.hold_position_m)
+        if run.start_ns is None:
+            run.start_ns, self._started = stamp_ns, run
+        relative_ns = stamp_ns - run.start_ns
+        ratio = 0.0 if run.stopping else run.live.request(relative_ns, requested_ratio)
+        sample = run.live.step(relative_ns, ratio)
+        run.scores.add(measured, sample.position_m)
+        run.last, run.last_ns = sample, stamp_ns
+        self._check_end(run, sample, stamp_ns)
+        return sample
+
+    def _check_end(self, run: _Run, sample: ReferenceSample, stamp_ns: int) -> None:
+        """Note when the reference came to rest (at the end, or held after a cancel); finish after settling."""
+        at_rest = float(np.max(np.abs(sample.velocity_m_s))) <= STOPPED_SPEED_M_S
+        held = run.stopping and sample.feed_override_ratio == 0.0
+        if run.rest_ns is None and at_rest and (sample.done or held):
+            run.rest_ns = stamp_ns
+        if run.rest_ns is not None and ns_to_s(stamp_ns - run.rest_ns) >= self.params.settle_time_s:
+            outcome = "completed" if sample.done else "canceled"
+            self._finish(run, outcome, "" if sample.done else "cancelled: stopped on the path")
+
+    def _hold_sample(self, hold_m: FloatArray) -> ReferenceSample:
+        zeros = np.zeros(len(self.axes))
+        return ReferenceSample(position_m=hold_m.copy(), velocity_m_s=zeros,
+                               acceleration_m_s2=zeros.copy(), path_length_m=0.0, segment_index=0, feed_m_s=0.0,
+                               programmed_feed_m_s=0.0, done=True)
+
+    def _finish(self, run: _Run, outcome: str, reason: str) -> None:
+        scores = run.scores
+        rms = scores.rms_contour_m
+        ticked = scores.ticks > 0
+        end_ns = run.rest_ns if run.rest_ns is not None else run.last_ns
+        self._outcome = ProgramOutcome(
+            outcome=outcome, reason=reason, program_name=run.program.name,
+            max_contour_error_m=scores.max_contour_m if ticked else math.nan, rms_contour_error_m=rms,
+            max_following_error_m=scores.max_following_m if ticked else math.nan,
+            cycle_time_s=ns_to_s(end_ns - run.start_ns) if run.start_ns is not None else 0.0,
+            path_length_m=run.last.path_length_m if run.last is not None else 0.0,
+            total_length_m=run.live.interpolator.program.total_length_m, ticks=scores.ticks)
+        if run.last is not None:
+            self.hold_position_m = np.array(run.last.position_m, dtype=float)
+        self._run = None
+
+    def take_started(self) -> tuple[Program, LiveReference, int] | None:
+        """Once per program: (program, planned reference, start stamp ns) after its first tick; else None."""
+        run, self._started = self._started, None
+        return None if run is None or run.start_ns is None else (run.program, run.live, run.start_ns)
+
+    def take_outcome(self) -> ProgramOutcome | None:
+        """Once per program: its outcome after it ended; else None."""
+        outcome, self._outcome = self._outcome, None
+        return outcome
+
+    def feedback(self) -> ProgramFeedback | None:
+        """The running program's progress (None before its first tick or when idle)."""
+        run = self._run
+        if run is None or run.last is None or run.start_ns is None:
+            return None
+        run.scores.flush()
+        sample, planned = run.last, run.live.interpolator.program
+        line = getattr(planned.segments[sample.segment_index], "source_line", None)
+        return ProgramFeedback(
+            line_number=int(line or 0), segment_index=int(sample.segment_index),
+            path_length_m=float(sample.path_length_m), total_length_m=float(planned.total_length_m),
+            feed_m_s=float(sample.feed_m_s), feed_override_ratio=float(sample.feed_override_ratio),
+            contour_error_m=run.scores.latest_contour_m, following_error_m=run.scores.latest_following_m,
+            elapsed_s=(run.last_ns - run.start_ns) / NS_PER_S)

@@ -1,0 +1,1 @@
+"""Cutting processes (turning, milling) that load the feed drives."""

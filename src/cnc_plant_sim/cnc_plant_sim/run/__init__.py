@@ -1,0 +1,1 @@
+"""The plant's run: clock, parameters, watchdog and the command source."""

@@ -1,0 +1,94 @@
+"""The plant's command watchdog in real-time mode (ros2_control's cmd_timeout semantics; ROS-free).
+
+Every real-time tick, per axis: a command that arrived for the tick's stamp
+is fresh; otherwise it is *late* (counted) and the last command is held,
+unless the last fresh one is older than ``command_max_age_s``: then the
+command is replaced by the safe hold, a zero command (counted as *held*).
+For every plant of :data:`cnc_plant_sim.models.plant.PLANTS` zero means "no drive":
+the force/voltage-commanded feed drives coast to rest under friction, the
+velocity-commanded axes (papers 002/003) stop and hold their position.
+
+Once ``late_share_min_ticks`` ticks have run, a share of late commands
+(late / (ticks · axes)) above ``max_late_share`` is a fault: a run whose
+loop does not keep its deadline ends faulted instead of reporting no fault.
+Lockstep runs wait for every command and never consult the watchdog.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.lockstep import seconds_to_ns
+from cnc_contour_control.core.params import check_ranges, param
+
+__all__ = ["CommandWatchdog", "WatchdogParams"]
+
+
+@dataclass(frozen=True)
+class WatchdogParams:
+    """The watchdog's parameters (the plant's run parameters inherit them)."""
+
+    command_max_age_s: float = param(0.1, unit="s", low=1.0e-5, high=3600.0, read_only=True,
+                                     description="real time: a command older than this is replaced by a zero "
+                                                 "command (safe hold)")
+    max_late_share: float = param(0.25, low=0.0, high=1.0, read_only=True,
+                                  description="real time: a share of late commands above this faults the run "
+                                              "(1: never)")
+    late_share_min_ticks: int = param(100, low=1, high=1_000_000_000, read_only=True,
+                                      description="real time: ticks before the late share is judged")
+
+    def __post_init__(self) -> None:
+        check_ranges(self)
+
+
+class CommandWatchdog:
+    """Late and stale commands of ``n_axes`` axes (see the module docstring).
+
+    Parameters
+    ----------
+    params : WatchdogParams
+        Limits (any object with its fields, e.g. ``PlantRunParams``).
+    n_axes : int
+        Number of axes (commands per tick).
+    """
+
+    def __init__(self, params: WatchdogParams, n_axes: int) -> None:
+        self.params = params
+        self.n_axes = int(n_axes)
+        self.max_age_ns = seconds_to_ns(params.command_max_age_s)
+        self.reset()
+
+    def reset(self) -> None:
+        """No ticks, no late commands; every axis fresh at stamp 0."""
+        self.ticks = 0
+        self.late_commands = 0
+        self.held_commands = 0
+        self._fresh_ns = [0] * self.n_axes
+
+    def tick(self, stamp_ns: int, received: Sequence[bool], commands: Sequence[float]) -> list[float]:
+        """The commands to apply at ``stamp_ns``: fresh ones, held late ones, zero for stale ones."""
+        out = list(commands)
+        for i, fresh in enumerate(received):
+            if fresh:
+                self._fresh_ns[i] = stamp_ns
+                continue
+            self.late_commands += 1
+            if stamp_ns - self._fresh_ns[i] > self.max_age_ns:
+                out[i] = 0.0
+                self.held_commands += 1
+        self.ticks += 1
+        return out
+
+    @property
+    def late_share(self) -> float:
+        """Late commands / (ticks · axes) so far (0 before the first tick)."""
+        return self.late_commands / (self.ticks * self.n_axes) if self.ticks else 0.0
+
+    def check(self) -> None:
+        """Raise :class:`FaultError` when the late share exceeds ``max_late_share`` (after the minimum ticks)."""
+        if self.ticks < self.params.late_share_min_ticks or self.late_share <= self.params.max_late_share:
+            return
+        raise FaultError(f"plant: {self.late_commands} of {self.ticks * self.n_axes} commands late "
+                         f"({100 * self.late_share:.1f} %) after {self.ticks} ticks: late share "
+                         f"{self.late_share:.4f} exceeds max_late_share {self.params.max_late_share:g}")
