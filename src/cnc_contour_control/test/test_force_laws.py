@@ -191,7 +191,7 @@ def test_regulator_refuses_bad_config() -> None:
 def _replay(plan_ratios: np.ndarray, period_s: float, start_s: float, step_s: float) -> np.ndarray:
     loop, dt_s, out = ModelLoop(1.0), 1e-3, []
     for ratio in plan_ratios:
-        for k in range(int(round(period_s / dt_s))):
+        for _ in range(int(round(period_s / dt_s))):
             loop.depth_mm = 2.0 if start_s + len(out) * dt_s >= step_s - 1e-9 else 1.0
             out.append(loop.step(dt_s, ratio))
     return np.array(out)

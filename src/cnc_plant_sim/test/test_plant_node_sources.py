@@ -44,7 +44,7 @@ def joint_command(axes: list[str], k: int, field: str = "effort") -> JointState:
 def drive(probe: TopicProbe, ticks: int, send: Any) -> list[tuple[float, ...]]:
     """Answer ``ticks`` ticks with ``send(k)``; the joint positions the plant published."""
     for k in range(ticks):
-        probe.wait_for(lambda: len(probe.received(STATES)) > k, 10.0, f"tick {k}")
+        probe.wait_for(lambda k=k: len(probe.received(STATES)) > k, 10.0, f"tick {k}")
         send(k)
     probe.wait_for(lambda: len(probe.received(STATES)) > ticks, 10.0, "the last tick")
     return [tuple(m.position) for m in probe.received(STATES)]

@@ -38,7 +38,7 @@ def run_ticks(probe: TopicProbe, pub: Any, first: int, last: int, value: float) 
     """Answer ticks first..last with ``value``; the x velocity at each tick's stamp."""
     velocities = []
     for k in range(first, last + 1):
-        probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > k, 10.0, f"tick {k}")
+        probe.wait_for(lambda k=k: len(probe.received("/cnc/joint_states")) > k, 10.0, f"tick {k}")
         state = probe.received("/cnc/joint_states")[k]
         assert stamp_to_ns(state.header.stamp) == k * T_NS
         velocities.append(state.velocity[0])

@@ -70,7 +70,7 @@ def test_a_gain_set_at_run_time_is_applied_keeping_the_laws_state_and_a_bad_one_
             expected.append(retuned.step(0.01, x_ref, 1e-3, 0.0, x, 0.0, 0.0).command)
             if k >= 6:
                 restarted.append(fresh.step(0.01, x_ref, 1e-3, 0.0, x, 0.0, 0.0).command)
-            probe.wait_for(lambda: len(probe.received(COMMAND)) == k + 1, 10.0, f"command {k}")
+            probe.wait_for(lambda k=k: len(probe.received(COMMAND)) == k + 1, 10.0, f"command {k}")
         assert servo.node.controller.law.config == after.law_config()
     commands = [m.command for m in probe.received(COMMAND)]
     assert commands == expected, "the change applied from tick 6, the law's state (its integral) kept"

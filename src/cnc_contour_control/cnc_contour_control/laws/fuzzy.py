@@ -30,7 +30,7 @@ from __future__ import annotations
 import dataclasses
 from bisect import bisect_right
 from collections.abc import Mapping, Sequence
-from typing import Any, Union
+from typing import Any
 
 from cnc_contour_control.core.config import require_finite, require_positive
 from cnc_contour_control.core.errors import ConfigError, FaultError
@@ -42,7 +42,7 @@ SET_NAMES: tuple[str, ...] = ("NL", "NM", "NS", "ZR", "PS", "PM", "PL")
 N_SETS = len(SET_NAMES)
 
 RuleBase = tuple[tuple[str, ...], ...]
-RuleBaseSpec = Union[str, Sequence[Sequence[str]]]
+RuleBaseSpec = str | Sequence[Sequence[str]]
 
 #: Paper 000's sample time [s]: its Table 3 and 4 values are per sample at this T.
 PAPER000_SAMPLE_TIME_S = 0.01

@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -149,7 +148,7 @@ class LineSegment:
         return (direction[0] * relative[:, b] - direction[1] * relative[:, a]) / norm
 
 
-Segment = Union[LineSegment, ArcSegment]
+Segment = LineSegment | ArcSegment
 
 
 def segment_label(index: int, segment: Segment) -> str:

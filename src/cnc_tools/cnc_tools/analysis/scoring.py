@@ -374,7 +374,7 @@ def _error_table(title: str, stats: Sequence[ErrorStats], extra: Sequence[ErrorS
                  units: Mapping[str, float]) -> list[str]:
     header = [[title, "n", *(m.name for m in metrics)], ["", "", *(m.unit_label("um") for m in metrics)]]
     rows = _stats_rows(stats, metrics, "um", units["um"])
-    rows += _stats_rows(stats, [m for m in metrics], "blu", units["blu"], " [BLU]")
+    rows += _stats_rows(stats, list(metrics), "blu", units["blu"], " [BLU]")
     rows += _stats_rows(extra, metrics, "um", units["um"])
     return _render(header, rows)
 

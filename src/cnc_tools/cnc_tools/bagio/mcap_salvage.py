@@ -107,7 +107,7 @@ def _on_message(scan: SalvageScan, body: memoryview) -> None:
 def _on_statistics(scan: SalvageScan, body: memoryview) -> None:
     (size,) = struct.unpack_from("<I", body, 42)
     entries = body[46:46 + size]
-    scan.statistics = {cid: n for cid, n in struct.iter_unpack("<HQ", entries)} if size % 10 == 0 else None
+    scan.statistics = dict(struct.iter_unpack("<HQ", entries)) if size % 10 == 0 else None
 
 
 def _on_chunk(scan: SalvageScan, body: memoryview, *, truncated: bool) -> None:

@@ -82,14 +82,18 @@ class Scenario:
     def override_source(self) -> str:
         """The interpolator's ``feed_override_source``: ``previous_tick`` with a force regulator, ``schedule``
         with a schedule, ``topic`` with a section alone (requests from outside the run), else ``none``."""
+        self.check_override_requests()
         if self.pipeline().has("force_regulator"):
-            if self.override_config.has_schedule:
-                raise ConfigError("scenario.feed_override.schedule and the force_regulator stage both request "
-                                  "the feed override: give one of them")
             return "previous_tick"
         if self.feed_override is None:
             return "none"
         return "schedule" if self.feed_override.has_schedule else "topic"
+
+    def check_override_requests(self) -> None:
+        """Refuses a feed-override schedule beside the force_regulator stage: both would request the override."""
+        if self.pipeline().has("force_regulator") and self.override_config.has_schedule:
+            raise ConfigError("scenario.feed_override.schedule and the force_regulator stage both request "
+                              "the feed override: give one of them")
 
     def make_interpolator(self) -> Interpolator:
         """A fresh interpolator of this scenario's program (planned for the override's ``max_ratio`` when active)."""
@@ -180,7 +184,7 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         feed_override=feed_override,
         **_cross_axis(raw),
     )
-    scenario.override_source
+    scenario.check_override_requests()
     _check_force_loop(scenario)
     return scenario
 

@@ -217,7 +217,7 @@ def print_sweep(rows: Sequence[Mapping[str, Any]], plan: Plan) -> None:
             peak = "-" if figure is None else "refused" if "error" in figure else f"{figure['disturbance_peak']:.2f}"
             entries.append(f"{_pct(r['removal'][law])} [{peak}]")
         cells.append([f"{r['f_d_hz']:g}", _num(r["bare_fd_pulse"]), _num(r["floor_fd_pulse"]), *entries])
-    print(format_table(["f_d Hz", "P f_d line", "floor", *[METHODS[l] for l in laws]], cells))
+    print(format_table(["f_d Hz", "P f_d line", "floor", *[METHODS[law] for law in laws]], cells))
 
 
 def works_summary(predictions: Mapping[str, Mapping[float, Mapping[str, Any]]]) -> dict[str, list[float]]:

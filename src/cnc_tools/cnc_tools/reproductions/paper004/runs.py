@@ -113,7 +113,11 @@ class Result:
     plans: tuple[StepPlan, ...] = ()
 
 
-def plans_for(case: Case, preview: PreviewConfig = PreviewConfig()) -> tuple[StepPlan, ...]:
+#: The default preview window (a frozen config, shared by the defaults below).
+DEFAULT_PREVIEW = PreviewConfig()
+
+
+def plans_for(case: Case, preview: PreviewConfig = DEFAULT_PREVIEW) -> tuple[StepPlan, ...]:
     """The preview plans of ``case`` on the nominal model (none without a preview)."""
     if case.preview is None:
         return ()
@@ -121,7 +125,7 @@ def plans_for(case: Case, preview: PreviewConfig = PreviewConfig()) -> tuple[Ste
                          switch(case.quantised), preview)
 
 
-def run_case(case: Case, duration_s: float = data.DURATION_S, preview: PreviewConfig = PreviewConfig()) -> Result:
+def run_case(case: Case, duration_s: float = data.DURATION_S, preview: PreviewConfig = DEFAULT_PREVIEW) -> Result:
     """Run ``case`` on the paper's scenario (``duration_s`` shorter for quick checks)."""
     model = paper_model()
     config = ForceRegulatorConfig(law=case.law, law_params=case.law_params, quantiser=switch(case.quantised),
