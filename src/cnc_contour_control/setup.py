@@ -17,7 +17,8 @@ setup(
     zip_safe=True,
     maintainer="CNC contour-control developers",
     maintainer_email="cnc-contour@example.org",
-    description="Contour control of a multi-axis CNC: interpolation, per-axis servo laws, contour-error estimation, compensation (ROS-free core and thin nodes).",
+    description="Contour control of a multi-axis CNC: interpolation, per-axis servo laws, contour-error estimation, "
+                "compensation (ROS-free core and thin nodes).",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

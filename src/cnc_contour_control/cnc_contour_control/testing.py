@@ -123,7 +123,8 @@ class TopicProbe(_BackgroundNode):
 
 
 def wait_until(condition: Callable[[], bool], timeout_s: float, what: str, poll_s: float = 0.01) -> None:
-    """Wait until ``condition()`` holds, looking every ``poll_s``; AssertionError naming ``what`` after ``timeout_s``."""
+    """Wait until ``condition()`` holds, looking every ``poll_s``; AssertionError naming ``what`` after
+    ``timeout_s``."""
     deadline = time.monotonic() + timeout_s
     while not condition():
         if time.monotonic() > deadline:

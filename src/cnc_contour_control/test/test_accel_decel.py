@@ -67,7 +67,8 @@ def _interpolator(kind: str, t_ip_s: float) -> Interpolator:
     config = build_config(InterpolatorConfig, {"accel_decel": {"kind": kind, "time_constant_s": t_ip_s}})
     arc = ArcSegment(start_m=(0.0, 0.0), end_m=(0.0, 0.0), center_m=(0.0, 0.01), clockwise=False,
                      feed_m_s=4.0 / 60.0)
-    return Interpolator(Program(name="circle", axis_names=("x", "y"), segments=(arc,)), AxisLimits((1.0, 1.0), (2.0, 2.0)), config)
+    return Interpolator(Program(name="circle", axis_names=("x", "y"), segments=(arc,)),
+                        AxisLimits((1.0, 1.0), (2.0, 2.0)), config)
 
 
 @pytest.mark.parametrize("kind", ["exponential", "linear"])

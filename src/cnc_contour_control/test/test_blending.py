@@ -18,7 +18,8 @@ from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, I
 from cnc_contour_control.motion.segment_tangents import end_tangents
 from cnc_contour_control.testing import sibling_module
 
-_INTERPOLATION_TESTS = sibling_module(__file__, "test_interpolation")  # its check_limits, the one limit check of the planner
+# its check_limits, the one limit check of the planner
+_INTERPOLATION_TESTS = sibling_module(__file__, "test_interpolation")
 
 LIMITS_2 = AxisLimits((2000 / 60000,) * 2, (0.25, 0.25))
 LIMITS_3 = AxisLimits((2000 / 60000,) * 3, (0.25, 0.25, 0.4))

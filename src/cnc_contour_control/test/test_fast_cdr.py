@@ -20,7 +20,8 @@ SUITE_TYPES = [getattr(importlib.import_module("cnc_contour_interfaces.msg"), p.
                for p in sorted(MSG_DIR.glob("*.msg"))]
 STANDARD_TYPES = [getattr(importlib.import_module(module), name) for module, name in (
     ("sensor_msgs.msg", "JointState"), ("trajectory_msgs.msg", "JointTrajectory"),
-    ("diagnostic_msgs.msg", "DiagnosticArray"), ("std_msgs.msg", "Float64"), ("std_msgs.msg", "Bool"), ("std_msgs.msg", "Empty"),
+    ("diagnostic_msgs.msg", "DiagnosticArray"), ("std_msgs.msg", "Float64"), ("std_msgs.msg", "Bool"),
+    ("std_msgs.msg", "Empty"),
     ("builtin_interfaces.msg", "Time"), ("rosgraph_msgs.msg", "Clock"))]
 TYPES = SUITE_TYPES + STANDARD_TYPES
 _INT_BITS = {"int8": (True, 8), "uint8": (False, 8), "int16": (True, 16), "uint16": (False, 16),

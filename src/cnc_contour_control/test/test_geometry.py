@@ -200,7 +200,8 @@ def test_program_refuses_a_gap_naming_the_segment() -> None:
     first = LineSegment([0.0, 0.0], [0.01, 0.0], FEED_M_S)
     second = LineSegment([0.01, 0.0], [0.01, 0.01], FEED_M_S)
     third = LineSegment([0.01, 0.0105], [0.0, 0.02], FEED_M_S)
-    with pytest.raises(ProgramError, match=r"segment 2: .* 0.0005 m from the end of segment 1 .*; contiguity tolerance is 1e-06 m"):
+    with pytest.raises(ProgramError,
+                       match=r"segment 2: .* 0.0005 m from the end of segment 1 .*; contiguity tolerance is 1e-06 m"):
         Program("gap", ("x", "y"), (first, second, third))
 
 

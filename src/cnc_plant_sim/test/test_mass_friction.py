@@ -150,11 +150,14 @@ def test_a_wrong_count_or_period_is_refused() -> None:
 
 @pytest.mark.parametrize(("mapping", "message"), [
     ({"axis_overrides": {"x": {"mass": 0.0}}}, "axis_overrides.x.mass must be in [1e-06, 1000000.0], got 0.0"),
-    ({"axis_overrides": {"y": {"coulomb_n": -1.0}}}, "axis_overrides.y.coulomb_n must be in [0.0, 1000000.0], got -1.0"),
+    ({"axis_overrides": {"y": {"coulomb_n": -1.0}}},
+     "axis_overrides.y.coulomb_n must be in [0.0, 1000000.0], got -1.0"),
     ({"axis_overrides": {"x": {"gain": 1.0}}}, "axis_overrides.x.gain: unknown key; valid keys are ['coulomb_n'"),
     ({"axes": ["x", "w"]}, "axes: paper001 has axes ['x', 'y', 'z'], got 'w'"),
-    ({"mass_friction": {"length_unit": "inch"}}, "mass_friction.length_unit must be one of ['m', 'mm', 'um'], got 'inch'"),
-    ({"mass_friction": {"cutting_load": "x"}}, "mass_friction.cutting_load must be one of ['feed_power', 'none'], got 'x'"),
+    ({"mass_friction": {"length_unit": "inch"}},
+     "mass_friction.length_unit must be one of ['m', 'mm', 'um'], got 'inch'"),
+    ({"mass_friction": {"cutting_load": "x"}},
+     "mass_friction.cutting_load must be one of ['feed_power', 'none'], got 'x'"),
     ({"mass_friction": {"cutting_exponent": 4.0}}, "mass_friction.cutting_exponent must be in [0.0, 3.0], got 4.0"),
     ({"mass_friction": {"cutting_force": 1.0}}, "mass_friction.cutting_force: unknown key; valid keys are"),
 ])

@@ -110,7 +110,8 @@ def test_custom_plant_and_overrides() -> None:
 
 
 @pytest.mark.parametrize(("mapping", "message"), [
-    ({"model": "paper999"}, "model must be one of ['custom', 'paper000', 'paper001', 'paper002', 'paper003'], got 'paper999'"),
+    ({"model": "paper999"},
+     "model must be one of ['custom', 'paper000', 'paper001', 'paper002', 'paper003'], got 'paper999'"),
     ({"axes": ["x", "w"]}, "paper000 has axes ['x', 'y', 'z'], got 'w'"),
     ({"axes": ["x", "x"]}, "axes must be unique"),
     ({"axes": []}, "axes must be a non-empty list of names, got []"),

@@ -39,7 +39,8 @@ def test_the_plant_node_publishes_the_core_plants_cutting_force_in_the_tool_fram
         probe.wait_for(lambda: len(probe.received(f"{NS}/cutting_force")) == len(COMMANDS_M_S) + 1, 10.0, "the last")
         described = {d.name: d for d in plant.node.describe_parameters(list(CUTTING))}
     core = make_plant({"model": "paper003", "axes": ["x", "z"], "velocity_loop": {"spindle_rpm": 0.0},
-                       "cutting": {"process": "turning", "feed_axis": "z", "depth_schedule": [[0.0, 1.0], [0.02, 2.0]]}})
+                       "cutting": {"process": "turning", "feed_axis": "z",
+                                   "depth_schedule": [[0.0, 1.0], [0.02, 2.0]]}})
     core.reset([0.0, 0.0])
     expected = [cutting_force_n(core)]
     for value in COMMANDS_M_S:

@@ -194,7 +194,8 @@ def at_limit(total: float, command: float, limit: float) -> bool:
     return total >= limit or total <= -limit or command >= limit or command <= -limit
 
 
-#: One servo sample as a tuple: (command, feedback, feedforward, compensation, disturbance_estimate, saturated, error_m).
+#: One servo sample as a tuple:
+#: (command, feedback, feedforward, compensation, disturbance_estimate, saturated, error_m).
 ServoParts = tuple[float, float, float, float, float, bool, float]
 
 _INPUT_NAMES = ("dt_s", "ref_position_m", "ref_velocity_m_s", "ref_acceleration_m_s2",

@@ -51,7 +51,8 @@ class SpindleOverride:
         """Override with ``rpm`` [rpm] (0: end the override); the refusal's reason, else None."""
         if isinstance(rpm, bool) or not isinstance(rpm, (int, float)) or not math.isfinite(rpm) \
                 or not SPINDLE_RPM_RANGE[0] <= rpm <= SPINDLE_RPM_RANGE[1]:
-            return f"{SPINDLE_RPM_PARAMETER} must be in [{SPINDLE_RPM_RANGE[0]:g}, {SPINDLE_RPM_RANGE[1]:g}], got {rpm!r}"
+            return (f"{SPINDLE_RPM_PARAMETER} must be in [{SPINDLE_RPM_RANGE[0]:g}, {SPINDLE_RPM_RANGE[1]:g}], "
+                    f"got {rpm!r}")
         if rpm == 0.0:
             self.rpm = None
             return None

@@ -15,8 +15,9 @@ One tick k, in order::
 
 The plant closes the tick: it integrates once it holds every axis's command
 for the tick. The estimator reads the part program from its file, as the
-interpolator does (the path estimator measures against its geometry). A stage whose ``optional`` flag is set runs only when the
-scenario asks for it; an optional *input* (in brackets) is taken only when
+interpolator does (the path estimator measures against its geometry). A stage
+whose ``optional`` flag is set runs only when the scenario asks for it; an
+optional *input* (in brackets) is taken only when
 the stage that produces it runs; an optional *output* (in brackets) is
 published only when the run switches it on (``tool_position``: a plant with
 machine faults; ``cutting_force``: a plant with a cutting process). The engine steps the same list in the same

@@ -1,4 +1,5 @@
-"""Contour-error estimators (ROS-free): the seam (:mod:`.base`) and the registry :data:`ESTIMATORS` (:mod:`.registry`)."""
+"""Contour-error estimators (ROS-free): the seam (:mod:`.base`) and the registry :data:`ESTIMATORS`
+(:mod:`.registry`)."""
 from __future__ import annotations
 
 from cnc_contour_control.estimators.base import ContourEstimate, ContourEstimator

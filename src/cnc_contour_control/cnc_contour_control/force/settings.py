@@ -67,7 +67,8 @@ class ForceRegulatorSettings:
     preview: PreviewSettings = PreviewSettings()
 
     @classmethod
-    def from_mapping(cls, mapping: Mapping[str, Any] | None, context: str = "force_regulator") -> ForceRegulatorSettings:
+    def from_mapping(cls, mapping: Mapping[str, Any] | None,
+                     context: str = "force_regulator") -> ForceRegulatorSettings:
         """Build from the flat section; an unknown key lists the valid ones."""
         if mapping is not None and not isinstance(mapping, Mapping):
             raise ConfigError(f"{context} must be a mapping, got {mapping!r}")

@@ -73,7 +73,8 @@ class LockstepInputs:
 class ServoRunParams(LockstepInputs):
     """Run parameters of one axis's servo node."""
 
-    axis: str = param("x", read_only=True, description="the axis this servo drives (a name in joint_states and reference)")
+    axis: str = param("x", read_only=True,
+                      description="the axis this servo drives (a name in joint_states and reference)")
     use_compensation: bool = param(False, read_only=True, description="wait for /compensation every tick and add it")
 
     def __post_init__(self) -> None:

@@ -1,1 +1,2 @@
-"""Motion planning: path geometry, G-code and programs, look-ahead blending, feed planning, interpolation and feed override."""
+"""Motion planning: path geometry, G-code and programs, look-ahead blending, feed planning, interpolation and
+feed override."""

@@ -1,4 +1,5 @@
-"""Arc segments (circular in a plane, helical with the other axes moving linearly); see :mod:`cnc_contour_control.motion.geometry`."""
+"""Arc segments (circular in a plane, helical with the other axes moving linearly); see
+:mod:`cnc_contour_control.motion.geometry`."""
 from __future__ import annotations
 
 import math

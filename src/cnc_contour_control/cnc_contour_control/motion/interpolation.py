@@ -168,7 +168,8 @@ class InterpolatorConfig:
         description="largest deviation of corner blends from the programmed path (G64 P; 0: no blending, the "
                     "program's G64 P / G61 overrides it)")
     clamp_feed: bool = param(
-        False, read_only=True, description="slow down a segment whose feed exceeds the axis limits instead of refusing it")
+        False, read_only=True,
+        description="slow down a segment whose feed exceeds the axis limits instead of refusing it")
     accel_decel: AccelDecelConfig = param(default_factory=AccelDecelConfig, read_only=True,
                                           description="acceleration/deceleration after interpolation (T_ip)")
 
@@ -449,7 +450,8 @@ class Interpolator:
                                    acceleration_m_s2=np.array(flat[2 * n:]))
 
     def reference_array(self, times_s: ArrayLike) -> ReferenceTrajectory:
-        """:meth:`sample_array` through a fresh acceleration/deceleration filter, row by row as :meth:`reference` does."""
+        """:meth:`sample_array` through a fresh acceleration/deceleration filter, row by row as :meth:`reference`
+        does."""
         trajectory = self.sample_array(times_s)
         if self.config.accel_decel.kind == "none":
             return trajectory

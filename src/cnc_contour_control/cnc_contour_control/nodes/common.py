@@ -212,7 +212,8 @@ class SuiteNode(ManagedNode):
 
     def create_dds_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any],
                                 qos_profile: QoSProfile | int, **kwargs: Any) -> Any:
-        """rclpy's own subscription, never the bus; raw bytes decoded by ``fast_cdr`` unless the caller asked for raw."""
+        """rclpy's own subscription, never the bus; raw bytes decoded by ``fast_cdr`` unless the caller asked for
+        raw."""
         callback, kwargs = fast_cdr.decoding(msg_type, topic, callback, kwargs, self.fault)
         return super().create_subscription(msg_type, topic, callback, qos_profile, **kwargs)
 
@@ -256,7 +257,8 @@ class SuiteNode(ManagedNode):
         return f"{resolved}: {self.count_publishers(resolved)} of 1 publishers"
 
     def reader_gate(self, publisher: Any, msg_type: type, count_parameter: str, default_min: int) -> ReaderGate:
-        """The gate of ``publisher``: the readers named by ``required_readers``, at least ``count_parameter`` of them."""
+        """The gate of ``publisher``: the readers named by ``required_readers``, at least ``count_parameter`` of
+        them."""
         topic = publisher.topic_name
         minimum = self.declare(count_parameter, default_min, describe(
             f"readers of {topic} to wait for before publishing", 0, 1000, True, True))

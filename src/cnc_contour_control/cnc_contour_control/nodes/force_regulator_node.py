@@ -9,8 +9,9 @@ force's stamp; the interpolator takes it at the next tick (its
 ``stale_timeout_s``), :class:`~cnc_contour_control.force.ForceRegulatorConfig`
 (``law``, ``update_period_s``, ``quantiser.*``), the law's config as
 ``law_params.*`` and the program's depth schedule for the preview as
-``preview.*`` (:class:`~cnc_contour_control.force.preview_settings.PreviewSettings`), all read once. A non-finite force is a fault naming the
-value; a force that stops arriving for ``stale_timeout_s`` (wall time) is a
+``preview.*`` (:class:`~cnc_contour_control.force.preview_settings.PreviewSettings`), all read
+once. A non-finite force is a fault naming the value; a force that stops
+arriving for ``stale_timeout_s`` (wall time) is a
 STALE status on ``/diagnostics`` while the last applied override holds (no new
 message: the interpolator keeps the latest), and an OK status when it is back.
 """

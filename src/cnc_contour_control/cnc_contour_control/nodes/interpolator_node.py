@@ -133,7 +133,8 @@ class InterpolatorNode(SuiteNode):
     def _accept(self, msg: JointState) -> JointState | None:
         """A joint state's values, then its stamp, checked; None for a stale one."""
         joint_positions(msg, self.axes)
-        return None if self.matcher.add("joint_states", stamp_to_ns(msg.header.stamp), msg, wall_time_s()) is None else msg
+        added = self.matcher.add("joint_states", stamp_to_ns(msg.header.stamp), msg, wall_time_s())
+        return None if added is None else msg
 
     def _accept_override(self, msg: FeedOverride) -> None:
         """A feed override's applied ratio (a bad one refused, the last valid held); ticks it completes answered."""
@@ -165,7 +166,8 @@ class InterpolatorNode(SuiteNode):
         if waited_s > limit_s:
             self.fault(f"no {self.resolve_topic_name('feed_override')} of the previous tick "
                        f"(stamp {self.inbox.awaited_ns} ns) within {limit_s} s (feed_override_timeout_s = "
-                       f"{self._override_timeout_s} s{', x' + str(FIRST_OVERRIDE_TIMEOUT_FACTOR) + ' for the first' if first else ''})")
+                       f"{self._override_timeout_s} s"
+                       f"{', x' + str(FIRST_OVERRIDE_TIMEOUT_FACTOR) + ' for the first' if first else ''})")
 
     def _sample(self, stamp_ns: int) -> ReferenceSample:
         """The reference at the stamp: at the programmed feed, or following the override's request."""

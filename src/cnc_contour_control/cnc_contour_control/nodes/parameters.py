@@ -198,7 +198,8 @@ def _string_from_boolean(name: str, value: bool) -> str:
 
 
 def nested(values: Mapping[str, Any]) -> dict[str, Any]:
-    """Flat dotted names -> a nested mapping (``{"gains.kp": 1}`` -> ``{"gains": {"kp": 1}}``); unset values left out."""
+    """Flat dotted names -> a nested mapping (``{"gains.kp": 1}`` -> ``{"gains": {"kp": 1}}``); unset values left
+    out."""
     out: dict[str, Any] = {}
     for name, value in values.items():
         if value is None:

@@ -9,7 +9,8 @@ from cnc_contour_control.core.errors import FaultError
 
 
 def check_step(axis_names: Sequence[str], commands: Sequence[float], dt_s: float) -> None:
-    """Refuse a step the plant must not take: a wrong command count, a non-finite command (naming its axis), a bad ``dt_s``.
+    """Refuse a step the plant must not take: a wrong command count, a non-finite command (naming its axis), a
+    bad ``dt_s``.
 
     The common case costs one C-level sum (NaN for a NaN or an infinity, or an
     overflow); only a failing sum looks at each command.

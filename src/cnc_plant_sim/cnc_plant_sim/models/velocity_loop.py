@@ -343,8 +343,9 @@ class VelocityLoopPlant:
         self._disturbance = [0.0] * len(values)
 
     def set_spindle_rpm(self, spindle_rpm: float, sample_time_s: float) -> None:
-        """Hold ``spindle_rpm`` from the present time on (a spindle override; :func:`~cnc_plant_sim.models.periodic_load.
-        set_spindle_rpm`); f_d at or above Nyquist at ``sample_time_s`` is a :class:`ConfigError`, nothing changed."""
+        """Hold ``spindle_rpm`` from the present time on (a spindle override;
+        :func:`~cnc_plant_sim.models.periodic_load.set_spindle_rpm`); f_d at or above Nyquist at ``sample_time_s``
+        is a :class:`ConfigError`, nothing changed."""
         rpm = require_below_nyquist_rpm("spindle_rpm", spindle_rpm, int(self.options.flutes), sample_time_s)
         self.schedule = schedule_from(self.schedule, self.time_s, rpm * self.options.flutes / 60.0)
 

@@ -14,7 +14,8 @@ from cnc_contour_interfaces.msg import AxisCommand
 from cnc_plant_sim.process.cutting import TOOL_FRAME
 
 
-def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float], velocities_m_s: Sequence[float], stamp_ns: int) -> JointState:
+def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float], velocities_m_s: Sequence[float],
+                    stamp_ns: int) -> JointState:
     """Axis positions [m] and velocities [m/s] to a JointState stamped ``stamp_ns``."""
     msg = JointState()
     msg.header.stamp = ns_to_stamp(stamp_ns)
