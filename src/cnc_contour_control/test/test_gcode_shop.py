@@ -107,8 +107,13 @@ def test_a_dwell_stops_a_tangent_junction() -> None:
 
 @pytest.mark.parametrize("text, message", [
     ("G4", r"line 1: G4 without P \(the dwell time, s\)"),
-    ("G4 P-1", r"line 1: P-1: the dwell time P must be >= 0 s, got -1"),
-    ("G1 F100\nG4 P1 X3", r"line 2: G4 with a move \(X3\)"),
+    ("G4 P-1", r"line 1: P-1: the dwell time P must be in \[0, 3600\] s, got -1"),
+    ("G4 P3601", r"line 1: P3601: the dwell time P must be in \[0, 3600\] s, got 3601"),
+    ("G4 P1e9", r"line 1: G4 with E9; G4 takes only P"),
+    ("G1 F100\nG4 P1 X3", r"line 2: G4 with X3; G4 takes only P"),
+    ("G4 P1 Z5", r"line 1: G4 with Z5; G4 takes only P"),
+    ("G4 P1 F100", r"line 1: G4 with F100; G4 takes only P"),
+    ("G1 G4 P1", r"line 1: G4 with G1; G4 takes only P"),
     ("G1 X1 F100 P2", r"line 1: P2 without G4 or G64"),
     ("G4 G64 P1", r"line 1: P1 with both G4 and G64"),
 ])

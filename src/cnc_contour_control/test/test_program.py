@@ -114,7 +114,7 @@ def test_registries_list_the_forms() -> None:
     ({"segments": [{"arc": {"to_mm": [1, 1], "center_mm": [0, 1], "direction": "cw", "plane": "xz"}}],
       "feed_mm_min": 100}, r"program.segments\[0\].arc.plane must name two of the axes \['x', 'y'\], got 'xz'"),
     ({"segments": [], "feed_mm_min": 100}, "program.segments must be a non-empty list"),
-    ({"gcode_file": "/nonexistent/part.ngc"}, "program.gcode_file: cannot read '/nonexistent/part.ngc'"),
+    ({"gcode_file": "/nonexistent/part.ngc"}, "program.gcode_file '/nonexistent/part.ngc' does not exist"),
     ({"gcode": "G1 X1 F100", "rapid_feed_mm_min": 0}, "rapid_feed_mm_min must be > 0, got 0"),
 ])
 def test_bad_program_sections_are_refused(mapping: dict, message: str) -> None:

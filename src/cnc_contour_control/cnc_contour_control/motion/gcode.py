@@ -38,6 +38,8 @@ START_MODES: dict[str, str] = {"plane": "17", "units": "21", "work_offset": "54"
 _RESERVED = frozenset("GFIJKNMSTOPRLQDEH")
 _IGNORED = frozenset("ST")
 _MIN_MOVE_MM = 1.0e-9
+#: Longest dwell G4 P may ask for, s (one hour: a longer stop is a program error, e.g. P in ms).
+MAX_DWELL_S = 3600.0
 
 
 @dataclass
@@ -188,16 +190,20 @@ def _set_motion(block: Block, state: _State, code: str) -> None:
 
 
 def _dwell(block: Block, state: _State, code: str) -> None:
-    """G4 P: a stop of P seconds before the next move (after the last one at the end)."""
-    moves = [raw for letter, (_, raw) in block.words.items() if letter in state.axis_index or letter in "IJKR"]
-    if "motion" in block.g_codes or moves:
-        raise block.error(f"G4 with a move ({' '.join(moves) or 'G' + block.g_codes['motion']}); "
-                          "give the dwell on its own line")
+    """G4 P: a stop of P seconds (as LinuxCNC) before the next move (after the last one at the end).
+
+    The line holds P and nothing else that moves or sets a value (G codes of other groups, M codes and N may
+    stand beside it); P is in [0, :data:`MAX_DWELL_S`] s whatever the units (G20 does not scale time).
+    """
+    others = [raw for letter, (_, raw) in block.words.items() if letter != "P"]
+    if "motion" in block.g_codes or others:
+        raise block.error(f"G4 with {' '.join(others) or 'G' + block.g_codes['motion']}; G4 takes only P "
+                          "(the dwell time, s): give the dwell on its own line")
     if "P" not in block.words:
         raise block.error("G4 without P (the dwell time, s)")
     seconds, raw = block.words["P"]
-    if seconds < 0.0:
-        raise block.error(f"{raw}: the dwell time P must be >= 0 s, got {seconds:g}")
+    if not 0.0 <= seconds <= MAX_DWELL_S:
+        raise block.error(f"{raw}: the dwell time P must be in [0, {MAX_DWELL_S:g}] s, got {seconds:g}")
     state.dwells.append(Dwell(len(state.segments), seconds, block.number))
 
 

@@ -90,7 +90,9 @@ def read_block(line: str, number: int) -> Block:
         char = next(c for c in text if not c.isascii())
         raise block.error(f"non-ASCII character {char!r} (U+{ord(char):04X}) in {text!r}: "
                           "G-code words are ASCII letters and digits")
-    if text.startswith("%"):
+    if text.startswith("%"):  # the tape's start or end mark, alone on its line
+        if text != "%":
+            raise block.error(f"text after % in {text!r} (% marks the start or end of the program, alone on its line)")
         return block
     position = 0
     while position < len(text):

@@ -32,7 +32,6 @@ import numpy as np
 
 from cnc_contour_control.core.config import (
     build_config,
-    read_text_file,
     require_choice,
     require_finite,
     require_positive,
@@ -41,6 +40,7 @@ from cnc_contour_control.core.config import (
 from cnc_contour_control.core.errors import ConfigError, ProgramError
 from cnc_contour_control.core.units import mm_min_to_m_s, mm_to_m
 from cnc_contour_control.motion.gcode import parse_gcode
+from cnc_contour_control.motion.gcode_file import read_gcode_file
 from cnc_contour_control.motion.geometry import ArcSegment, FloatArray, LineSegment, Program, Segment
 
 #: Arc direction name -> clockwise.
@@ -293,9 +293,7 @@ def _from_gcode_file(body: dict[str, Any], name: str, base_dir: Path | None) -> 
     path = Path(str(body.pop("gcode_file")))
     if not path.is_absolute() and base_dir is not None:
         path = Path(base_dir) / path
-    if not path.is_file():
-        raise ConfigError(f"program.gcode_file: cannot read {str(path)!r}: no such file")
-    return _gcode(read_text_file(path, "program.gcode_file"), body, name)
+    return _gcode(read_gcode_file(path, "program.gcode_file", ConfigError), body, name)
 
 
 #: Source key -> builder of the program from the rest of the section.

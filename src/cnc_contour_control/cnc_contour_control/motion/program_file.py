@@ -6,6 +6,7 @@ from typing import Any
 
 from cnc_contour_control.core.config import read_yaml_mapping
 from cnc_contour_control.core.errors import ProgramError
+from cnc_contour_control.motion.gcode_file import not_a_file
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.program import load_program
 
@@ -20,8 +21,9 @@ def read_program_file(path: str | Path, axes: tuple[str, ...] | None = None) -> 
     ``program:`` key. A G-code file is parsed for ``axes`` (default x, y, z).
     """
     file = Path(path)
-    if not file.is_file():
-        raise ProgramError(f"program_file {str(file)!r} does not exist")
+    reason = not_a_file(file, "program_file")
+    if reason is not None:
+        raise ProgramError(reason)
     if file.suffix.lower() in GCODE_SUFFIXES:
         body: dict[str, Any] = {"gcode_file": str(file)}
         if axes:

@@ -30,6 +30,7 @@ import numpy as np
 from cnc_contour_control.core.errors import ProgramError
 from cnc_contour_control.core.units import m_to_mm, mm_min_to_m_s
 from cnc_contour_control.motion.gcode import parse_gcode
+from cnc_contour_control.motion.gcode_file import read_gcode_file
 from cnc_contour_control.motion.geometry import ArcSegment, FloatArray, LineSegment, Program, Segment
 from cnc_contour_control.motion.program_file import GCODE_SUFFIXES, read_program_file
 
@@ -112,9 +113,7 @@ def _parse(text: str, name: str, goal: ProgramGoal, axes: tuple[str, ...], hold_
 def _file(goal: ProgramGoal, axes: tuple[str, ...], hold_m: FloatArray) -> Program:
     path = Path(goal.program_file)
     if path.suffix.lower() in GCODE_SUFFIXES:
-        if not path.is_file():
-            raise ProgramError(f"program_file {str(path)!r} does not exist")
-        return _parse(path.read_text(), goal.program_name or path.stem, goal, axes, hold_m)
+        return _parse(read_gcode_file(path), goal.program_name or path.stem, goal, axes, hold_m)
     program = read_program_file(path, axes)
     if goal.program_name:
         program = Program(goal.program_name, program.axis_names, program.segments, program.dwells,
