@@ -18,7 +18,8 @@ setup(
     zip_safe=True,
     maintainer="CNC contour-control developers",
     maintainer_email="cnc-contour@example.org",
-    description="Scenarios, in-process engine, runner, recorder, bag I/O, scoring, reports, tuning and the cnc-contour command.",
+    description="Scenarios, in-process engine, runner, recorder, bag I/O, scoring, reports, tuning and the "
+                "cnc-contour command.",
     license="Apache-2.0",
     entry_points={
         "console_scripts": [

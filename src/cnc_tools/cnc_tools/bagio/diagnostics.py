@@ -39,7 +39,8 @@ def read_statuses(bag: str | Path) -> tuple[str, tuple[Status, ...]]:
             try:
                 message = store.deserialize_cdr(data, msgtype)
             except Exception as err:
-                raise BagError(f"{bag}: {topic} message {index} cannot be decoded ({type(err).__name__}: {err})") from err
+                raise BagError(f"{bag}: {topic} message {index} cannot be decoded "
+                               f"({type(err).__name__}: {err})") from err
             statuses += [Status(int(s.level), str(s.name), str(s.message), {kv.key: kv.value for kv in s.values})
                          for s in message.status]
     return namespace, tuple(statuses)

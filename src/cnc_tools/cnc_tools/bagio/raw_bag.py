@@ -161,6 +161,7 @@ def read_raw(source: BagSource, wanted: TopicFilter) -> tuple[RawBag, BagIntegri
     expected = source.metadata_counts if source.metadata_counts is not None else summary_counts
     found = {topic: len(data) for topic, data in raw.data.items()}
     found.update({t: found.get(t, 0) for t in expected if wanted(t)})
-    mismatch = tuple(f"{t}: {found[t]} of {expected.get(t, 0)} messages" for t in found if found[t] != expected.get(t, 0))
+    mismatch = tuple(f"{t}: {found[t]} of {expected.get(t, 0)} messages"
+                     for t in found if found[t] != expected.get(t, 0))
     source_name = "metadata.yaml" if source.metadata_counts is not None else "mcap summary"
     return raw, BagIntegrity(not mismatch, "index", found, expected, source_name, mismatch + source.problems)

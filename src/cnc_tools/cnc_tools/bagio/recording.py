@@ -61,7 +61,8 @@ def run_namespace(topic_names: Iterable[str]) -> str:
 
 
 def in_some_namespace(topic_name: str, patterns: Iterable[str]) -> bool:
-    """True if ``topic_name`` is one of the relative topic ``patterns`` (``{axis}`` for any axis) under any namespace."""
+    """True if ``topic_name`` is one of the relative topic ``patterns`` (``{axis}`` for any axis) under any
+    namespace."""
     return any(re.fullmatch(r"(/[^/]+)*/" + re.escape(p).replace(r"\{axis\}", "[^/]+"), topic_name) for p in patterns)
 
 

@@ -140,7 +140,8 @@ def write_run_bag(path: Path, program: Program, traj: Trajectory, *, commands: b
             writer.write_message("/clock", stamp, clock_type(clock=header(stamp, "").stamp))
             index = [axes.index(n) if n in axes else 0 for n in names]
             writer.write_message(f"{NS}/joint_states", stamp,
-                                 joint_state(stamp, names, traj.position_m[k, index], traj.reference_velocity_m_s[k, index]))
+                                 joint_state(stamp, names, traj.position_m[k, index],
+                                             traj.reference_velocity_m_s[k, index]))
             writer.write_message(f"{NS}/reference", stamp,
                                  reference(stamp, axes, traj.reference_m[k], traj.reference_velocity_m_s[k]))
             for j, axis in enumerate(axes if commands else ()):

@@ -4,7 +4,8 @@ One run writes the same messages twice, in rotated order over the rounds:
 
 - ``library``: :class:`LibraryBagWriter`, the path before issue 9 (``rosbags.rosbag2.Writer.write``
   -> :class:`~cnc_tools.bagio.mcap_storage.LibraryMcapStorage` -> ``mcap.writer.Writer.add_message``);
-- ``ours``: :class:`~cnc_tools.bagio.bag.BagWriter` (its direct path -> :class:`~cnc_tools.bagio.mcap_writer.McapWriter`).
+- ``ours``: :class:`~cnc_tools.bagio.bag.BagWriter` (its direct path ->
+  :class:`~cnc_tools.bagio.mcap_writer.McapWriter`).
 
 The messages are the real CDR of a synthetic 1 kHz 2-axis circle run
 (:func:`cnc_tools.bagio.synthetic.write_run_bag`: clock, joint_states,

@@ -17,7 +17,8 @@ the default 8 speed bands per arc: ``arc_speed_bands``; :mod:`cnc_contour_contro
 - planning time per segment against program length (polygons of 0.2 mm sides;
   CPU time, so that other processes' load does not count, beside the 1-minute load
   average; planning is NumPy over whole programs: :mod:`cnc_contour_control.motion.plan_arrays`,
-  :mod:`cnc_contour_control.motion.blend_assembly`, :mod:`cnc_contour_control.motion.segment_batch`), whole and streaming
+  :mod:`cnc_contour_control.motion.blend_assembly`, :mod:`cnc_contour_control.motion.segment_batch`), whole and
+  streaming
   (a window of ``STREAM_WINDOW`` segments, :mod:`cnc_contour_control.motion.plan_stream`): CPU time to the first
   sample beside the CPU time of the whole plan.
 """

@@ -190,7 +190,8 @@ def lockstep_rounds(run_dir: Path, plan: Plan) -> list[list[LockstepFigures]]:
 
 
 def lockstep_table(rounds: list[list[LockstepFigures]], startup_s: dict[str, float]) -> list[dict[str, Any]]:
-    """Per side: median wall per tick, RTF and CPU per tick over the rounds, and the ratios to the engine and ``none``."""
+    """Per side: median wall per tick, RTF and CPU per tick over the rounds, and the ratios to the engine and
+    ``none``."""
     per_tick = {side: statistics.median(r[i].wall_time_s / r[i].ticks for r in rounds)
                 for i, side in enumerate(LOCKSTEP_SIDES)}
     rows = []
@@ -219,7 +220,8 @@ def compose_bench(options: argparse.Namespace) -> int:
         print(f"  real time {side} ...", flush=True)
         realtime.append(realtime_run(side, run_dir / f"realtime_{side}", plan.realtime_duration_s))
     figures = {"bench": "compose", "quick": options.quick, "scenario": SCENARIO, "machine": machine(),
-               "rounds": [[asdict(f) for f in r] for r in rounds], "startup_cpu_s": startup_s, "lockstep": lockstep_table(rounds, startup_s),
+               "rounds": [[asdict(f) for f in r] for r in rounds], "startup_cpu_s": startup_s,
+               "lockstep": lockstep_table(rounds, startup_s),
                "realtime": [{**asdict(f), "goal_met": f.late_share <= LATE_SHARE_GOAL} for f in realtime]}
     figures["machine"]["load_average_1min_at_start"] = load_at_start
     print_figures(figures)

@@ -89,7 +89,8 @@ def time_engine(src: Path, scenario: Path, sample_time_s: float, repeats: int) -
 def add_options(parser: argparse.ArgumentParser) -> None:
     """The bench's own options (``cnc-contour bench engine --against REV``)."""
     parser.add_argument("--against", default=BASELINE_COMMIT,
-                        help=f"commit whose engine or node graph is the yardstick (engine and graph benches; default {BASELINE_COMMIT})")
+                        help="commit whose engine or node graph is the yardstick (engine and graph benches; "
+                        f"default {BASELINE_COMMIT})")
 
 
 def engine_bench(options: argparse.Namespace) -> int:

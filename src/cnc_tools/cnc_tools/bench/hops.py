@@ -181,7 +181,8 @@ def hops_bench(options: argparse.Namespace) -> int:
     load_at_start = machine()["load_average_1min"]
     print(f"hops bench ({'quick' if options.quick else 'full'}), {plan.rounds} rounds, profiles "
           f"{', '.join(profiles)}; run files in {run_dir}", flush=True)
-    rounds = [measure_round(i, name, path, run_dir, plan) for i in range(plan.rounds) for name, path in profiles.items()]
+    rounds = [measure_round(i, name, path, run_dir, plan)
+              for i in range(plan.rounds) for name, path in profiles.items()]
     figures = {"bench": "hops", "quick": options.quick, "plan": asdict(plan), "machine": machine(),
                "profiles": {name: str(path) for name, path in profiles.items()}, "hops_per_tick": HOPS,
                "goal": HOP_RATIO_GOAL, "rounds": [{**asdict(r), "graph_over_bare": r.graph_over_bare,

@@ -194,7 +194,8 @@ def print_figures(figures: dict[str, Any]) -> None:
     m = figures["machine"]
     print(f"\nmachine: {m['cpus']} cores, {m['cpu']}, Python {m['python']}, {m['rmw']}; 1-min load average "
           f"{m['load_average_1min_at_start']:.2f} at start, {m['load_average_1min']:.2f} at end")
-    print(f"\nnode graph, {figures['scenario']} (2 axes), {HOPS} hops per tick (plant -> interpolator -> servo -> plant)")
+    print(f"\nnode graph, {figures['scenario']} (2 axes), {HOPS} hops per tick "
+          "(plant -> interpolator -> servo -> plant)")
     print(format_table(["T [ms]", "ticks", "wall [s]", "RTF", "wall/tick [us]", "per hop [us]", "CPU/tick [us]",
                         "cores busy"], [
         [g["sample_time_s"] * 1e3, g["ticks"], g["wall_time_s"], g["real_time_factor"], g["wall_per_tick_s"] * 1e6,
@@ -215,7 +216,8 @@ def print_figures(figures: dict[str, Any]) -> None:
         [r["sample_time_s"] * 1e3, r["per_hop_s"] * 1e6, r["relay_hop_s"] * 1e6, r["graph_over_relay"]]
         for r in figures["hop_ratio"]]))
     goal = figures["engine_goal"]
-    print(f"\nengine (in-process), 2 axes; goal at T = 1 ms: RTF >= {ENGINE_RTF_GOAL:g} (median): {goal_text(goal['met'])}")
+    print(f"\nengine (in-process), 2 axes; goal at T = 1 ms: RTF >= {ENGINE_RTF_GOAL:g} (median): "
+          f"{goal_text(goal['met'])}")
     print(format_table(["T [ms]", "ticks", "runs", "RTF median", "RTF best", "wall/tick [us]"], [
         [e["sample_time_s"] * 1e3, e["ticks"], e["repeats"], e["real_time_factor_median"],
          e["real_time_factor_best"], e["wall_per_tick_median_s"] * 1e6] for e in figures["engine"]]))

@@ -66,7 +66,8 @@ class Peers:
     def last_output(self, name: str) -> str:
         """The last non-empty line ``name`` printed."""
         path = self.run_dir / f"{name}.log"
-        lines = [line for line in path.read_text(errors="replace").splitlines() if line.strip()] if path.exists() else []
+        text = path.read_text(errors="replace") if path.exists() else ""
+        lines = [line for line in text.splitlines() if line.strip()]
         return lines[-1] if lines else ""
 
 

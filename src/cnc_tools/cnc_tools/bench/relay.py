@@ -196,7 +196,8 @@ class _RelayPlant:
         return 0
 
 
-def relay_ticks(run_dir: Path, ticks: int, warmup: int, timeout_s: float = 120.0, namespace: str | None = None) -> float:
+def relay_ticks(run_dir: Path, ticks: int, warmup: int, timeout_s: float = 120.0,
+                namespace: str | None = None) -> float:
     """Wall seconds per tick of ``ticks`` timed lockstep ticks of a fresh relay graph (four processes)
     in ``namespace`` (default: a fresh one).
 

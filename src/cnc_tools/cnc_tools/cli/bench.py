@@ -1,4 +1,5 @@
-"""The ``cnc-contour bench NAME [--quick] [--json PATH] [--out DIR] [--engine] [--seeds N] [--against REV] [--record] [--rounds N] [--dds-profile NAME=PATH]`` subcommand."""
+"""The ``cnc-contour bench NAME [--quick] [--json PATH] [--out DIR] [--engine] [--seeds N] [--against REV] [--record]
+[--rounds N] [--dds-profile NAME=PATH]`` subcommand."""
 from __future__ import annotations
 
 import argparse
@@ -17,7 +18,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="shorter runs and fewer repetitions (< 30 s)")
     parser.add_argument("--json", type=Path, help="also write the measured figures to this JSON file")
     parser.add_argument("--out", type=Path, help="folder for run files (default bags/bench/<name>/<timestamp>)")
-    parser.add_argument("--engine", action="store_true", help="run in-process instead of the node graph (paper benches)")
+    parser.add_argument("--engine", action="store_true",
+                        help="run in-process instead of the node graph (paper benches)")
     parser.add_argument("--seeds", type=int, help="plant seeds 1..N per row (paper benches)")
     parser.add_argument("--workers", type=int, help="local processes for a bench's independent runs "
                         "(paper003; default all cores)")

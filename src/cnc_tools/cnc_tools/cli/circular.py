@@ -119,11 +119,13 @@ def check_pair(traces: Sequence[BagTrace]) -> None:
         raise CncError(f"{first.bag}, {second.bag}: both run {first.trace.direction}; "
                        "give a cw and a ccw run of the same circle")
     gap_m = math.dist(first.circle.center_m, second.circle.center_m)
-    if gap_m > SAME_CIRCLE_TOLERANCE_M or abs(first.circle.radius_m - second.circle.radius_m) > SAME_CIRCLE_TOLERANCE_M \
+    radius_gap_m = abs(first.circle.radius_m - second.circle.radius_m)
+    if gap_m > SAME_CIRCLE_TOLERANCE_M or radius_gap_m > SAME_CIRCLE_TOLERANCE_M \
             or first.circle.plane != second.circle.plane:
         raise CncError(f"{second.bag}: programs a different circle than {first.bag}: centre "
                        f"{second.circle.center_m} m, radius {second.circle.radius_m} m, plane {second.circle.plane} "
-                       f"vs centre {first.circle.center_m} m, radius {first.circle.radius_m} m, plane {first.circle.plane}")
+                       f"vs centre {first.circle.center_m} m, radius {first.circle.radius_m} m, "
+                       f"plane {first.circle.plane}")
 
 
 def read_traces(bags: Sequence[Path]) -> list[BagTrace]:

@@ -157,7 +157,8 @@ def _model_curves(ax: Axes, constants: fid.AxisConstants, top_mm_s: float, frict
                             label=f"Eq. 15 ±{friction_pct:g} % (drawn scale range)" if sign > 0 else None)
 
 
-def _points_panel(ax: Axes, summaries: Sequence[fcurve.SpeedSummary], fits: tuple[fcurve.BranchFit, fcurve.BranchFit] | None,
+def _points_panel(ax: Axes, summaries: Sequence[fcurve.SpeedSummary],
+                  fits: tuple[fcurve.BranchFit, fcurve.BranchFit] | None,
                   top_mm_s: float) -> None:
     v = np.array([s.velocity_mm_s for s in summaries])
     band = np.array([s.band_dac for s in summaries])
@@ -180,7 +181,8 @@ def _points_panel(ax: Axes, summaries: Sequence[fcurve.SpeedSummary], fits: tupl
 
 
 def _residual_panel(ax: Axes, points: Sequence[fid.FrictionPoint]) -> None:
-    for seed_kind, colour, label in ((False, "tab:blue", "nominal plant"), (True, "tab:orange", "varied plants (nominal K)")):
+    for seed_kind, colour, label in ((False, "tab:blue", "nominal plant"),
+                                     (True, "tab:orange", "varied plants (nominal K)")):
         chosen = [p for p in points if (p.seed is not None) == seed_kind and p.status == "steady"]
         ax.plot([p.velocity_mm_s for p in chosen], [p.deviation_dac for p in chosen], "o" if not seed_kind else "s",
                 ms=3, color=colour, label=label)
@@ -203,7 +205,8 @@ def write_figure(path: Path, points: Sequence[fid.FrictionPoint], summaries: Seq
     top.axhline(0.0, color="k", lw=0.5)
     top.axvline(0.0, color="k", lw=0.5)
     top.set_ylabel("friction force F_d [DAC units]")
-    top.set_title(f"Friction–velocity curve, axis {constants.axis} (paper 000, Section 2: F_d = K_p e_ss − V_r/(K K_e))")
+    top.set_title(f"Friction–velocity curve, axis {constants.axis} "
+                  "(paper 000, Section 2: F_d = K_p e_ss − V_r/(K K_e))")
     top.grid(True, alpha=0.3)
     top.legend(fontsize=7, loc="center right")
     _residual_panel(bottom, points)
@@ -233,7 +236,8 @@ def agreement(points: Sequence[fid.FrictionPoint], summaries: Sequence[fcurve.Sp
               if s.nominal.status == "steady" and math.isfinite(s.half_range_dac)]
     return {
         "nominal_max_abs_dev_dac": _max_abs(p.deviation_dac for p in nominal),
-        "nominal_rms_dev_dac": float(np.sqrt(np.mean([p.deviation_dac ** 2 for p in nominal]))) if nominal else math.nan,
+        "nominal_rms_dev_dac":
+            float(np.sqrt(np.mean([p.deviation_dac ** 2 for p in nominal]))) if nominal else math.nan,
         "max_abs_quantisation_dac": _max_abs(p.quantisation_dac for p in steady),
         "varied_max_abs_dev_dac": _max_abs(p.deviation_dac for p in varied),
         "varied_true_gain_max_abs_dev_dac": _max_abs(p.friction_true_gain_dac - p.model_dac for p in varied),
@@ -277,7 +281,8 @@ def print_fits(fits: tuple[fcurve.BranchFit, fcurve.BranchFit], constants: fid.A
         if paper is not None:
             p2, p1, p0 = paper.positive_coefficients if fit.direction > 0 else paper.negative_coefficients
             high = paper.positive_high_dac if fit.direction > 0 else paper.negative_high_dac
-            line += f"   (Eq. 15: {p2:+.2f} V² {p1:+.2f} V {p0:+.2f} for |V| < {paper.limit_speed_mm_s:g}, {high:.2f} beyond)"
+            line += (f"   (Eq. 15: {p2:+.2f} V² {p1:+.2f} V {p0:+.2f} for |V| < {paper.limit_speed_mm_s:g}, "
+                     f"{high:.2f} beyond)")
         print(line + f"; RMS residual {fit.rms_dac:.3f} DAC")
 
 
@@ -359,8 +364,8 @@ def _outputs(args: argparse.Namespace, config: fid.IdentificationConfig, constan
         print_fits(fits, constants)
         table = fcurve.fitted_table(fits, max(config.speeds_mm_s))
         meta = _meta(config, constants, figures, args.engine)
-        files += [fcurve.write_table(path, table, fits, meta) for path in (out_dir / "friction_table.yaml",
-                                                                         *([args.write_table] if args.write_table else []))]
+        paths = (out_dir / "friction_table.yaml", *([args.write_table] if args.write_table else []))
+        files += [fcurve.write_table(path, table, fits, meta) for path in paths]
     if not args.engine:
         print(f"bags:  {out_dir}/<plant>/<speed>/bag ({len(points)} runs)")
     for path in files:

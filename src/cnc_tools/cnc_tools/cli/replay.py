@@ -9,7 +9,8 @@ from cnc_tools.bagio.replay import Recording, ReplayConfig, ReplaySchedule, load
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("bag", type=Path, help="bag folder (or its .mcap file); a damaged bag replays its readable prefix")
+    parser.add_argument("bag", type=Path,
+                        help="bag folder (or its .mcap file); a damaged bag replays its readable prefix")
     parser.add_argument("--rate", type=float, default=1.0, help="playback speed relative to the recording (default 1)")
     parser.add_argument("--start-offset", type=float, default=0.0, metavar="S",
                         help="start S seconds into the bag (latched topics still get their last message)")

@@ -25,7 +25,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "(default /cnc/run_<random id>: runs in one ROS domain never meet)")
     parser.add_argument("--compose", choices=sorted(COMPOSE_MODES), default="none",
                         help="nodes in one process on one executor: loop (plant, interpolator, servos and the "
-                        "optional stages; the recorder apart), all (the recorder too), none (one process each; default)")
+                        "optional stages; the recorder apart), all (the recorder too), "
+                        "none (one process each; default)")
     parser.add_argument("--managed", action="store_true",
                         help="start the interpolator, servos and plant unconfigured and let a lifecycle manager "
                         "configure and activate them (default: they autostart)")

@@ -85,7 +85,8 @@ def _run(node: Any, client: Any, goal: Any) -> int:
         result = result_future.result()
     result = result.result
     print(f"{result.program_name}: {('completed', 'canceled', 'faulted')[result.outcome]} {result.reason}\n"
-          f"  max contour error {result.max_contour_error_m * 1e6:.2f} um, rms {result.rms_contour_error_m * 1e6:.2f} um,"
+          f"  max contour error {result.max_contour_error_m * 1e6:.2f} um, "
+          f"rms {result.rms_contour_error_m * 1e6:.2f} um,"
           f" max following error {result.max_following_error_m * 1e6:.2f} um\n"
           f"  cycle time {result.cycle_time_s:.3f} s, path {result.path_length_m * 1e3:.3f} of "
           f"{result.total_length_m * 1e3:.3f} mm, {result.ticks} ticks" + (f", bag {result.bag_path}"

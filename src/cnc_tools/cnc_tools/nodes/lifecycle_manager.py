@@ -69,7 +69,8 @@ class LifecycleManagerNode(SuiteNode):
         self.startup_timeout_s = self.declare("startup_timeout_s", 90.0, describe(
             "wall time to wait for a node's change_state service, s", 0.1, 3600.0, True))
         self.plan = TransitionPlan(tuple(names or ()))
-        self._change_state = {name: self.create_client(ChangeState, f"{name}/change_state") for name in self.plan.node_names}
+        self._change_state = {name: self.create_client(ChangeState, f"{name}/change_state")
+                              for name in self.plan.node_names}
         self._get_state = {name: self.create_client(GetState, f"{name}/get_state") for name in self.plan.node_names}
         self._pending: Any = None
         self._state_query: Any = None
@@ -96,7 +97,8 @@ class LifecycleManagerNode(SuiteNode):
     def _send(self) -> None:
         name, transition_id, _ = self.plan.current
         self._sent_s = wall_time_s()
-        self._pending = self._change_state[name].call_async(ChangeState.Request(transition=Transition(id=transition_id)))
+        request = ChangeState.Request(transition=Transition(id=transition_id))
+        self._pending = self._change_state[name].call_async(request)
 
     def _check_pending(self) -> None:
         """An answer, or after ANSWER_WAIT_S without one (or with a refusal) the node's state, decides the step."""

@@ -48,12 +48,14 @@ class RecorderNode(SuiteNode):
         output = self.declare("output", "", describe("bag folder to create (must not exist)", read_only=True))
         axes = self.declare("axes", ["x", "y"], describe("axis names (one command topic each)", read_only=True))
         optional = self.declare("optional_stages", Parameter.Type.STRING_ARRAY, describe(
-            f"optional stages of the run whose topics are recorded too: {sorted(s for s in STAGES if STAGES[s].optional)}",
+            "optional stages of the run whose topics are recorded too: "
+            f"{sorted(s for s in STAGES if STAGES[s].optional)}",
             read_only=True)) or []
         outputs = self.declare("optional_outputs", Parameter.Type.STRING_ARRAY, describe(
             "optional outputs the run switches on (the plant's tool_position with machine faults), recorded too",
             read_only=True)) or []
-        self.drain_timeout_s = self.declare("drain_timeout_s", 10.0, describe("wait for late messages after the run ends, s", 0.1, 600.0, True))
+        self.drain_timeout_s = self.declare("drain_timeout_s", 10.0,
+                                            describe("wait for late messages after the run ends, s", 0.1, 600.0, True))
         if not output:
             raise BagError("recorder: parameter output (the bag folder) is required")
         namespace = self.get_namespace()

@@ -38,7 +38,8 @@ def apply_loopback_policy(env: MutableMapping[str, str], domain_id: int | None =
     """Set the loopback DDS policy in ``env`` in place."""
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.setdefault("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
-    profile = env.get("FASTRTPS_DEFAULT_PROFILES_FILE") or env.get("FASTDDS_DEFAULT_PROFILES_FILE") or str(profile_path())
+    profile = (env.get("FASTRTPS_DEFAULT_PROFILES_FILE") or env.get("FASTDDS_DEFAULT_PROFILES_FILE")
+               or str(profile_path()))
     env["FASTRTPS_DEFAULT_PROFILES_FILE"] = profile
     env["FASTDDS_DEFAULT_PROFILES_FILE"] = profile
     if domain_id is not None:

@@ -119,7 +119,8 @@ class GraphRun:
         return [spec.name for spec in self.nodes]
 
     def _arguments(self, spec: NodeSpec) -> list[str]:
-        """The node's ROS arguments (its own process's, or its constructor's in a host): name, namespace, remaps, file."""
+        """The node's ROS arguments (its own process's, or its constructor's in a host): name, namespace, remaps,
+        file."""
         params = write_params_file(self.run_dir, self.namespace, spec.name, spec.parameters)
         return ["--ros-args", "-r", f"__ns:={self.namespace}", "-r", f"__node:={spec.name}",
                 *remap_arguments(self.namespace), "--params-file", str(params)]
@@ -185,7 +186,8 @@ class GraphRun:
                               f"last output: {self.last_output(name)!r}")
 
     def _partners_that_left(self, main: str) -> list[str]:
-        """The nodes that ``main``'s faults in ``summary.json`` say left the graph (``<ns>/<name>, ... left the graph``).
+        """The nodes that ``main``'s faults in ``summary.json`` say left the graph
+        (``<ns>/<name>, ... left the graph``).
 
         The partner leaves the graph before its interpreter has torn down, so ``main`` may end first.
         """
@@ -249,7 +251,8 @@ class GraphRun:
         if ended is not None:
             return ended.message
         path = self.run_dir / f"{self.process_of.get(name, name)}.log"
-        lines = [line for line in path.read_text(errors="replace").splitlines() if line.strip()] if path.exists() else []
+        text = path.read_text(errors="replace") if path.exists() else ""
+        lines = [line for line in text.splitlines() if line.strip()]
         return lines[-1] if lines else ""
 
     def stop(self, grace_s: float = 5.0) -> None:

@@ -141,7 +141,8 @@ def settle_summary(path: Path, status: str, reason: str, exit_codes: Mapping[str
 
 
 def stop_process(process: subprocess.Popen[Any], timeout_s: float) -> None:
-    """SIGINT ``process`` (a runner stops its nodes on it), SIGKILL it if it has not ended within ``timeout_s``; reap it."""
+    """SIGINT ``process`` (a runner stops its nodes on it), SIGKILL it if it has not ended within ``timeout_s``;
+    reap it."""
     if process.poll() is None:
         process.send_signal(signal.SIGINT)
         try:

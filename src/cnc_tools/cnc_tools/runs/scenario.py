@@ -160,7 +160,8 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
     plant = PlantConfig.from_mapping({"seed": seed, **_section(raw, "plant", {})}, "scenario.plant")
     program = load_program(_section(raw, "program"), name=name, base_dir=base_dir)
     if tuple(program.axis_names) != plant.axes:
-        raise ConfigError(f"scenario.program.axes {list(program.axis_names)} differ from scenario.plant.axes {list(plant.axes)}")
+        raise ConfigError(f"scenario.program.axes {list(program.axis_names)} differ from "
+                          f"scenario.plant.axes {list(plant.axes)}")
     limits = _limits(raw.get("limits", {}), len(plant.axes))
     interpolator = _interpolator_config(_section(raw, "interpolator", {}))
     feed_override = _feed_override(raw.get("feed_override"))
@@ -248,8 +249,10 @@ def _limits(section: Any, n_axes: int) -> AxisLimits:
     velocity = _per_axis(section.get("max_velocity_mm_min", 6000.0), n_axes, "scenario.limits.max_velocity_mm_min")
     accel = _per_axis(section.get("max_acceleration_mm_s2", 1000.0), n_axes, "scenario.limits.max_acceleration_mm_s2")
     return AxisLimits(
-        max_velocity_m_s=tuple(mm_min_to_m_s(require_positive("max_velocity_mm_min", v, "scenario.limits")) for v in velocity),
-        max_acceleration_m_s2=tuple(mm_s2_to_m_s2(require_positive("max_acceleration_mm_s2", a, "scenario.limits")) for a in accel),
+        max_velocity_m_s=tuple(mm_min_to_m_s(require_positive("max_velocity_mm_min", v, "scenario.limits"))
+                               for v in velocity),
+        max_acceleration_m_s2=tuple(mm_s2_to_m_s2(require_positive("max_acceleration_mm_s2", a, "scenario.limits"))
+                                    for a in accel),
     )
 
 
@@ -307,7 +310,8 @@ def _servos(section: Any, plant: PlantConfig) -> tuple[ServoConfig, ...]:
     if unknown:
         raise ConfigError(f"scenario.servo.axes.{unknown[0]}: unknown axis; axes are {list(axes)}")
     servos = tuple(
-        ServoConfig.from_mapping({"axis_name": axis, **merge(defaults, per_axis.get(axis, {}))}, f"scenario.servo[{axis}]")
+        ServoConfig.from_mapping({"axis_name": axis, **merge(defaults, per_axis.get(axis, {}))},
+                                 f"scenario.servo[{axis}]")
         for axis in axes
     )
     if follow:

@@ -20,7 +20,8 @@ def result_table(result: TuningResult) -> str:
                                 for v, x in zip(result.variables, result.x, strict=True)]
     lines = [format_table(["variable", "bounds", "optimum"], rows)]
     if result.constraints:
-        crow = [[str(c), f"{value:.4g}", "holds" if c.violation(value) == 0.0 else f"violated by {c.violation(value):.4g}"]
+        crow = [[str(c), f"{value:.4g}",
+                 "holds" if c.violation(value) == 0.0 else f"violated by {c.violation(value):.4g}"]
                 for c, value in zip(result.constraints, result.constraint_values, strict=True)]
         lines.append(format_table(["constraint", "value", "status"], crow))
     status = "feasible" if result.feasible else f"INFEASIBLE: best total violation {result.violation:.4g}"

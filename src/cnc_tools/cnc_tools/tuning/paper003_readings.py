@@ -101,7 +101,8 @@ def _box_row(lag: str, scale: float, constraints: tuple[Constraint, ...], maxite
     """The DE optimum of one lag reading in the box scaled by ``scale``, and which bounds it touches."""
     variables = (DesignVariable(K1_PATH, 1.0, 100.0 * scale), DesignVariable(K2_PATH, 0.05, 2.6 * scale))
     objective = AnalyticObjective({}, variables, p3.Readings(lag=lag, lag_form="first_order_radius"))
-    result = solve(objective, variables, constraints, lambda x: constraint_values(model_at({}, variables, x), constraints),
+    result = solve(objective, variables, constraints,
+                   lambda x: constraint_values(model_at({}, variables, x), constraints),
                    maxiter=maxiter, popsize=10, seed=seed, unit="um")
     at_edge = [name for name, v, x in zip(("K1", "K2"), variables, result.x, strict=True)
                if min(x - v.low, v.high - x) <= 0.01 * (v.high - v.low)]

@@ -350,7 +350,8 @@ def _print_report(result: Fit, figures: Sequence[Figures], profiles: Mapping[str
     print(_residual_table(objective, figures[0], figures[1]))
     _print_compare(runs[0], plan.compare_seeds)
     print("\nFLC/PID of the means (max/RMS) on each DE seed's fitted plant (paper: "
-          + ", ".join(f"{r.max_flc_blu / r.max_pid_blu:.2f}/{r.rms_flc_blu / r.rms_pid_blu:.2f}" for r in TABLE5) + "):")
+          + ", ".join(f"{r.max_flc_blu / r.max_pid_blu:.2f}/{r.rms_flc_blu / r.rms_pid_blu:.2f}" for r in TABLE5)
+          + "):")
     print(format_table(["fit", *(r.case for r in TABLE5)],
                        [[f"DE seed {s}", *_ratio_line(r)] for s, r in zip(result.seeds, runs)]))
 

@@ -216,7 +216,8 @@ def _loop(reading: Reading, scenario: Scenario) -> dict[str, Any]:
 COLUMNS: tuple[tuple[str, Any], ...] = (
     ("reading", lambda r: r["reading"]), ("contour", lambda r: r["contour"]),
     ("peak mm", lambda r: r["peak_mm"]), ("paper", lambda r: f"{r['paper_peak_mm']:.4f}"),
-    ("x paper", lambda r: r["peak_mm"] / r["paper_peak_mm"]), ("moving mm", lambda r: r.get("peak_motion_mm", math.nan)),
+    ("x paper", lambda r: r["peak_mm"] / r["paper_peak_mm"]),
+    ("moving mm", lambda r: r.get("peak_motion_mm", math.nan)),
     ("ISE mm2", lambda r: f"{r['ise_mm2']:.4g}"), ("paper", lambda r: f"{r['paper_ise']:.4f}"),
     ("track mm", lambda r: r.get("tracking_max_mm", math.nan)), ("moved", lambda r: str(r.get("broke_away", "-"))),
     ("stops", lambda r: r.get("stops", -1)), ("diverged", lambda r: str(r["diverged"])),
