@@ -18,7 +18,8 @@ ROOT = Path(__file__).resolve().parents[1]
 DESIGN = ROOT / "docs" / "design.md"
 PACKAGES_KEY = "packages"
 MAX_TOP_LEVEL_MODULES = 8
-LAZY_TARGET = re.compile(r"^(cnc_contour_control|cnc_plant_sim|cnc_tools)((?:\.[A-Za-z_][A-Za-z0-9_]*)+)(?::[A-Za-z_]\w*)?$")
+LAZY_TARGET = re.compile(r"^(cnc_contour_control|cnc_plant_sim|cnc_tools)"
+                         r"((?:\.[A-Za-z_][A-Za-z0-9_]*)+)(?::[A-Za-z_]\w*)?$")
 
 
 def declared_layers() -> dict[str, list[set[str]]]:

@@ -149,7 +149,8 @@ def test_a_raising_member_ends_alone_named_and_the_others_go_on(tmp_path: Path, 
 def test_compose_modes_group_the_loop_and_refuse_an_unknown_mode(tmp_path: Path) -> None:
     scenario = _cross_axis(tmp_path, "groups")
     nodes = [recorder_spec(scenario, tmp_path / "bag"), *graph_specs(scenario, tmp_path, 1, extra_readers=["recorder"])]
-    groups = {mode: {g.name: {s.name for s in g.nodes} for g in group_nodes(nodes, mode)} for mode in ("none", "loop", "all")}
+    groups = {mode: {g.name: {s.name for s in g.nodes} for g in group_nodes(nodes, mode)}
+              for mode in ("none", "loop", "all")}
     assert groups["none"] == {s.name: {s.name} for s in nodes}
     assert groups["loop"] == {HOST: LOOP, "recorder": {"recorder"}}
     assert groups["all"] == {HOST: LOOP | {"recorder"}}

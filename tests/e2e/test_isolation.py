@@ -101,7 +101,8 @@ def test_a_foreign_listener_does_not_open_the_start_up_gate_before_the_recorder_
         with TopicProbe(js, name="recorder", namespace=ns) as recorder:
             recorder.wait_for(lambda: recorder.received(f"{ns}/joint_states"), 20.0, "tick 0 at the recorder")
             assert _stamps([(0, m) for m in recorder.received(f"{ns}/joint_states")])[0] == 0
-        assert foreign.received(f"{ns}/joint_states"), "a foreign listener still gets the data, it just is not waited for"
+        assert foreign.received(f"{ns}/joint_states"), \
+            "a foreign listener still gets the data, it just is not waited for"
 
 
 def test_a_far_future_joint_state_from_outside_the_run_is_a_fault_naming_the_topic(tmp_path: Path) -> None:

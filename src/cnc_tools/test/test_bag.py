@@ -326,10 +326,12 @@ def test_a_flushed_bag_survives_its_writer_being_killed(tmp_path: Path) -> None:
         import numpy as np
         w = BagWriter({str(tmp_path / 'bag')!r}, {{"/cnc/joint_states": "sensor_msgs/msg/JointState"}})
         for k in range(50):
-            w.write_message("/cnc/joint_states", k * 10_000_000, joint_state(k * 10_000_000, ["x"], np.array([k * 1e-3]), np.zeros(1)))
+            w.write_message("/cnc/joint_states", k * 10_000_000,
+                            joint_state(k * 10_000_000, ["x"], np.array([k * 1e-3]), np.zeros(1)))
         w.flush()
         for k in range(50, 60):
-            w.write_message("/cnc/joint_states", k * 10_000_000, joint_state(k * 10_000_000, ["x"], np.array([k * 1e-3]), np.zeros(1)))
+            w.write_message("/cnc/joint_states", k * 10_000_000,
+                            joint_state(k * 10_000_000, ["x"], np.array([k * 1e-3]), np.zeros(1)))
         os.kill(os.getpid(), signal.SIGKILL)
     """)
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, check=False)

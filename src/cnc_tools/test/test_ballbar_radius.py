@@ -51,7 +51,8 @@ def test_bad_models_are_refused() -> None:
         RadiusLossModel(-1.0)
 
 
-def test_a_recorded_paper003_circle_shows_the_predicted_loss(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_recorded_paper003_circle_shows_the_predicted_loss(tmp_path: Path,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "run"
     assert main(["run", str(SCENARIOS / "paper003_circle.yaml"), "--engine", "--out", str(out)]) == 0
     capsys.readouterr()

@@ -27,7 +27,8 @@ def test_core_modules_never_import_rclpy() -> None:
     modules = core_modules()
     assert len(modules) > 20
     script = "import importlib, sys\n" + "".join(f"importlib.import_module({m!r})\n" for m in modules) + (
-        "bad = sorted(m for m in sys.modules if m.split('.')[0] == 'rclpy' or (m.endswith('.msg') and not m.startswith('rosbags.')))\n"
+        "bad = sorted(m for m in sys.modules\n"
+        "             if m.split('.')[0] == 'rclpy' or (m.endswith('.msg') and not m.startswith('rosbags.')))\n"
         "print(bad)\nsys.exit(1 if bad else 0)\n")
     result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stdout + result.stderr

@@ -153,5 +153,6 @@ def test_optional_stage_series_go_to_their_topics_and_come_back(circle: RunRecor
             if hasattr(sent, field):
                 assert_allclose(getattr(got, field), getattr(sent, field), rtol=0, atol=0, err_msg=f"{name}.{field}")
     assert back.compensation is not None and back.compensation.command_unit == "dac"
-    assert back.compensation.method == "neural" and back.contour_error is not None and back.contour_error.method == "window"
+    assert back.compensation.method == "neural"
+    assert back.contour_error is not None and back.contour_error.method == "window"
     assert circle.contour_error is None and read_bag(write_record_bag(circle, tmp_path / "plain")).contour_error is None

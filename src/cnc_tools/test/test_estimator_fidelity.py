@@ -1,4 +1,5 @@
-"""Estimator fidelity on real closed-loop motion (engine, T = 1 ms) and the ``estimator`` bench (no timing assertions)."""
+"""Estimator fidelity on real closed-loop motion (engine, T = 1 ms) and the ``estimator`` bench (no timing
+assertions)."""
 from __future__ import annotations
 
 import argparse
@@ -44,7 +45,8 @@ def test_every_contour_scenario_loads_at_1_khz() -> None:
         scenario = contour.load(ROOT)
         assert scenario.sample_time_s == 0.001, contour.name
     assert get_contour("helix").load(ROOT).axes == ("x", "y", "z")
-    with pytest.raises(ConfigError, match=r"contour must be one of \['circle', 'corner', 'helix', 'involute', 'line'\]"):
+    with pytest.raises(ConfigError,
+                       match=r"contour must be one of \['circle', 'corner', 'helix', 'involute', 'line'\]"):
         get_contour("ellipse")
 
 

@@ -171,7 +171,8 @@ def test_fit_needs_three_steady_speeds_per_branch() -> None:
 
 def test_table_round_trips_and_runs_as_a_plant_friction(tmp_path: Path) -> None:
     fits = fcurve.fit_curve(_exact_points(fid.DEFAULT_SPEEDS_MM_S))
-    table = fcurve.load_table(fcurve.write_table(tmp_path / "t.yaml", fcurve.fitted_table(fits, 20.0), fits, {"axis": "x"}))
+    written = fcurve.write_table(tmp_path / "t.yaml", fcurve.fitted_table(fits, 20.0), fits, {"axis": "x"})
+    table = fcurve.load_table(written)
     model = paper000_x()
     for v in (-20.0, -11.0, -3.3, -0.2, 0.2, 3.3, 11.0, 20.0):
         assert table.force(v) == pytest.approx(model.force(v), abs=0.02)

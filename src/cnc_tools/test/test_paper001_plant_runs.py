@@ -22,7 +22,8 @@ from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.scenario import Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
-PATHS = {**{c: ROOT / p for c, p in SCENARIOS.items()}, "circle_cutting": ROOT / "scenarios/paper001/circle_cutting.yaml"}
+PATHS = {**{c: ROOT / p for c, p in SCENARIOS.items()},
+         "circle_cutting": ROOT / "scenarios/paper001/circle_cutting.yaml"}
 READING = {r.name: r for r in READINGS}
 
 

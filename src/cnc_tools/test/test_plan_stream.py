@@ -17,7 +17,8 @@ from cnc_contour_control.testing import sibling_module
 from cnc_tools.bench.blending import bench_config, limits_for
 from cnc_tools.bench.blending_corpus import CORPUS
 
-_BLENDING = sibling_module(Path(__file__).parents[2] / "cnc_contour_control" / "test" / "test_blending.py", "test_blending")
+_BLENDING = sibling_module(Path(__file__).parents[2] / "cnc_contour_control" / "test" / "test_blending.py",
+                           "test_blending")
 SAMPLE_S = 1e-3
 #: Programs longer than a chunk (so that the stream plans several), from the bench's corpus and random chains.
 PROGRAMS: dict[str, Callable[[], Program]] = {

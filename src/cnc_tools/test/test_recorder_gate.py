@@ -45,7 +45,8 @@ def test_a_plant_that_leaves_before_its_run_end_is_heard_is_a_fault_and_the_bag_
     with TopicProbe({}, name="plant", namespace=ns) as plant:
         joint_states = plant.publisher(JointState, f"{ns}/joint_states")
         with InProcessNode(RecorderNode, params, namespace=ns) as recorder:
-            plant.wait_for(lambda: joint_states.get_subscription_count() == 1, 20.0, "the recorder's joint_states reader")
+            plant.wait_for(lambda: joint_states.get_subscription_count() == 1, 20.0,
+                           "the recorder's joint_states reader")
             for tick in range(3):
                 message = JointState()
                 message.header.stamp.nanosec = 1_000_000 * (tick + 1)

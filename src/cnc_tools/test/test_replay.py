@@ -271,7 +271,8 @@ def test_node_replays_the_salvaged_prefix_of_a_truncated_bag_and_reports_the_los
         status = _final_status(probe)
     assert received == {topic: data[: kept[topic]] for topic, data in recorded.items()}
     values = {kv.key: kv.value for kv in status.values}
-    assert status.level == DiagnosticStatus.WARN and values["lost"] == str(lost) and values["published"] == str(sum(kept.values()))
+    assert status.level == DiagnosticStatus.WARN and values["lost"] == str(lost)
+    assert values["published"] == str(sum(kept.values()))
     assert f"{lost} messages lost" in status.message
 
 
@@ -279,7 +280,8 @@ def test_node_replays_the_salvaged_prefix_of_a_truncated_bag_and_reports_the_los
 def test_the_command_replays_a_bag_in_its_own_process_and_exits(tmp_path: Path, synth) -> None:
     bag = _small_run(tmp_path, synth, n=10)
     recorded = _recorded(bag)
-    command = [sys.executable, "-m", "cnc_tools.cli.main", "replay", str(bag), "--rate", "20", "--wait-for-subscribers", "1",
+    command = [sys.executable, "-m", "cnc_tools.cli.main", "replay", str(bag), "--rate", "20",
+               "--wait-for-subscribers", "1",
                "--topics", "/cnc/path", "/cnc/joint_states"]
     with _raw_probe({"/cnc/path": PATH_TYPE, "/cnc/joint_states": JS}) as probe:
         process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)

@@ -65,7 +65,8 @@ ARC_OFF_CIRCLE = {"axes": ["x", "y"], "start_mm": [0, 0], "feed_mm_min": 400,
         ({"plant.model": "lathe"}, ConfigError, ["lathe", "paper000"]),
     ],
 )
-def test_bad_scenarios_are_refused_naming_the_problem(tmp_path: Path, overrides: dict, error: type, words: list[str]) -> None:
+def test_bad_scenarios_are_refused_naming_the_problem(tmp_path: Path, overrides: dict, error: type,
+                                                      words: list[str]) -> None:
     with pytest.raises(error) as caught:
         load_scenario(_write(tmp_path, overrides))
     for word in words:

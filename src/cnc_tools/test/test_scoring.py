@@ -130,7 +130,8 @@ def test_renderings_table_json_csv(synth) -> None:
 
 
 def test_an_incomplete_bag_says_so_in_every_output(synth) -> None:
-    integrity = BagIntegrity(False, "scan", {"/cnc/joint_states": 10}, None, "unknown", ("the file ends inside a chunk",))
+    integrity = BagIntegrity(False, "scan", {"/cnc/joint_states": 10}, None, "unknown",
+                             ("the file ends inside a chunk",))
     run = synth.make_run(synth.circle_program(), synth.circle_trajectory(R_M, 0.0, n=10), integrity=integrity)
     score = score_run(run)
     assert "INCOMPLETE" in score.to_table() and "unknown" in score.to_table()

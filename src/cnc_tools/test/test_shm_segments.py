@@ -43,7 +43,8 @@ def test_only_the_sessions_own_unheld_segments_are_removed(tmp_path: Path) -> No
 def test_a_killed_participant_leaves_a_segment_that_is_found_stale() -> None:
     """Tier 2: a real participant killed by SIGKILL leaves its segment with nobody holding the lock."""
     present = fast_dds_segments()
-    code = "import rclpy, time; rclpy.init(); n = rclpy.create_node('shm_probe'); print('up', flush=True); time.sleep(60)"
+    code = ("import rclpy, time; rclpy.init(); n = rclpy.create_node('shm_probe'); print('up', flush=True); "
+            "time.sleep(60)")
     process = subprocess.Popen([sys.executable, "-c", code], env=loopback_env(), stdout=subprocess.PIPE, text=True)
     try:
         assert process.stdout is not None and process.stdout.readline().strip() == "up"

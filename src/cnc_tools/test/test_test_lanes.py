@@ -1,4 +1,5 @@
-"""The test session's work units (root conftest.py): each xdist worker on a ROS domain of its own, a graph file on one."""
+"""The test session's work units (root conftest.py): each xdist worker on a ROS domain of its own, a graph file
+on one."""
 from __future__ import annotations
 
 import json

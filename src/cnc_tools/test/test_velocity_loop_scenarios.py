@@ -44,7 +44,8 @@ def test_paper003_circle_radius_reduction_is_the_linear_loops() -> None:
 
 @pytest.mark.parametrize("axis", ["x", "y"])
 def test_paper002_circle_has_the_periodic_error_its_model_predicts(axis: str) -> None:
-    """The f_d = 50 Hz line of the tracking error (lock-in, detrended) = |P_x/(1 + K_pp P_x)| A, P_x = P_n · trapezoid."""
+    """The f_d = 50 Hz line of the tracking error (lock-in, detrended) = |P_x/(1 + K_pp P_x)| A,
+    P_x = P_n · trapezoid."""
     scenario = load_scenario(SCENARIOS / "paper002_circle.yaml").variant(duration_s=4.0)
     record = run_engine(scenario)
     k = ["x", "y"].index(axis)

@@ -1,4 +1,5 @@
-"""A run's verdict comes from the run: its end, per-tick stamps, faults, non-finite samples (``score`` refuses the rest)."""
+"""A run's verdict comes from the run: its end, per-tick stamps, faults, non-finite samples (``score`` refuses the
+rest)."""
 from __future__ import annotations
 
 import json
