@@ -30,7 +30,7 @@ from cnc_contour_control.core import topics
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.params import config_values
 from cnc_contour_control.core.stages import Pipeline, Stage
-from cnc_contour_control.graph.graph_files import params_yaml, write_manifest, write_params_file
+from cnc_contour_control.graph.graph_files import write_manifest, write_params_file
 from cnc_contour_control.graph.stage_params import (
     TIMEOUT_RANGE_S,
     CompensatorRunParams,
@@ -255,11 +255,6 @@ def recorder_spec(scenario: Scenario, bag_path: Path) -> NodeSpec:
     if outputs_on:
         parameters["optional_outputs"] = outputs_on
     return NodeSpec("cnc_tools", "recorder", "recorder", parameters)
-
-
-def ros_params_yaml(node: str, parameters: Mapping[str, Any]) -> str:
-    """A ROS 2 parameters file for the node ``node`` (fully qualified); strings quoted."""
-    return params_yaml(node, parameters)
 
 
 def write_params_dir(nodes: Sequence[NodeSpec], folder: Path, namespace: str = NAMESPACE, files: bool = True) -> Path:

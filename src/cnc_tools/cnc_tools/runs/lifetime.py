@@ -36,8 +36,6 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
 #: Signal a node gets when its runner dies (Linux only).
 PARENT_DEATH_SIGNAL = signal.SIGTERM
 _PR_SET_PDEATHSIG = 1
-#: summary.json statuses of a run that ended: the plant's own, and the runner's when the plant could not say.
-ENDED_STATUSES = ("finished", "faulted", "interrupted", "node died", "timed out")
 
 
 class RunInterrupted(KeyboardInterrupt):
