@@ -16,7 +16,13 @@ most one whole graph (``tests/e2e``) at a time.
 """
 from __future__ import annotations
 
+import atexit
+import functools
+import importlib.util
 import os
+import tempfile
+from collections.abc import Generator
+from pathlib import Path
 
 import pytest
 
@@ -27,8 +33,11 @@ DOMAIN_CLAIMS: list[object] = []
 
 
 def pytest_configure(config: pytest.Config) -> None:
-    """Before any node exists: the loopback DDS policy and this session's own domain."""
+    """Before any node exists: the loopback DDS policy and this session's own domain (and the tier check, if on)."""
     from cnc_tools.runs.dds import apply_loopback_policy, claim_free_domain_id
+
+    if os.environ.get(TIER_CHECK):
+        start_tier_check()
 
     claim = claim_free_domain_id()
     DOMAIN_CLAIMS.append(claim)
@@ -82,3 +91,53 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     """The whole-graph files first, so no long graph test is left for the end of a run on two workers."""
     items.sort(key=lambda item: not item.nodeid.startswith(GRAPH_TESTS))
 
+
+
+#: ``CNC_TIER_CHECK=1 ./dev test -m "not nodes and not e2e"``: every core-tier test (marked neither ``nodes`` nor
+#: ``e2e``) that starts a DDS participant, in the test process or in any Python process it starts, fails and says
+#: which process did. Off unless set by hand: it puts :data:`TIER_CHECK_DIR` on every process's ``PYTHONPATH``.
+TIER_CHECK = "CNC_TIER_CHECK"
+TIER_CHECK_DIR = Path(__file__).parent / "tests" / "tier_check"
+#: The file the processes of the running test append their participants to (read by ``tier_check/sitecustomize.py``).
+PARTICIPANT_LOG = "CNC_PARTICIPANT_LOG"
+
+
+def start_tier_check() -> None:
+    """Note participants in this process now and in every Python process started from here on."""
+    os.environ["PYTHONPATH"] = os.pathsep.join(filter(None, [str(TIER_CHECK_DIR), os.environ.get("PYTHONPATH")]))
+    spec = importlib.util.spec_from_file_location("cnc_tier_check", TIER_CHECK_DIR / "sitecustomize.py")
+    assert spec is not None and spec.loader is not None, TIER_CHECK_DIR
+    spec.loader.exec_module(importlib.util.module_from_spec(spec))
+
+
+@functools.cache
+def participant_log_dir() -> Path:
+    """A directory of this process's own for the participant logs (removed at exit)."""
+    made = tempfile.TemporaryDirectory(prefix="cnc_tier_check_")
+    atexit.register(made.cleanup)
+    return Path(made.name)
+
+
+def is_core_tier(item: pytest.Item) -> bool:
+    """A test of the core tier: marked neither ``nodes`` nor ``e2e``."""
+    return item.get_closest_marker("nodes") is None and item.get_closest_marker("e2e") is None
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    """Under the tier check: a participant log of the core-tier test's own, before its fixtures are made."""
+    if os.environ.get(TIER_CHECK) and is_core_tier(item):
+        log = participant_log_dir() / "participants.log"
+        log.unlink(missing_ok=True)
+        os.environ[PARTICIPANT_LOG] = str(log)
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> Generator[None, None, None]:
+    """Under the tier check: fail the core-tier test whose setup, call or teardown started a participant."""
+    yield
+    log = os.environ.pop(PARTICIPANT_LOG, None)
+    if log is not None and Path(log).exists():
+        started = Path(log).read_text(encoding="utf-8")
+        Path(log).unlink()
+        pytest.fail(f"a core-tier test started DDS participants (mark it nodes or e2e):\n{started}", pytrace=False)
