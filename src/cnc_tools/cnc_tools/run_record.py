@@ -187,10 +187,6 @@ class ToolPositionSeries:
     position_m: FloatArray
 
 
-#: Where a record came from.
-BACKENDS = ("graph", "engine", "bag")
-
-
 @dataclass(frozen=True, eq=False)
 class RunRecord:
     """One run: program geometry, measured and reference trajectories, commands, optional stage series.

@@ -51,7 +51,3 @@ class SpindleSchedule:
         """φ(t_s) [rad]."""
         k = self._piece(t_s)
         return self._start_phases[k] + 2.0 * math.pi * self.frequencies_hz[k] * (t_s - self.start_times_s[k])
-
-    def max_frequency_hz(self) -> float:
-        """The highest f_d of the run [Hz]."""
-        return max(self.frequencies_hz)

@@ -33,11 +33,6 @@ def join_ns(sec: int, nanosec: int) -> int:
     return int(sec) * NS_PER_S + int(nanosec)
 
 
-def tick_stamp_ns(tick: int, sample_time_ns: int) -> int:
-    """Stamp of tick ``tick`` in integer nanoseconds."""
-    return tick * sample_time_ns
-
-
 def seconds_to_ns(value_s: float, name: str = "sample_time_s") -> int:
     """Seconds to integer nanoseconds; refuses values that are not whole nanoseconds > 0."""
     if not math.isfinite(value_s) or value_s <= 0.0:

@@ -153,14 +153,6 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def in_range(spec: ParamSpec, value: Any) -> bool:
-    """True when a numeric ``value`` lies in the spec's declared range (no range: always)."""
-    if spec.kind not in (float, int) or isinstance(value, bool):
-        return True
-    low, high = spec.info.low, spec.info.high
-    return (low is None or value >= low) and (high is None or value <= high)
-
-
 def check_ranges(config: Any, context: str = "") -> None:
     """Validate every numeric field of ``config`` against its declared range (call from ``__post_init__``).
 

@@ -23,19 +23,9 @@ def m_to_mm(value_m: float) -> float:
     return value_m / M_PER_MM
 
 
-def m_to_um(value_m: float) -> float:
-    """Metres to micrometres."""
-    return value_m / M_PER_UM
-
-
 def mm_min_to_m_s(feed_mm_min: float) -> float:
     """A feedrate in mm/min to m/s."""
     return feed_mm_min * M_PER_MM / 60.0
-
-
-def m_min_to_m_s(feed_m_min: float) -> float:
-    """A feedrate in m/min to m/s."""
-    return feed_m_min / 60.0
 
 
 def m_s_to_mm_min(speed_m_s: float) -> float:

@@ -57,10 +57,6 @@ class DiscreteVelocityModel:
             raise ConfigError(f"denominator[0] must be 1 (monic in z⁻¹), got {self.denominator[0]}")
         require_range("sample_time_s", self.sample_time_s, 1e-6, 1.0)
 
-    def dc_gain(self) -> float:
-        """The gain at z = 1 (1 for an identified closed velocity loop)."""
-        return sum(self.numerator) / sum(self.denominator)
-
     def dlti(self) -> signal.dlti:
         """The model as a :class:`scipy.signal.dlti` (z-domain, ``dt = sample_time_s``).
 

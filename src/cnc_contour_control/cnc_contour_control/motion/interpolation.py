@@ -230,18 +230,6 @@ class SegmentLimits:
     acceleration_m_s2: float
 
 
-def segment_limits(index: int, segment: Segment, limits: AxisLimits, config: InterpolatorConfig) -> SegmentLimits:
-    """Cruise speed and tangential acceleration that keep every axis within ``limits`` (:func:`plan_limits` of one).
-
-    Raises
-    ------
-    ProgramError
-        If the programmed feed exceeds the axis velocity limits and ``config.clamp_feed`` is False.
-    """
-    speed, accel, _ = _plan_limits([segment], limits, config, index)
-    return SegmentLimits(float(speed[0]), float(accel[0]))
-
-
 def _plan_limits(segments: Sequence[Segment], limits: AxisLimits, config: InterpolatorConfig,
                  first_index: int = 0) -> tuple[FloatArray, FloatArray, SpeedBands]:
     return plan_banded_limits(segments, np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),

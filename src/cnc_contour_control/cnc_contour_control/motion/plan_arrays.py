@@ -109,18 +109,6 @@ def _refuse_feeds(segments: Sequence[Segment], feed: FloatArray, axis_speed: Flo
             f"(axis velocity limits along the segment), got {m_s_to_mm_min(feed[i]):.6g}")
 
 
-def plan_limits(segments: Sequence[Segment], max_velocity_m_s: FloatArray, max_acceleration_m_s2: FloatArray,
-                centripetal_fraction: float, combined_budget: bool, clamp_feed: bool,
-                first_index: int = 0) -> tuple[FloatArray, FloatArray]:
-    """Cruise speed (m/s) and tangential acceleration (m/s²) of every segment, ``(N,)`` each.
-
-    :func:`plan_banded_limits` with one band (its first two results).
-    """
-    speed, accel, _ = plan_banded_limits(segments, max_velocity_m_s, max_acceleration_m_s2, centripetal_fraction,
-                                         combined_budget, clamp_feed, first_index)
-    return speed, accel
-
-
 def plan_banded_limits(segments: Sequence[Segment], max_velocity_m_s: FloatArray, max_acceleration_m_s2: FloatArray,
                        centripetal_fraction: float, combined_budget: bool, clamp_feed: bool,
                        first_index: int = 0, n_bands: int = 1) -> tuple[FloatArray, FloatArray, SpeedBands]:

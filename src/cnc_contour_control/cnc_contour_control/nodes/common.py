@@ -487,9 +487,3 @@ def flush_and_destroy(node: SuiteNode, flush: bool = True) -> None:
         pass
     finally:
         node.destroy_node()  # always: the recorder closes its bag here
-
-
-def require(condition: bool, message: str) -> None:
-    """Raise a :class:`FaultError` with ``message`` unless ``condition`` holds."""
-    if not condition:
-        raise FaultError(message)

@@ -98,21 +98,6 @@ class SafetyInterface:
             self.node.report(self._level(), RUNNING, {**values, **self.latch.state()}, stamp_ns=stamp_ns)
 
 
-class TickDiagnostics:
-    """Per-second diagnostics alone (a node without a latch: the servos)."""
-
-    def __init__(self, node: SuiteNode) -> None:
-        self.node = node
-        self.stats = TickStats()
-
-    def account(self, stamp_ns: int, wall_s: float, counts: dict[str, tuple[int, int]] | None = None,
-                peaks: dict[str, float] | None = None) -> None:
-        """Account one tick; at each second of run time publish the window."""
-        values = self.stats.add(stamp_ns, wall_s, counts, peaks)
-        if values is not None and not self.node.finished:
-            self.node.report(DiagnosticStatus.OK, RUNNING, values, stamp_ns=stamp_ns)
-
-
 #: What rmw reports for an endpoint whose node discovery has not named yet.
 UNKNOWN_NODE = "_NODE_NAME_UNKNOWN_"
 

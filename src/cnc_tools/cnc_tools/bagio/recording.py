@@ -5,8 +5,8 @@ and the one home of topic names (:mod:`cnc_contour_control.core.topics`); nothin
 here spells a topic. A run's topics live under its namespace; ``/clock`` and
 ``/diagnostics`` are absolute in the nodes and the runner remaps them into the
 run's namespace, so a bag holds either ``<ns>/clock`` (runs since isolation)
-or ``/clock`` (older bags, launch-file runs): :func:`run_namespace` and
-:func:`bag_topic` find either.
+or ``/clock`` (older bags, launch-file runs); :func:`run_namespace` finds the
+run's namespace in either.
 """
 from __future__ import annotations
 
@@ -64,12 +64,6 @@ def in_some_namespace(topic_name: str, patterns: Iterable[str]) -> bool:
     """True if ``topic_name`` is one of the relative topic ``patterns`` (``{axis}`` for any axis) under any
     namespace."""
     return any(re.fullmatch(r"(/[^/]+)*/" + re.escape(p).replace(r"\{axis\}", "[^/]+"), topic_name) for p in patterns)
-
-
-def bag_topic(namespace: str, name: str, topic_names: Collection[str]) -> str:
-    """The bag's name of topic ``name``: under the run's namespace, else as the nodes spell it (older bags)."""
-    inside = t.qualify(namespace, name.lstrip("/"))
-    return inside if inside in topic_names or not name.startswith("/") else name
 
 
 def header_stamp_ns(cdr: bytes | memoryview) -> int:

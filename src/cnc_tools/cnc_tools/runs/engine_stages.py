@@ -135,10 +135,6 @@ class PlantStage:
     def step(self, board: Board) -> None:
         """The plant answers no one within a tick (it opens and closes it)."""
 
-    def integrate(self, board: Board) -> None:
-        """Hold every axis's command over T."""
-        self.plant.step(board.commands, self.sample_time_s)
-
     def advance(self, board: Board) -> None:
         """Close the tick (integrate) and open the next one (its state); the state after the last tick is dropped."""
         self._plant_step(board.commands, self.sample_time_s)

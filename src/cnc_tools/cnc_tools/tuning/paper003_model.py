@@ -121,12 +121,6 @@ class Paper003Model:
         return replace(self, **changes)
 
 
-def gains_of(zeta: float, omega_n_rad_s: float, torque_per_inertia: float = PAPER003_TORQUE_PER_INERTIA
-             ) -> tuple[float, float]:
-    """(K1, K2) giving ``zeta`` and ``omega_n_rad_s``: the inverse of Eq. 1's definitions."""
-    return omega_n_rad_s ** 2 / torque_per_inertia, 2.0 * zeta * omega_n_rad_s / torque_per_inertia
-
-
 def velocity_loop(model: Paper003Model) -> control.TransferFunction:
     """Eq. 1, velocity command -> velocity, as a python-control transfer function."""
     c = model.torque_per_inertia

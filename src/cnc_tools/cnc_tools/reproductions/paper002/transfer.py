@@ -33,7 +33,6 @@ from typing import Any
 
 from cnc_contour_control.disturbance.loop import tf
 from cnc_contour_control.disturbance.stack_loop import StackBlocks, pid_transfer, sampled_plant, stack_figures
-from cnc_contour_control.laws import law_config
 from cnc_plant_sim.models.nominal_models import canceller_model_params, continuous_velocity_model, drive_velocity_model
 from cnc_plant_sim.models.plant import PlantConfig
 from cnc_tools.analysis.tables import format_table, machine, write_json
@@ -167,13 +166,6 @@ def run_target(target: Target, runs: tuple[str, ...] = RUNS) -> dict[str, Any]:
     found["loop"] = loop_figures(target)
     found["f_d_hz"] = target.f_d_hz
     return found
-
-
-def check_law(target: Target) -> None:
-    """Build the stacked config once (a refused design names its parameter before any run)."""
-    scenario = scenario_for(target, "law+pdc")
-    for servo in scenario.servos:
-        law_config(servo.law, servo.law_params)
 
 
 # --------------------------------------------------------------------------- the bench
