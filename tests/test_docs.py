@@ -3,7 +3,7 @@
 A *path* is a token of a doc (in backticks or in plain text) that contains a ``/`` and either ends in one of
 ``PATH_SUFFIXES`` or starts with one of the repository's top folders (``src/``, ``tests/``, ``scenarios/`` ...).
 Tokens with a placeholder (``<axis>``, ``{``, ``$``, ``NNN``), absolute paths, ``../`` paths (outside the
-repository), URLs and ``.npz``/bag outputs are not paths of the repository and are skipped. A path is found when
+repository) and URLs are not paths of the repository and are skipped. A path is found when
 one of these exists (``resolve_path``), tried in order:
 
 1. the repository root: ``tests/e2e/test_graph.py``, ``scenarios/paper000_circle_high.yaml``;
@@ -15,8 +15,12 @@ one of these exists (``resolve_path``), tried in order:
 6. a scenario's own file, named relative to ``scenarios/`` as in a scenario: ``programs/helix_pocket.ngc``.
 
 A ``*`` in a path is a glob: some file must match it under one of the same roots. A bare Python file name in
-backticks (```plan_stream.py```) must be the name of some file of the repository (``git ls-files``' names, so
-a module that moved or vanished is caught; run outputs such as ``summary.json`` are not checked).
+backticks (such as plan_stream.py) must be the name of some ``.py`` file under ``src/``, ``tests/`` or
+``scripts/``, so a module that vanished is caught (run outputs such as summary.json are not checked).
+
+A *dotted name* ``cnc_tools.runs.graph.run_graph`` (one of the three Python packages, then dots) is found when
+its longest prefix that is a module or package of ``src/<package>/`` exists and the next part, if any, is a
+word of that module's text (an attribute it defines or imports).
 
 A *test name* is ``test_<word>`` not followed by ``.`` or ``/`` (optionally ``path::test_<word>``). It is found
 when some test file defines ``def test_<word>`` (a test module's stem, ``test_engine`` for ``test_engine.py``,
@@ -43,6 +47,7 @@ TOKEN = re.compile(r"[\w.\-/:<>*{}$]+")
 TEST_NAME = re.compile(r"(?<![\w/.])(test_\w+)(?![\w./])")
 TEST_FILE = re.compile(r"(?<![\w/.])(test_\w+\.py)\b")
 PLACEHOLDER = re.compile(r"[<>{}$]|(^|/)N+(/|\.|$)|paper00N")
+DOTTED = re.compile(r"\b((?:cnc_contour_control|cnc_plant_sim|cnc_tools)(?:\.\w+)+)")
 BARE_MODULE = re.compile(r"`([\w.\-]+\.py)`")
 
 
@@ -71,6 +76,18 @@ def resolve_path(token: str, root: Path = ROOT) -> Path | None:
     if "*" in token:
         return next((match for path in tries for match in sorted(path.parent.glob(path.name))), None)
     return next((path for path in tries if path.exists()), None)
+
+
+def resolve_dotted(name: str, root: Path = ROOT) -> Path | None:
+    """The module file a dotted name lives in (rules in the module docstring); None if it names nothing."""
+    parts = name.split(".")
+    for end in range(len(parts), 0, -1):
+        base = root / "src" / parts[0] / Path(*parts[:end])
+        module = next((f for f in (base.with_suffix(".py"), base / "__init__.py") if f.is_file()), None)
+        if module is not None:
+            rest = parts[end:]
+            return module if not rest or re.search(rf"\b{re.escape(rest[0])}\b", module.read_text()) else None
+    return None
 
 
 @cache
@@ -107,6 +124,12 @@ def test_every_path_a_doc_names_exists(doc: Path) -> None:
 
 
 @pytest.mark.parametrize("doc", DOCS, ids=doc_id)
+def test_every_dotted_module_name_a_doc_names_exists(doc: Path) -> None:
+    missing = sorted(name for name in set(DOTTED.findall(doc.read_text())) if resolve_dotted(name) is None)
+    assert not missing, f"{doc_id(doc)} names modules or attributes that do not exist: {missing}"
+
+
+@pytest.mark.parametrize("doc", DOCS, ids=doc_id)
 def test_every_test_a_doc_names_exists(doc: Path) -> None:
     text = doc.read_text()
     missing = sorted(set(TEST_NAME.findall(text)) - defined_tests())
@@ -130,6 +153,13 @@ def test_resolver_finds_real_paths_and_refuses_a_made_up_one() -> None:
     assert all(resolve_path(token) is None for token in candidate_paths(text))
 
 
+def test_dotted_names_resolve_to_modules_and_their_attributes() -> None:
+    assert resolve_dotted("cnc_tools.runs.graph.run_graph") is not None
+    assert resolve_dotted("cnc_contour_control.axis.servo") is not None
+    assert resolve_dotted("cnc_tools.runner.run_graph") is None
+    assert resolve_dotted("cnc_tools.runs.graph.run_graph_that_never_was") is None
+
+
 def test_test_name_pattern_takes_names_not_files() -> None:
     text = "`test_engine` and tests/e2e/test_graph.py::test_lockstep_graph_matches_engine_to_1e9, test_x.py"
     assert set(TEST_NAME.findall(text)) == {"test_engine", "test_lockstep_graph_matches_engine_to_1e9"}
@@ -147,4 +177,5 @@ def test_doc_opens_with_a_table(name: str) -> None:
     lines = (ROOT / "docs" / name).read_text().splitlines()
     first_section = next((i for i, line in enumerate(lines) if line.startswith("## ")), len(lines))
     first_table = next((i for i, line in enumerate(lines) if line.startswith("|")), len(lines))
-    assert first_table < first_section, f"docs/{name}: first table at line {first_table + 1}, first section at {first_section + 1}"
+    assert first_table < first_section, (f"docs/{name}: first table at line {first_table + 1}, "
+                                         f"first section at {first_section + 1}")

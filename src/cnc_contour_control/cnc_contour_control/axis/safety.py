@@ -55,10 +55,15 @@ __all__ = ["EstopLatch", "FERROR_ACTIONS", "FerrorActionParams", "FerrorTrip", "
 class FerrorFields(Protocol):
     """What a servo config declares for the trip (:class:`~cnc_contour_control.axis.servo.ServoConfig`)."""
 
-    axis_name: str
-    min_ferror_m: float
-    ferror_m: float
-    ferror_velocity_m_s: float
+    # read-only properties: a frozen dataclass's fields satisfy them
+    @property
+    def axis_name(self) -> str: ...
+    @property
+    def min_ferror_m(self) -> float: ...
+    @property
+    def ferror_m(self) -> float: ...
+    @property
+    def ferror_velocity_m_s(self) -> float: ...
 
 
 @dataclass(frozen=True)

@@ -280,7 +280,7 @@ class NeuralCompensator:
         scale, out_scale = self.config.position_input_scale_per_m, self.config.output_input_scale
         position = sample.position_m
         previous = self._previous_position if self._previous_position is not None else position
-        inputs = []
+        inputs: list[float] = []
         for ref, now, before in zip(sample.ref_position_m, position, previous):
             inputs += (ref * scale, now * scale, before * scale)
         inputs += [u * out_scale for u in self._previous_output]

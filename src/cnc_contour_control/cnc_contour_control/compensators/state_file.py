@@ -45,7 +45,7 @@ def save_state(path: str | Path, arrays: Mapping[str, npt.ArrayLike]) -> None:
     handle, temporary = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent or ".")
     try:
         with os.fdopen(handle, "wb") as stream:
-            np.savez(stream, **values)
+            np.savez(stream, **values)  # type: ignore[arg-type]  # NumPy's stub: a ** mapping might name allow_pickle
         os.replace(temporary, target)
     except BaseException:
         Path(temporary).unlink(missing_ok=True)

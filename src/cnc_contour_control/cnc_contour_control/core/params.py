@@ -98,7 +98,7 @@ def _kind(annotation: Any) -> tuple[type, type | None]:
     if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)) and args:
         return _kind(args[0])
     if dataclasses.is_dataclass(annotation):
-        return dict, annotation
+        return dict, typing.cast(type, annotation)
     if annotation in (float, int, bool, str):
         return annotation, None
     if origin in (tuple, list) or annotation in (tuple, list):

@@ -9,7 +9,7 @@ class SlotsRecord:
     reading and writing them costs what it costs on a plain slots class.
     """
 
-    __slots__ = ()
+    __slots__: tuple[str, ...] = ()
 
     def __repr__(self) -> str:
         values = ", ".join(f"{name}={getattr(self, name)!r}" for name in self.__slots__)

@@ -5,6 +5,14 @@ Topics and core APIs are SI (m, m/s, s). Configs and reports may use mm,
 """
 from __future__ import annotations
 
+from typing import TypeVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+#: One value or an array of them (a conversion works elementwise and keeps the kind).
+_Value = TypeVar("_Value", float, NDArray[np.float64])
+
 M_PER_MM = 1.0e-3
 M_PER_UM = 1.0e-6
 #: Paper 000's basic length unit, 10 µm.
@@ -13,7 +21,7 @@ M_PER_BLU_PAPER000 = 1.0e-5
 M_PER_PULSE_PAPER002 = 1.0e-6 / 2.4
 
 
-def mm_to_m(value_mm: float) -> float:
+def mm_to_m(value_mm: _Value) -> _Value:
     """Millimetres to metres."""
     return value_mm * M_PER_MM
 

@@ -59,8 +59,8 @@ def require_below_nyquist(name: str, f_hz: float, sample_time_s: float) -> float
     return f_hz
 
 
-def response(numerator: Sequence[float], denominator: Sequence[float], f_hz: np.ndarray | float,
-             sample_time_s: float) -> np.ndarray:
+def response(numerator: Sequence[float] | np.ndarray, denominator: Sequence[float] | np.ndarray,
+             f_hz: np.ndarray | float, sample_time_s: float) -> np.ndarray:
     """Frequency response of b(z⁻¹)/a(z⁻¹) at ``f_hz`` [Hz] (complex, shape of ``np.atleast_1d(f_hz)``)."""
     from scipy import signal
     worn = np.atleast_1d(np.asarray(f_hz, dtype=float))

@@ -95,14 +95,15 @@ def _response(model: TurningModelConfig, depth_of: npt.NDArray[np.float64], colu
     feed_lag = FirstOrderLag(model.interpolator_tau_s, start[0])
     chip_lag = FirstOrderLag(model.chip_tau_s, start[1])
     unit_feed, unit_chip = FirstOrderLag(model.interpolator_tau_s), FirstOrderLag(model.chip_tau_s)
-    unit_feed.value, unit_chip.value = np.zeros(columns), np.zeros(columns)
+    # one lag per column: FirstOrderLag's arithmetic runs elementwise on arrays as on floats
+    unit_feed.value, unit_chip.value = np.zeros(columns), np.zeros(columns)  # type: ignore[assignment]  # see above
     free, matrix = np.empty(n), np.empty((n, columns))
     for i in range(n):
         pulse = np.zeros(columns)
         pulse[min(i // hold, columns - 1)] = model.programmed_feed_mm_rev
         gain = model.specific_force_n_mm2 * depth_of[i]
         free[i] = chip_lag.step(dt_s, gain * feed_lag.step(dt_s, 0.0))
-        matrix[i] = unit_chip.step(dt_s, gain * unit_feed.step(dt_s, pulse))
+        matrix[i] = unit_chip.step(dt_s, gain * unit_feed.step(dt_s, pulse))  # type: ignore[arg-type]  # elementwise
     return free, matrix
 
 

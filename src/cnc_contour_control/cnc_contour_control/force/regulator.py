@@ -67,6 +67,7 @@ class ForceRegulator:
         self.law = make_force_law(config.law, config.law_params)
         self.quantiser = Quantiser(config.quantiser)
         self.plans = tuple(sorted(plans, key=lambda p: p.start_s))
+        self._plan: StepPlan | None = None
         self.reset()
 
     def reset(self, ratio: float = 1.0, t_s: float = 0.0) -> None:

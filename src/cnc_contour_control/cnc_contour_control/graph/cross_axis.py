@@ -57,7 +57,8 @@ class EstimatorSettings:
     def __post_init__(self) -> None:
         require_choice("method", self.method, ESTIMATORS)
         params = _checked_params(self.params, "estimator")
-        config = build_config(estimator_config_class(self.method), params, context=f"estimator.params[{self.method}]")
+        config: object = build_config(estimator_config_class(self.method), params,
+                                      context=f"estimator.params[{self.method}]")
         object.__setattr__(self, "params", config_values(config))
 
     @classmethod
@@ -99,8 +100,8 @@ class CompensatorSettings:
     def __post_init__(self) -> None:
         require_choice("method", self.method, COMPENSATORS)
         params = _checked_params(self.params, "compensator")
-        config = build_config(compensator_config_class(self.method), params,
-                              context=f"compensator.params[{self.method}]")
+        config: object = build_config(compensator_config_class(self.method), params,
+                                      context=f"compensator.params[{self.method}]")
         object.__setattr__(self, "params", config_values(config))
         for name in ("state_in", "state_out"):
             value = getattr(self, name)

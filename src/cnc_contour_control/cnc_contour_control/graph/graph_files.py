@@ -48,7 +48,7 @@ class GraphNode:
         return f"{self.namespace.rstrip('/')}/{self.name}"
 
 
-class _QuotedDumper(yaml.SafeDumper):
+class _QuotedDumper(yaml.SafeDumper):  # type: ignore[misc]  # PyYAML ships no types (SafeDumper is Any)
     """Quotes every string, so rcl's YAML 1.1 parser never reads 'y' or 'no' as a bool."""
 
 

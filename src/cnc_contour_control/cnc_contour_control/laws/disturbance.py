@@ -280,13 +280,13 @@ class DisturbanceLaw:
 
     def _retune_dob(self, config: PositionLoopConfig, model: DiscreteVelocityModel) -> None:
         self._dob = isinstance(config, DobConfig)
-        if self._dob and self._changed("dob", (model, config.q_design())):
+        if isinstance(config, DobConfig) and self._changed("dob", (model, config.q_design())):
             inverse, shifted = dob_filters(config.q_design(), model)
             self._q_inverse, self._q_command = IirFilter(*inverse), IirFilter(*shifted)
 
     def _retune_mbda(self, config: PositionLoopConfig, model: DiscreteVelocityModel) -> None:
         self._mbda = isinstance(config, MbdaConfig)
-        if self._mbda and self._changed("mbda", (model, config.mbda_kp, config.mbda_ki)):
+        if isinstance(config, MbdaConfig) and self._changed("mbda", (model, config.mbda_kp, config.mbda_ki)):
             self._mbda_model = _delayed_model(model)
             self._m = IirFilter(*mbda_pi(config.mbda_kp, config.mbda_ki, self._dt_s))
 

@@ -261,7 +261,8 @@ class ArcSegment:
 
     def _nearest_helix(self, rho: FloatArray, phi: FloatArray, off: FloatArray) -> tuple[FloatArray, FloatArray]:
         """Grid search, then safeguarded Newton steps; golden sections where Newton is not conclusive."""
-        terms = self._helix_terms(rho, off)
+        # c3 is a float: NumPy broadcasts it where the helpers take an array
+        terms: tuple[FloatArray, ...] = self._helix_terms(rho, off)  # type: ignore[assignment]  # see above
         grid = np.linspace(0.0, self.sweep_rad, max(17, int(math.ceil(self.sweep_rad / (math.pi / 16.0))) + 1))
         values = self._helix_squared(phi[:, None], tuple(c[:, None] if np.ndim(c) else c for c in terms), grid)
         best = np.argmin(values, axis=1)

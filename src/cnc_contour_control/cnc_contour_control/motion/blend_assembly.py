@@ -12,9 +12,13 @@ instead of one constructor call per segment.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import cast
+
 import numpy as np
 
 from cnc_contour_control.motion.blend_table import BlendTable
+from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.geometry import LineSegment, Program, Segment
 from cnc_contour_control.motion.points import MIN_LENGTH_M, FloatArray
 from cnc_contour_control.motion.segment_batch import arc_segments, line_segments
@@ -58,7 +62,7 @@ def _slots(program: Program, pieces: dict[str, np.ndarray]) -> tuple[np.ndarray,
     return order, previous_end
 
 
-def _blend_arcs(program: Program, blends: BlendTable, start_m: FloatArray) -> list[Segment]:
+def _blend_arcs(program: Program, blends: BlendTable, start_m: FloatArray) -> Sequence[Segment]:
     """The blend arcs from ``start_m`` (``(M, n_axes)``, m, where the path is) to each blend's end."""
     segments, junction = program.segments, blends.junction.tolist()
     feed = np.array([segment.feed_m_s for segment in segments])
@@ -76,10 +80,10 @@ def _trimmed(program: Program, pieces: dict[str, np.ndarray]) -> dict[int, Segme
         pieces["start"][lines], pieces["end"][lines], np.array([segments[k].feed_m_s for k in lines]),
         [segments[k].source_line for k in lines])))
     if arcs.size:
-        chosen = [segments[k] for k in arcs]
+        chosen = [cast(ArcSegment, segments[k]) for k in arcs]
         out.update(zip(arcs.tolist(), arc_segments(
             pieces["start"][arcs], pieces["end"][arcs], np.array([a.center_m for a in chosen]),
-            np.array([a.clockwise for a in chosen], dtype=bool), np.array([a.plane for a in chosen], dtype=np.intp),
+            np.array([a.clockwise for a in chosen], dtype=np.bool_), np.array([a.plane for a in chosen], dtype=np.intp),
             np.array([a.feed_m_s for a in chosen]), [a.source_line for a in chosen])))
     return out
 

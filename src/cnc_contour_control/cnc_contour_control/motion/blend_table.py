@@ -83,7 +83,7 @@ class BlendTable:
 
     def merged(self, other: BlendTable) -> BlendTable:
         """Both tables' rows in junction order."""
-        names = [f.name for f in self.__dataclass_fields__.values()]  # type: ignore[attr-defined]
+        names = [f.name for f in self.__dataclass_fields__.values()]
         joined = {name: np.concatenate([getattr(self, name), getattr(other, name)]) for name in names}
         order = np.argsort(joined["junction"], kind="stable")
         return BlendTable(**{name: values[order] for name, values in joined.items()})

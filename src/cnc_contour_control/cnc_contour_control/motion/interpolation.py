@@ -97,7 +97,7 @@ class AxisLimits:
 def _positive_tuple(name: str, values: ArrayLike) -> tuple[float, ...]:
     if isinstance(values, (str, bytes)) or not isinstance(values, Iterable):
         raise ConfigError(f"{name} must be a list with one value per axis, got {values!r}")
-    items = list(values)
+    items: list[Any] = list(values)
     if not items:
         raise ConfigError(f"{name} must have at least one entry, got {values!r}")
     return tuple(require_positive(f"{name}[{j}]", v) for j, v in enumerate(items))

@@ -25,6 +25,7 @@ import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,7 +34,7 @@ from cnc_contour_control.core.errors import ProgramError
 from cnc_contour_control.core.units import m_s_to_mm_min
 from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.arc_budget import combined_tangential_rows, speed_bands
-from cnc_contour_control.motion.geometry import Program, Segment, segment_label
+from cnc_contour_control.motion.geometry import LineSegment, Program, Segment, segment_label
 from cnc_contour_control.motion.points import FloatArray
 from cnc_contour_control.motion.segment_tangents import junction_turns_rad
 
@@ -70,12 +71,12 @@ def segment_extents(segments: Sequence[Segment], n_axes: int) -> SegmentExtents:
     tangent, curvature = np.zeros((len(segments), n_axes)), np.zeros((len(segments), n_axes))
     lines = np.flatnonzero(~arc_flags)
     if lines.size:
-        tangent[lines] = np.abs(np.array([segments[i].unit_vector for i in lines.tolist()]))
-    chosen = [segments[i] for i in arcs.tolist()]
+        tangent[lines] = np.abs(np.array([cast(LineSegment, segments[i]).unit_vector for i in lines.tolist()]))
+    chosen = [cast(ArcSegment, segments[i]) for i in arcs.tolist()]
     radius, sweep, length = (np.array([getattr(arc, name) for arc in chosen], dtype=float)
                              for name in ("radius_m", "sweep_rad", "length_m"))
-    start = np.array([arc.start_angle_rad for arc in chosen], dtype=float)
-    end = start + np.array([arc.direction for arc in chosen], dtype=float) * sweep
+    start = np.array([arc.start_angle_rad for arc in chosen], dtype=np.float64)
+    end = start + np.array([arc.direction for arc in chosen], dtype=np.float64) * sweep
     low, high = np.minimum(start, end), np.maximum(start, end)
     rate, kappa = radius * sweep / length, radius * (sweep / length) ** 2
     plane = np.array([arc.plane for arc in chosen], dtype=np.intp).reshape(len(chosen), 2)

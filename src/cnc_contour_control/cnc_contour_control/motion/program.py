@@ -58,7 +58,7 @@ def _point_mm(name: str, value: Any, n_axes: int, context: str) -> FloatArray:
     """A point in mm as an array of shape ``(n_axes,)``; ``None`` is the origin."""
     if value is None:
         return np.zeros(n_axes)
-    values = [value] if np.isscalar(value) else list(value)
+    values: list[Any] = [value] if np.isscalar(value) else list(value)
     if len(values) != n_axes:
         raise ConfigError(f"{context}.{name} must have {n_axes} entries (one per axis), got {value!r}")
     return np.array([require_finite(f"{name}[{j}]", v, context) for j, v in enumerate(values)])

@@ -9,11 +9,12 @@ calls per junction.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import cast
 
 import numpy as np
 
 from cnc_contour_control.motion.arc import ArcSegment
-from cnc_contour_control.motion.geometry import Segment
+from cnc_contour_control.motion.geometry import LineSegment, Segment
 from cnc_contour_control.motion.points import FloatArray
 
 
@@ -46,9 +47,9 @@ def end_tangents(segments: Sequence[Segment]) -> tuple[FloatArray, FloatArray]:
         else:
             lines.append(i)
     if lines:
-        start[lines] = end[lines] = np.array([segments[i].unit_vector for i in lines])
+        start[lines] = end[lines] = np.array([cast(LineSegment, segments[i]).unit_vector for i in lines])
     for rows in by_plane.values():
-        start[rows], end[rows] = _arc_tangents([segments[i] for i in rows], n_axes)
+        start[rows], end[rows] = _arc_tangents([cast(ArcSegment, segments[i]) for i in rows], n_axes)
     return start, end
 
 

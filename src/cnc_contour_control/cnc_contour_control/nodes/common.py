@@ -366,7 +366,7 @@ def message_class(type_name: str, topic: str = "") -> type:
     """The rclpy message class of ``pkg/msg/Name``; a CncError naming it if this environment lacks it."""
     package, _, name = type_name.split("/") if type_name.count("/") == 2 else ("", "", type_name)
     try:
-        return getattr(importlib.import_module(f"{package}.msg"), name)  # type: ignore[no-any-return]
+        return getattr(importlib.import_module(f"{package}.msg"), name)
     except (ImportError, AttributeError, TypeError, ValueError) as err:
         raise CncError(f"message type {type_name!r} of {topic or 'a topic'} is not available "
                        f"in this ROS environment ({type(err).__name__}: {err})") from err

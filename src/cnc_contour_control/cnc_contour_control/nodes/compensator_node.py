@@ -58,7 +58,7 @@ class CompensatorNode(SuiteNode):
         for msg_type, topic in ((JointState, "joint_states"), (Reference, "reference"),
                                 (ContourError, "contour_error")):
             decode = _DECODE[topic]
-            self.subscribe_matched(self.matcher, msg_type, topic, lambda msg, d=decode: d(msg, self.axes), self._step)
+            self.subscribe_matched(self.matcher, msg_type, topic, lambda msg, d=decode: d(msg, self.axes), self._step)  # type: ignore[misc]  # mypy infers no lambda with a default
         self.create_subscription(DiagnosticArray, DIAGNOSTICS.name, self.guarded(self._watch_run_end), 100)
         self.watch_inputs(self.matcher, "compensator")
 

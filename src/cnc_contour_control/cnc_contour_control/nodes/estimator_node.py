@@ -37,7 +37,7 @@ class EstimatorNode(SuiteNode):
         self.publisher = self.gated_publisher(ContourError, "contour_error", 1)
         for msg_type, topic in ((JointState, "joint_states"), (Reference, "reference")):
             decode = _DECODE[topic]
-            self.subscribe_matched(self.matcher, msg_type, topic, lambda msg, d=decode: d(msg, self.axes), self._step)
+            self.subscribe_matched(self.matcher, msg_type, topic, lambda msg, d=decode: d(msg, self.axes), self._step)  # type: ignore[misc]  # mypy infers no lambda with a default
         self.watch_inputs(self.matcher, "estimator")
 
     def _step(self, items: dict[str, Any]) -> None:

@@ -117,7 +117,7 @@ def _runs(struct_codes: list[tuple[str, int]]) -> tuple[struct.Struct, ...]:
 
 def _module_class(namespaced: idl.NamespacedType) -> type:
     module = importlib.import_module(".".join(namespaced.namespaces))
-    return getattr(module, namespaced.name)  # type: ignore[no-any-return]
+    return getattr(module, namespaced.name)
 
 
 class _Generator:

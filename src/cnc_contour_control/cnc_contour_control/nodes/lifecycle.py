@@ -129,4 +129,4 @@ class ManagedNode(LifecycleNode):
                                       f"{self._state_machine.current_state[1]!r}")
             response.success = False
             return response
-        return super()._LifecycleNodeMixin__on_change_state(request, response)  # type: ignore[misc]
+        return super()._LifecycleNodeMixin__on_change_state(request, response)

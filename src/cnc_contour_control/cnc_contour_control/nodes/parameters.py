@@ -37,7 +37,7 @@ import math
 import sys
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, TypeAlias, TypeVar
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
@@ -49,7 +49,7 @@ from cnc_contour_control.core.errors import CncError, ConfigError
 from cnc_contour_control.core.params import ParamSpec, flat_specs
 
 C = TypeVar("C")
-Type = Parameter.Type
+Type: TypeAlias = Parameter.Type
 
 #: Parameters (last name part) that hold axis names: a YAML boolean there is the letter y or n.
 AXIS_NAME_PARAMETERS = frozenset({"axis", "axes"})
