@@ -104,12 +104,17 @@ class Operator:
     def wait(self, condition: Callable[[], bool], timeout_s: float, what: str) -> None:
         self.probe.wait_for(condition, timeout_s, what)
 
-    def send_when_accepted(self, gcode: str, timeout_s: float) -> Any:
-        """Send ``gcode`` until a goal is accepted (the machine's state reaches the interpolator by /diagnostics)."""
-        handles = [self.send(gcode)]
-        self.wait(lambda: handles[-1].accepted or bool(handles.append(self.send(gcode))), timeout_s,
-                  "a goal accepted")
-        return handles[-1]
+    def run_when_ready(self, gcode: str, timeout_s: float) -> Any:
+        """Run ``gcode`` until a goal is not refused (the machine's state reaches the interpolator by /diagnostics);
+        its result."""
+        results: list[Any] = []
+
+        def ran() -> bool:
+            results.append(self.result(self.send(gcode)))
+            return bool(results[-1].outcome != RunProgram.Result.REJECTED)
+
+        self.wait(ran, timeout_s, "a goal not refused")
+        return results[-1]
 
     def send(self, gcode: str) -> Any:
         """A goal's handle once answered (``accepted`` tells); its feedback collected."""
@@ -237,7 +242,7 @@ def test_a_shop_floor_day_by_action_with_override_hold_cancel_trip_estop_and_res
         stopped_m = list(references(probe)[-1].position_m)
 
         result4 = trip_servo_x(op, probe)
-        assert not op.send(LAST).accepted, "no goal while the machine is stopped"
+        refused_goal = op.result(op.send(LAST))  # every goal is accepted; a refused one ends REJECTED with the reason
         assert cli(["machine", "estop", *PANEL]) == 0  # pressed: every node's e-stop input true (reported each second)
         op.wait(lambda: all(latch_value(probe, node, "estop_input") == "true" for node in MACHINE), 20.0,
                 "the e-stop input true on every node")
@@ -250,7 +255,7 @@ def test_a_shop_floor_day_by_action_with_override_hold_cancel_trip_estop_and_res
         assert cli(["machine", "enable", *PANEL]) == 0
         panel = capsys.readouterr().out
         op.wait(lambda: not any(latched_now(probe, node) for node in MACHINE), 10.0, "the latches cleared")
-        result5 = op.result(op.send_when_accepted(LAST, 10.0))
+        result5 = op.run_when_ready(LAST, 10.0)
         codes = {name: process.poll() for name, process in processes.items()}
         measured = {stamp_to_ns(m.header.stamp): list(m.position) for m in probe.received(f"{NS}/joint_states")}
         errors = [s for node in MACHINE for s in statuses(probe, node) if s.level == DiagnosticStatus.ERROR]
@@ -267,6 +272,8 @@ def test_a_shop_floor_day_by_action_with_override_hold_cancel_trip_estop_and_res
     assert "servo x: following error" in result4.reason and f"{NS}/servo_x" in result4.reason, result4.reason
     assert [s.name for s in errors] == [f"{NS}/servo_x"] and "exceeds the bound" in errors[0].message
     assert any("the machine is stopped" in m and "servo x: following error" in m for m in rejections)
+    assert refused_goal.outcome == RunProgram.Result.REJECTED, "no goal while the machine is stopped"
+    assert "the machine is stopped" in refused_goal.reason and refused_goal.ticks == 0
     assert all(not answer.success and "enable refused: e-stop latched" in answer.message
                for answer in refused.values())
     assert "servo x: following error" in refused["servo_x"].message

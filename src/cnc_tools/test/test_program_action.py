@@ -115,7 +115,7 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
         assert second.accepted
         probe.wait_for(lambda: feedback and feedback[-1].path_length_m > 0.4 * feedback[-1].total_length_m,
                        30.0, "the second program halfway")
-        assert not send(probe, client, THIRD).accepted, "a goal while another runs is rejected"
+        busy = result_of(probe, send(probe, client, THIRD))  # accepted and refused at once: the reason comes back
         cancel = second.cancel_goal_async()
         probe.wait_for(cancel.done, 10.0, "the cancel's answer")
         result2 = result_of(probe, second)
@@ -123,7 +123,7 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
         third = send(probe, client, THIRD)
         assert third.accepted
         result3 = result_of(probe, third)
-        assert not send(probe, client, "G1 X5 F1200\nG2 X10 Q3\n").accepted, "a malformed program is rejected"
+        malformed = result_of(probe, send(probe, client, "G1 X5 F1200\nG2 X10 Q3\n"))
         probe.wait_for(lambda: any("line 2" in s.message for a in probe.received("/diagnostics") for s in a.status),
                        10.0, "the rejection's reason on /diagnostics")
         probe.wait_for(lambda: len(paths) >= 3, 10.0, "a latched path per program")
@@ -132,6 +132,9 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
         assert cli(["send-program", str(part), "--feed-mm-min", "1200", "--path-tolerance-mm", "0.02"]) == 0, \
             "the CLI client: completed"
     assert "part: completed" in capsys.readouterr().out
+    assert busy.outcome == RunProgram.Result.REJECTED and busy.reason.startswith("busy: program 'gcode' is running")
+    assert malformed.outcome == RunProgram.Result.REJECTED
+    assert malformed.reason.startswith("line 2: unsupported word Q3"), malformed.reason
 
     assert [r.outcome for r in (result1, result2, result3)] == [RunProgram.Result.COMPLETED,
                                                                 RunProgram.Result.CANCELED,

@@ -33,7 +33,8 @@ On line (:class:`LiveReference`, what the interpolator node and the engine
 both call each tick): the requested ratio of tick k is the step schedule's
 value at t_k when ``schedule_times_s`` is given (an operator turning the
 knob; 1 before its first time), else the latest ``feed_override`` message's
-``applied_ratio``; the follower's sample then passes the interpolator's
+ratio (:func:`message_ratio`: its ``applied_ratio``, or a bare request's
+``requested_ratio``); the follower's sample then passes the interpolator's
 acceleration/deceleration filter, as :meth:`Interpolator.reference` does. A
 filter is a positive-weight average of past samples, so it keeps the limits.
 """
@@ -271,18 +272,37 @@ def check_source(source: str, config: OverrideConfig) -> str:
     return source
 
 
+def message_ratio(requested_ratio: float, applied_ratio: float, quantum: float) -> float:
+    """The ratio a ``FeedOverride`` message asks for (dimensionless; not yet checked).
+
+    A publisher that applies its request (an override switch, the force
+    regulator) states the result in ``applied_ratio``: that is taken, its
+    hold (0) included, which a switch reports for a request that rounds to 0
+    or below. A bare request (an operator's, ``applied_ratio`` left 0) is
+    ``requested_ratio`` on the levels of ``quantum`` (0: as given), so a
+    message with only ``requested_ratio`` set no longer holds the feed.
+    """
+    step = float(quantum) if math.isfinite(quantum) and quantum > 0.0 else 0.0
+    level = float(requested_ratio)
+    if step > 0.0 and math.isfinite(level):
+        level = math.copysign(math.floor(abs(level) / step + 0.5) * step, level)
+    if applied_ratio != 0.0 or requested_ratio == 0.0 or (step > 0.0 and not level > 0.0):
+        return float(applied_ratio)
+    return level
+
+
 class OverrideInbox:
-    """The requests the interpolator takes from the ``feed_override`` topic (each message's ``applied_ratio``).
+    """The requests the interpolator takes from the ``feed_override`` topic (each message's :func:`message_ratio`).
 
     With ``previous_tick`` False the request is the latest valid ratio (1
     until one arrives). With ``previous_tick`` True tick k takes the message
     stamped at tick k−1 exactly (tick 0: 1), as the engine, which steps the
     regulator after the interpolator, does; :meth:`ready` says whether it is in.
-    A negative or non-finite ratio is refused and the last valid one held.
+    A non-finite ratio, or one outside [0, ``max_ratio``], is refused and the last valid one held.
     """
 
-    def __init__(self, previous_tick: bool) -> None:
-        self.previous_tick = previous_tick
+    def __init__(self, previous_tick: bool, max_ratio: float = math.inf) -> None:
+        self.previous_tick, self.max_ratio = previous_tick, float(max_ratio)
         self.latest = 1.0
         self._by_stamp: dict[int, float] = {}
         self._previous_ns: int | None = None
@@ -290,8 +310,9 @@ class OverrideInbox:
     def add(self, stamp_ns: int, ratio: float) -> str | None:
         """Take one message; the reason it was refused (its ratio replaced by the last valid one), else None."""
         reason = None
-        if not math.isfinite(ratio) or ratio < 0.0:
-            reason = f"feed_override applied_ratio must be finite and >= 0, got {ratio}; holding {self.latest}"
+        if not (math.isfinite(ratio) and 0.0 <= ratio <= self.max_ratio):
+            reason = (f"feed override ratio must be finite and in [0, max_ratio = {self.max_ratio:g}], got {ratio}; "
+                      f"holding {self.latest:g}")
         else:
             self.latest = float(ratio)
         if self.previous_tick and (self._previous_ns is None or stamp_ns >= self._previous_ns):

@@ -6,7 +6,11 @@ the measured one) at rest. :meth:`ProgramSession.prepare` turns a goal into a
 planned program (a :class:`~cnc_contour_control.motion.feed_override.LiveReference`,
 so a malformed program or one beyond the axis limits is refused before it
 starts); :meth:`ProgramSession.start` queues it and it starts at the next
-tick, its times counted from that tick's stamp. Each tick
+tick, its times counted from that tick's stamp. A node plans off its tick's
+path: :meth:`ProgramSession.reserve` takes the session for a goal (the axes
+hold meanwhile), :meth:`ProgramSession.plan` runs in another thread (it reads
+only the frozen configuration), then :meth:`ProgramSession.start` or
+:meth:`ProgramSession.refuse` (outcome ``rejected`` with the reason). Each tick
 
     reference   LiveReference.step(t_k - t_start, request)
     following   max_j |reference_j - position_j|
@@ -47,8 +51,14 @@ from cnc_contour_control.motion.program_goal import ProgramGoal, goal_program
 #: Where the interpolator's program comes from: ``file`` the ``program_file`` parameter, run once at start-up;
 #: ``action`` RunProgram goals, any number in a row, holding position in between.
 PROGRAM_SOURCES = ("file", "action")
-#: How a program ended (the RunProgram result's outcome, in its constants' order).
-OUTCOMES = ("completed", "canceled", "faulted")
+#: How a program ended (the RunProgram result's outcome, in its constants' order: 0 is "unknown", so a
+#: default-constructed result never reads as success). ``rejected``: refused before it started, the reason
+#: given; ``aborted``: stopped on the path because the interpolator was deactivated.
+OUTCOMES = ("unknown", "completed", "canceled", "faulted", "rejected", "aborted")
+#: The reason of a completed program (every outcome carries one).
+COMPLETED_REASON = "completed: the program's end reached and settled"
+#: The reason of a program stopped by the interpolator's deactivation.
+DEACTIVATED_REASON = "aborted: the interpolator was deactivated; stopped on the path"
 #: A reference slower than this on every axis is at rest, m/s (an exponential accel_decel never reaches 0).
 STOPPED_SPEED_M_S = 1.0e-7
 #: Measured positions scored by one call of Program.contour_distance.
@@ -185,6 +195,7 @@ class _Run:
     rest_ns: int | None = None
     last: ReferenceSample | None = None
     last_ns: int = 0
+    stop_outcome: tuple[str, str] = ("canceled", "cancelled: stopped on the path")
 
 
 class ProgramSession:
@@ -212,22 +223,44 @@ class ProgramSession:
         self._run: _Run | None = None
         self._started: _Run | None = None
         self._outcome: ProgramOutcome | None = None
+        self.pending: str | None = None  # the name of a goal being planned (reserve .. start or refuse)
         self.stop_cause = ""  # why the machine is stopped ("" while it runs)
 
     @property
     def busy(self) -> bool:
-        """True from :meth:`start` until the program's outcome is known."""
-        return self._run is not None
+        """True from :meth:`reserve` or :meth:`start` until the program's outcome is known."""
+        return self._run is not None or self.pending is not None
 
-    def prepare(self, goal: ProgramGoal) -> tuple[Program, LiveReference]:
-        """The goal's program and its planned reference; a ProgramError with the reason if it cannot run now."""
+    def check_ready(self) -> None:
+        """A ProgramError with the reason if a goal cannot start now (busy, position unknown, machine stopped)."""
         if self._run is not None:
             raise ProgramError(f"busy: program {self._run.program.name!r} is running; cancel it or wait for its end")
+        if self.pending is not None:
+            raise ProgramError(f"busy: program {self.pending!r} is being planned; cancel it or wait for its end")
         if self.hold_position_m is None:
             raise ProgramError("no joint_states yet: the machine's position is unknown")
         if self.stop_cause:
             raise ProgramError(f"the machine is stopped: {self.stop_cause}; reset and enable it first")
-        program = goal_program(goal, self.axes, self.hold_position_m, mm_to_m(self.params.start_tolerance_mm))
+
+    def prepare(self, goal: ProgramGoal) -> tuple[Program, LiveReference]:
+        """The goal's program and its planned reference; a ProgramError with the reason if it cannot run now."""
+        self.check_ready()
+        assert self.hold_position_m is not None, "check_ready refuses an unknown position"
+        return self.plan(goal, self.hold_position_m)
+
+    def reserve(self, name: str) -> FloatArray:
+        """Take the session for the goal ``name`` while it is planned elsewhere; the hold position to plan from, m.
+
+        Raises the reason of :meth:`check_ready`. The axes hold until :meth:`start` or :meth:`refuse`.
+        """
+        self.check_ready()
+        assert self.hold_position_m is not None, "check_ready refuses an unknown position"
+        self.pending = name
+        return self.hold_position_m.copy()
+
+    def plan(self, goal: ProgramGoal, hold_m: FloatArray) -> tuple[Program, LiveReference]:
+        """The goal's program from ``hold_m`` [m] and its planned reference (reads only frozen configuration)."""
+        program = goal_program(goal, self.axes, hold_m, mm_to_m(self.params.start_tolerance_mm))
         config = self.interpolator_config
         if goal.path_tolerance_mm > 0.0:
             config = dataclasses.replace(config, path_tolerance_mm=goal.path_tolerance_mm)
@@ -237,25 +270,51 @@ class ProgramSession:
         """Queue a prepared program: it starts at the next tick."""
         if self._run is not None:
             raise ProgramError(f"busy: program {self._run.program.name!r} is running")
+        self.pending = None
         self._run = _Run(program, live, LiveScores(program))
 
+    def refuse(self, reason: str) -> None:
+        """The reserved goal cannot run (``reason``): it ends as ``rejected``."""
+        self._end_pending("rejected", reason)
+
     def cancel(self) -> bool:
-        """Stop the running program on its path (the feed-hold ramp); False if none runs."""
+        """Stop the running program on its path (the feed-hold ramp), or end a planned one; False if none."""
+        return self.stop("canceled", "cancelled: stopped on the path")
+
+    def deactivate(self) -> bool:
+        """The interpolator is deactivated: stop on the path as :meth:`cancel` does, the outcome ``aborted``."""
+        return self.stop("aborted", DEACTIVATED_REASON)
+
+    def stop(self, outcome: str, reason: str) -> bool:
+        """Stop on the path; once at rest the program ends as ``outcome`` with ``reason``. False if none runs."""
+        if self.pending is not None:
+            self._end_pending(outcome, reason.split(";")[0] + "; before it started")
+            return True
         if self._run is None:
             return False
-        self._run.stopping = True
+        if not self._run.stopping:
+            self._run.stopping, self._run.stop_outcome = True, (outcome, reason)
         return True
 
     def abort(self, reason: str) -> None:
-        """End the running program at once as ``faulted`` (the node faulted; the reference stops here)."""
+        """End the running or planned program at once as ``faulted`` (the node faulted; the reference stops here)."""
+        self._end_pending("faulted", reason)
         if self._run is not None:
             self._finish(self._run, "faulted", reason)
 
     def machine_stopped(self, cause: str) -> None:
         """The machine stopped (``cause``): a running program ends as faulted; the hold follows the machine."""
         self.stop_cause = cause or "the machine stopped"
+        self._end_pending("faulted", f"machine stopped: {self.stop_cause}")
         if self._run is not None:
             self._finish(self._run, "faulted", f"machine stopped: {self.stop_cause}")
+
+    def _end_pending(self, outcome: str, reason: str) -> None:
+        """A reserved goal ends before its first tick: no scores (NaN), no ticks."""
+        if self.pending is None:
+            return
+        self._outcome = ProgramOutcome(outcome, reason, self.pending, math.nan, math.nan, math.nan, 0.0, 0.0, 0.0, 0)
+        self.pending = None
 
     def machine_running(self) -> None:
         """The machine runs again (reset and enabled): the hold stays where the machine stands; goals welcome."""
@@ -288,8 +347,8 @@ class ProgramSession:
         if run.rest_ns is None and at_rest and (sample.done or held):
             run.rest_ns = stamp_ns
         if run.rest_ns is not None and ns_to_s(stamp_ns - run.rest_ns) >= self.params.settle_time_s:
-            outcome = "completed" if sample.done else "canceled"
-            self._finish(run, outcome, "" if sample.done else "cancelled: stopped on the path")
+            outcome, reason = ("completed", COMPLETED_REASON) if sample.done else run.stop_outcome
+            self._finish(run, outcome, reason)
 
     def _hold_sample(self, hold_m: FloatArray) -> ReferenceSample:
         zeros = np.zeros(len(self.axes))

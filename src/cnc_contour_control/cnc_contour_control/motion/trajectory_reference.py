@@ -16,7 +16,10 @@ its start begins with the reference held when it was taken up (the previous
 trajectory's sample, else the measured position) at ``t = 0``, velocity 0,
 so taking up a trajectory never steps the reference. Before any trajectory
 the reference holds the first measured position. A new trajectory replaces
-the current one from its start on.
+the current one from its start on. A trajectory that cannot be followed is
+refused and the current one kept: non-finite or unordered values, and once a
+tick was sampled, a stale one (stamped, and over before that tick) or one from
+the future (starting more than ``horizon_ns`` after it).
 
 The per-tick evaluation is written out (a segment search and the Hermite
 basis) because one sample per tick is all a servo needs;
@@ -32,7 +35,7 @@ from dataclasses import dataclass
 
 from cnc_contour_control.core.config import require_choice, require_name
 from cnc_contour_control.core.errors import ConfigError, FaultError
-from cnc_contour_control.core.lockstep import NS_PER_S
+from cnc_contour_control.core.lockstep import NS_PER_S, stamp_horizon_ns
 from cnc_contour_control.core.params import check_ranges, param
 
 __all__ = ["INTERPOLATIONS", "REFERENCE_SOURCES", "JointTrajectoryReference", "ReferenceSourceParams",
@@ -139,13 +142,17 @@ class TrajectoryFollower:
     Parameters
     ----------
     axis : str
-        The axis (the joint name it takes from a trajectory), named in faults.
+        The axis (the joint name it takes from a trajectory), named in refusals.
+    horizon_ns : int
+        How far after the latest sampled tick a trajectory's start may lie [ns] (default :func:`stamp_horizon_ns`).
     """
 
-    def __init__(self, axis: str) -> None:
+    def __init__(self, axis: str, horizon_ns: int | None = None) -> None:
         if not isinstance(axis, str) or not axis:
             raise ConfigError(f"axis must be a non-empty string, got {axis!r}")
         self.axis = axis
+        self.horizon_ns = stamp_horizon_ns() if horizon_ns is None else int(horizon_ns)
+        self.latest_ns: int | None = None  # the stamp of the latest sampled tick
         self.current: JointTrajectoryReference | None = None
         self._pending: tuple[int, list[float], list[float], list[float] | None] | None = None
         self._last: Sample | None = None
@@ -154,14 +161,32 @@ class TrajectoryFollower:
 
     def take(self, start_ns: int, times_s: Sequence[float], positions_m: Sequence[float],
              velocities_m_s: Sequence[float] | None = None) -> None:
-        """A new trajectory (start 0: the next sampled tick); checked now, used from the next :meth:`sample` on."""
-        JointTrajectoryReference(start_ns, times_s, positions_m, velocities_m_s)  # a bad one faults on arrival
+        """A new trajectory (start 0: the next sampled tick); checked now, used from the next :meth:`sample` on.
+
+        Raises FaultError naming the reason for one that cannot be followed (the current one is kept).
+        """
+        checked = JointTrajectoryReference(start_ns, times_s, positions_m, velocities_m_s)
+        self._check_window(checked)
         velocities = None if velocities_m_s is None else list(velocities_m_s)
         self._pending = (int(start_ns), list(times_s), list(positions_m), velocities)
         self.received += 1
 
+    def _check_window(self, trajectory: JointTrajectoryReference) -> None:
+        """Refuse a stamped trajectory over before the latest tick, or starting beyond the horizon after it."""
+        if trajectory.start_ns == 0 or self.latest_ns is None:
+            return
+        end_ns = trajectory.start_ns + round(trajectory.times_s[-1] * NS_PER_S)
+        now_s = self.latest_ns / NS_PER_S
+        if end_ns < self.latest_ns:
+            raise FaultError(f"stale trajectory: stamped {trajectory.start_ns / NS_PER_S:.6f} s, it ends at "
+                             f"{end_ns / NS_PER_S:.6f} s, before the current tick at {now_s:.6f} s")
+        if trajectory.start_ns > self.latest_ns + self.horizon_ns:
+            raise FaultError(f"trajectory from the future: stamped {trajectory.start_ns / NS_PER_S:.6f} s, more than "
+                             f"{self.horizon_ns / NS_PER_S:g} s after the current tick at {now_s:.6f} s")
+
     def sample(self, stamp_ns: int, position_m: float) -> Sample:
         """The reference at ``stamp_ns`` given the measured ``position_m`` [m] (held before any trajectory)."""
+        self.latest_ns = int(stamp_ns)
         if self._pending is not None:
             self._take_up(stamp_ns, position_m)
         if self.current is None:

@@ -22,7 +22,13 @@ from sensor_msgs.msg import JointState
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.lockstep import StampMatcher, ns_to_s, stamp_horizon_ns
 from cnc_contour_control.graph.stage_params import InterpolatorRunParams
-from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig, OverrideInbox, check_source
+from cnc_contour_control.motion.feed_override import (
+    LiveReference,
+    OverrideConfig,
+    OverrideInbox,
+    check_source,
+    message_ratio,
+)
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.interpolation import (
     AxisLimits,
@@ -43,6 +49,7 @@ from cnc_contour_control.nodes.common import (
 from cnc_contour_control.nodes.conversions import joint_positions, program_to_path, reference_to_msg
 from cnc_contour_control.nodes.parameters import declare_config
 from cnc_contour_control.nodes.program_action import ProgramActionServer
+from cnc_contour_control.nodes.refusals import RefusalCounter
 from cnc_contour_interfaces.msg import FeedOverride, Path, Reference
 
 #: Axis limits of a node started without them: 6000 mm/min and 1000 mm/s^2 on every axis.
@@ -82,7 +89,9 @@ class InterpolatorNode(SuiteNode):
         # the matcher checks stamps (from t = 0).
         self.matcher = StampMatcher(("joint_states",), math.inf, max_ahead_ns=stamp_horizon_ns())
         self.matcher.expect(0, wall_time_s())
-        self.inbox = OverrideInbox(previous_tick=run.feed_override_source == "previous_tick")
+        self.inbox = OverrideInbox(previous_tick=run.feed_override_source == "previous_tick",
+                                   max_ratio=self.override_config.max_ratio)
+        self.override_refusals = RefusalCounter(self, "feed_override")
         self._waiting: deque[JointState] = deque()
         self.subscribe_checked(JointState, "joint_states", self._accept, then=self._queue)
         self._blocked_since_s: float | None = None
@@ -93,10 +102,10 @@ class InterpolatorNode(SuiteNode):
             self.create_timer(min(0.1, run.feed_override_timeout_s / 4), self.guarded(self._watch_override))
 
     def deactivate(self) -> None:
-        """Lifecycle deactivate: stop on the path within the limits (a running goal is cancelled; a live feed is
-        held at 0 until activate); a fixed profile cannot stop on the path, so it refuses."""
+        """Lifecycle deactivate: stop on the path within the limits (a running goal ends ABORTED once at rest; a
+        live feed is held at 0 until activate); a fixed profile cannot stop on the path, so it refuses."""
         if self.session is not None:
-            self.session.cancel()
+            self.session.deactivate()
         elif self.live is None:
             raise ConfigError("a fixed feed profile cannot stop on the path: set feed_override_source "
                               "(topic, schedule, previous_tick) or program_source: action to deactivate mid-run")
@@ -106,6 +115,7 @@ class InterpolatorNode(SuiteNode):
         config = declare_config(self, InterpolatorConfig)
         override = declare_config(self, OverrideConfig, "feed_override")
         check_source(source, override)
+        self.override_config = override
         n_axes = len(self.axes)
         limits = declare_config(self, AxisLimits, defaults={
             "max_velocity_m_s": [DEFAULT_MAX_VELOCITY_M_S] * n_axes,
@@ -137,10 +147,11 @@ class InterpolatorNode(SuiteNode):
         return None if added is None else msg
 
     def _accept_override(self, msg: FeedOverride) -> None:
-        """A feed override's applied ratio (a bad one refused, the last valid held); ticks it completes answered."""
-        refused = self.inbox.add(stamp_to_ns(msg.header.stamp), float(msg.applied_ratio))
+        """A feed override's ratio (a bad one refused and counted, the last valid held); ticks it completes answered."""
+        ratio = message_ratio(float(msg.requested_ratio), float(msg.applied_ratio), float(msg.quantum))
+        refused = self.inbox.add(stamp_to_ns(msg.header.stamp), ratio)
         if refused is not None:
-            self.get_logger().warning(refused, throttle_duration_sec=1.0)
+            self.override_refusals.refuse(refused)
         self._release()
 
     def _queue(self, msg: JointState) -> None:

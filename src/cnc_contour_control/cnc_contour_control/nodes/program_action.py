@@ -1,11 +1,16 @@
 """The interpolator's RunProgram action server: goals to a :class:`ProgramSession`, its outcomes to results.
 
 Only translation: the session (:mod:`cnc_contour_control.motion.program_session`)
-decides. Goals are judged in the goal callback (busy, malformed, not at the
-machine: rejected, the reason logged and reported WARN on ``/diagnostics``),
-so a rejection never disturbs the running program. The execute callback is a
-coroutine awaiting the outcome, which the tick callback resolves: it works on
-the node's single-threaded executor (events or single).
+decides. Every goal is accepted, so its client gets a result with a code and a
+reason (ROS 2 gives a rejected goal no text; ros2_control's trajectory
+controller accepts and aborts likewise): one that cannot run now (inactive,
+busy, machine stopped) ends REJECTED at once, the reason logged and reported
+WARN on ``/diagnostics``. An accepted goal is read and planned in a worker
+thread, never on the tick's path (a 200 000-line file takes seconds): the axes
+hold meanwhile, and a program that cannot be read or planned ends REJECTED
+with the reason. The execute callback is a coroutine awaiting the outcome,
+which the tick callback (or the feedback timer) resolves: it works on the
+node's single-threaded executor (events or single).
 
 The machine's state comes from ``/diagnostics``: the plant's and the servos'
 latch reports of this namespace (:class:`~cnc_contour_control.axis.safety.MachineWatch`).
@@ -16,11 +21,16 @@ every node is reset and enabled.
 """
 from __future__ import annotations
 
+import math
+import traceback
 from collections.abc import Callable
+from concurrent.futures import Future as PlanFuture
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+from action_msgs.msg import GoalStatus
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.task import Future
 
@@ -58,6 +68,15 @@ def feedback_to_msg(feedback: ProgramFeedback) -> Any:
     return msg
 
 
+def goal_name(msg: Any) -> str:
+    """The name a goal's result carries before its program is read (its ``program_name``, else its source)."""
+    if msg.program_name:
+        return str(msg.program_name)
+    if msg.program_file:
+        return str(msg.program_file).rstrip("/").rsplit("/", 1)[-1].rsplit(".", 1)[0] or "program_file"
+    return "segments" if len(msg.segments) else "gcode"
+
+
 def outcome_to_result(outcome: ProgramOutcome, bag_path: str) -> Any:
     """The core's outcome as a RunProgram result message (``outcome`` by :data:`OUTCOMES` order)."""
     msg = RunProgram.Result()
@@ -76,11 +95,11 @@ class ProgramActionServer:
     def __init__(self, node: Any, session: ProgramSession, bag_path: str, feedback_period_s: float,
                  publish_path: Callable[[Program, LiveReference, int], None]) -> None:
         self.node, self.session, self.bag_path, self.publish_path = node, session, bag_path, publish_path
-        self._prepared: tuple[Program, LiveReference] | None = None
         self._handle: ServerGoalHandle | None = None
         self._outcome: Future | None = None
-        self.server = ActionServer(node, RunProgram, ACTION_NAME, self._execute, goal_callback=self._judge,
-                                   cancel_callback=self._cancel)
+        self._planning: PlanFuture[tuple[Program, LiveReference]] | None = None
+        self._planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="run_program_plan")
+        self.server = ActionServer(node, RunProgram, ACTION_NAME, self._execute, cancel_callback=self._cancel)
         node.create_timer(feedback_period_s, self._publish_feedback)
         self.machine = MachineWatch()
         node.create_subscription(DiagnosticArray, "/diagnostics", node.guarded(self._on_diagnostics), 100)
@@ -102,21 +121,6 @@ class ProgramActionServer:
             self.session.machine_running()
             self.node.get_logger().info("machine running again: goals are accepted")
 
-    def _judge(self, goal: Any) -> GoalResponse:
-        """Accept a goal the session can run now; reject (and say why) any other."""
-        try:
-            if not self.node.armed:
-                raise CncError("the interpolator is not active (lifecycle): activate it first")
-            if self._prepared is not None:
-                raise CncError("busy: a goal was accepted and is about to start")
-            self._prepared = self.session.prepare(goal_from_msg(goal))
-        except CncError as err:
-            message = f"RunProgram goal rejected: {err}"
-            self.node.get_logger().warning(message)
-            self.node.report(DiagnosticStatus.WARN, message)
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
-
     def _cancel(self, goal_handle: ServerGoalHandle) -> CancelResponse:
         """Accept a cancel of the running goal: the session stops it on the path."""
         if goal_handle is not self._handle or not self.session.cancel():
@@ -125,23 +129,68 @@ class ProgramActionServer:
         return CancelResponse.ACCEPT
 
     async def _execute(self, goal_handle: ServerGoalHandle) -> Any:
-        """Start the accepted program at the next tick and wait for its outcome."""
-        assert self._prepared is not None, "an accepted goal was prepared by _judge"
-        (program, live), self._prepared = self._prepared, None
+        """Reserve the session and plan the goal in the worker thread (or refuse it); wait for its outcome."""
+        name = goal_name(goal_handle.request)
+        try:
+            if not self.node.armed:
+                raise CncError("the interpolator is not active (lifecycle): activate it first")
+            hold_m = self.session.reserve(name)
+        except CncError as err:
+            return self._refused(goal_handle, name, str(err))
         self._handle, self._outcome = goal_handle, Future()
-        self.session.start(program, live)
-        self.node.get_logger().info(f"RunProgram: {program.name!r}, {len(program.segments)} segments, "
-                                    f"{live.interpolator.duration_s:.3f} s planned")
+        self._planning = self._planner.submit(self.session.plan, goal_from_msg(goal_handle.request), hold_m)
         outcome: ProgramOutcome = await self._outcome
-        self._handle = self._outcome = None
-        {"completed": goal_handle.succeed, "canceled": goal_handle.canceled,
-         "faulted": goal_handle.abort}[outcome.outcome]()
-        self.node.get_logger().info(f"RunProgram: {outcome.program_name!r} {outcome.outcome} "
-                                    f"{outcome.reason}".rstrip())
+        if self._handle is goal_handle:
+            self._handle = self._outcome = None
+        if outcome.outcome == "rejected":
+            self._report_refusal(outcome.program_name, outcome.reason)
+        return self._end(goal_handle, outcome)
+
+    def _refused(self, goal_handle: ServerGoalHandle, name: str, reason: str) -> Any:
+        """A goal that cannot run now: aborted at once with REJECTED and the reason."""
+        self._report_refusal(name, reason)
+        outcome = ProgramOutcome("rejected", reason, name, math.nan, math.nan, math.nan, 0.0, 0.0, 0.0, 0)
+        return self._end(goal_handle, outcome)
+
+    def _report_refusal(self, name: str, reason: str) -> None:
+        message = f"RunProgram goal {name!r} rejected: {reason}"
+        self.node.get_logger().warning(message)
+        self.node.report(DiagnosticStatus.WARN, message)
+
+    def _end(self, goal_handle: ServerGoalHandle, outcome: ProgramOutcome) -> Any:
+        """The goal's terminal state (succeeded, canceled if asked, else aborted) and its result."""
+        if outcome.outcome == "completed":
+            goal_handle.succeed()
+        elif outcome.outcome == "canceled" and goal_handle.status == GoalStatus.STATUS_CANCELING:
+            goal_handle.canceled()
+        else:
+            goal_handle.abort()
+        self.node.get_logger().info(f"RunProgram: {outcome.program_name!r} {outcome.outcome}: {outcome.reason}")
         return outcome_to_result(outcome, self.bag_path)
 
+    def _collect_plan(self) -> None:
+        """A plan the worker finished: start it at the next tick, or refuse the goal with the reason."""
+        future = self._planning
+        if future is None or not future.done():
+            return
+        self._planning = None
+        if self.session.pending is None:  # the goal ended while it was planned (cancelled, machine stopped)
+            return
+        try:
+            program, live = future.result()
+        except CncError as err:
+            self.session.refuse(str(err))
+        except Exception as err:  # a planner bug ends this goal with its reason, never the node
+            self.node.get_logger().error("RunProgram: planning failed:\n" + traceback.format_exc())
+            self.session.refuse(f"internal error while planning: {type(err).__name__}: {err}")
+        else:
+            self.session.start(program, live)
+            self.node.get_logger().info(f"RunProgram: {program.name!r}, {len(program.segments)} segments, "
+                                        f"{live.interpolator.duration_s:.3f} s planned")
+
     def after_tick(self) -> None:
-        """After each tick: publish a program that started, hand over an outcome."""
+        """After each tick: take a finished plan, publish a program that started, hand over an outcome."""
+        self._collect_plan()
         started = self.session.take_started()
         if started is not None:
             self.publish_path(*started)
@@ -155,11 +204,13 @@ class ProgramActionServer:
         self.after_tick()
 
     def _publish_feedback(self) -> None:
+        self.after_tick()  # a plan finished or an outcome while no tick comes
         feedback = self.session.feedback()
         if self._handle is not None and feedback is not None and self._handle.is_active:
             self._handle.publish_feedback(feedback_to_msg(feedback))
 
     def destroy(self) -> None:
-        """Destroy the action server (with the node)."""
+        """Destroy the action server (with the node); a plan under way is dropped."""
+        self._planner.shutdown(wait=False, cancel_futures=True)
         self.server.destroy()
 

@@ -1,14 +1,22 @@
-"""A servo's trajectory_msgs/JointTrajectory input: the message to one axis's points for the core follower."""
+"""A servo's trajectory_msgs/JointTrajectory input: the message to one axis's points for the core follower.
+
+The trajectory comes from outside the lockstep loop (a planner): one that
+cannot be followed (a missing joint, ragged points, NaN, a stale or future
+stamp) is refused, counted and reported on ``/diagnostics``
+(:class:`~cnc_contour_control.nodes.refusals.RefusalCounter`); the servo keeps
+the trajectory it had and the machine goes on.
+"""
 from __future__ import annotations
 
 from typing import Any
 
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.errors import CncError, FaultError
 from cnc_contour_control.core.lockstep import NS_PER_S
 from cnc_contour_control.motion.trajectory_reference import TrajectoryFollower
 from cnc_contour_control.nodes.common import SuiteNode, stamp_to_ns
+from cnc_contour_control.nodes.refusals import RefusalCounter
 
 #: A planner publishes a trajectory once: reliable, volatile (matches any reliable writer), a few kept.
 TRAJECTORY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE,
@@ -18,7 +26,7 @@ TRAJECTORY_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliabili
 def trajectory_points(msg: Any, axis: str) -> tuple[int, list[float], list[float], list[float] | None]:
     """(start stamp [ns], times [s], positions [m], velocities [m/s] or None) of ``axis`` from a JointTrajectory.
 
-    Velocities count only when every point carries one per joint; faults name the missing joint or field.
+    Velocities count only when every point carries one per joint; a FaultError names the missing joint or field.
     """
     names = list(msg.joint_names)
     if axis not in names:
@@ -36,7 +44,15 @@ def trajectory_points(msg: Any, axis: str) -> tuple[int, list[float], list[float
     return stamp_to_ns(msg.header.stamp), times, positions, given if len(given) == len(velocities) else None
 
 
-def subscribe_trajectory(node: SuiteNode, msg_type: type, topic: str, follower: TrajectoryFollower) -> Any:
-    """Hand every trajectory on ``topic`` to ``follower`` (a bad one is a fault naming the topic)."""
-    return node.subscribe_checked(msg_type, topic, lambda msg: follower.take(*trajectory_points(msg, follower.axis)),
-                                  qos=TRAJECTORY_QOS)
+def subscribe_trajectory(node: SuiteNode, msg_type: type, topic: str, follower: TrajectoryFollower) -> RefusalCounter:
+    """Hand every trajectory on ``topic`` to ``follower``; a bad one is refused and counted (the counter returned)."""
+    refusals = RefusalCounter(node, topic)
+
+    def receive(msg: Any) -> None:
+        try:
+            follower.take(*trajectory_points(msg, follower.axis))
+        except CncError as err:
+            refusals.refuse(str(err))
+
+    node.create_subscription(msg_type, topic, node.guarded(receive), TRAJECTORY_QOS)
+    return refusals

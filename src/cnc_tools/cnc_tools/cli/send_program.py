@@ -2,9 +2,12 @@
 
 A G-code file is sent as text (the interpolator may run on another host); any
 other file as its absolute path (a YAML program, read by the interpolator).
-Feedback is printed as it comes; Ctrl-C cancels the goal (a controlled stop on
-the path) and waits for its result. Exit code: 0 completed, 1 rejected or
-cancelled, 3 faulted.
+A G-code file may carry comments in an 8-bit code page (read as the
+interpolator reads it, :mod:`cnc_contour_control.motion.gcode_file`); a binary
+or unreadable file is one error line, exit 2. Feedback is printed as it comes;
+Ctrl-C cancels the goal (a controlled stop on the path), waits for its result
+(a second Ctrl-C stops waiting), prints one line and exits 130. Exit code
+otherwise: 0 completed, 1 rejected or cancelled, 3 faulted, aborted or unknown.
 """
 from __future__ import annotations
 
@@ -14,10 +17,26 @@ from pathlib import Path
 from typing import Any
 
 from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.gcode_file import not_a_file, read_gcode_file
 from cnc_contour_control.motion.program_file import GCODE_SUFFIXES
 
-#: Result outcome -> exit code (COMPLETED, CANCELED, FAULTED).
-EXIT_CODES = {0: 0, 1: 1, 2: 3}
+#: Result outcome name (RunProgram.Result constants, lower case) -> exit code; any other outcome exits 3.
+EXIT_CODES = {"completed": 0, "canceled": 1, "rejected": 1}
+#: Exit code of an outcome not in EXIT_CODES (faulted, aborted, unknown).
+EXIT_OTHER = 3
+#: Exit code after Ctrl-C (128 + SIGINT).
+EXIT_INTERRUPTED = 130
+#: Wall time to wait for a cancelled goal's result after Ctrl-C, s.
+CANCEL_WAIT_S = 30.0
+
+
+def outcome_name(code: int) -> str:
+    """The name of a RunProgram result's ``outcome`` code (``unknown`` for one the action does not define)."""
+    from cnc_contour_interfaces.action import RunProgram
+
+    names = {getattr(RunProgram.Result, n): n.lower() for n in dir(RunProgram.Result) if n.isupper()
+             and isinstance(getattr(RunProgram.Result, n), int)}
+    return names.get(int(code), "unknown")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -35,12 +54,13 @@ def goal_of(args: argparse.Namespace) -> Any:
     from cnc_contour_interfaces.action import RunProgram
 
     file = args.program
-    if not file.is_file():
-        raise ConfigError(f"program {str(file)!r} does not exist")
+    reason = not_a_file(file, "program")
+    if reason is not None:
+        raise ConfigError(reason)
     goal = RunProgram.Goal(program_name=file.stem, feed_mm_min=float(args.feed_mm_min),
                            path_tolerance_mm=float(args.path_tolerance_mm))
     if file.suffix.lower() in GCODE_SUFFIXES:
-        goal.gcode = file.read_text()
+        goal.gcode = read_gcode_file(file, "program", ConfigError)
     else:
         goal.program_file = str(file.resolve())
     return goal
@@ -50,11 +70,12 @@ def send_program(args: argparse.Namespace) -> int:
     """Send the goal, print feedback and the result; the exit code of the outcome."""
     import rclpy
     from rclpy.action import ActionClient
+    from rclpy.signals import SignalHandlerOptions
 
     from cnc_contour_interfaces.action import RunProgram
 
     goal = goal_of(args)
-    rclpy.init()
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # Ctrl-C: a KeyboardInterrupt here, not a shutdown
     node = rclpy.create_node("send_program")
     try:
         client = ActionClient(node, RunProgram, args.action)
@@ -68,38 +89,54 @@ def send_program(args: argparse.Namespace) -> int:
 
 
 def _run(node: Any, client: Any, goal: Any) -> int:
-    import rclpy
-
     handle = _wait(node, client.send_goal_async(goal, feedback_callback=FeedbackPrinter()))
     if not handle.accepted:
         print("goal rejected (the interpolator's log and /diagnostics give the reason)", flush=True)
         return 1
     result_future = handle.get_result_async()
     try:
-        result = _wait(node, result_future)
+        result = _wait(node, result_future).result
     except KeyboardInterrupt:
-        print("cancelling: stopping on the path", flush=True)
-        handle.cancel_goal_async()
-        while rclpy.ok() and not result_future.done():
-            rclpy.spin_once(node, timeout_sec=0.1)
-        result = result_future.result()
-    result = result.result
-    print(f"{result.program_name}: {('completed', 'canceled', 'faulted')[result.outcome]} {result.reason}\n"
+        return _cancel(node, handle, result_future)
+    _print_result(result)
+    return EXIT_CODES.get(outcome_name(result.outcome), EXIT_OTHER)
+
+
+def _cancel(node: Any, handle: Any, result_future: Any) -> int:
+    """Ctrl-C: cancel the goal, wait up to CANCEL_WAIT_S for its result (a second Ctrl-C stops waiting), one line."""
+    handle.cancel_goal_async()
+    try:
+        _wait(node, result_future, CANCEL_WAIT_S)
+    except KeyboardInterrupt:
+        pass
+    if result_future.done():
+        result = result_future.result().result
+        done = (f"{result.program_name}: {outcome_name(result.outcome)} at {result.path_length_m * 1e3:.3f} of "
+                f"{result.total_length_m * 1e3:.3f} mm: {result.reason}")
+    else:
+        done = "the goal's result did not come (cancel requested)"
+    print(f"interrupted: {done}", flush=True)
+    return EXIT_INTERRUPTED
+
+
+def _print_result(result: Any) -> None:
+    print(f"{result.program_name}: {outcome_name(result.outcome)}: {result.reason}\n"
           f"  max contour error {result.max_contour_error_m * 1e6:.2f} um, "
           f"rms {result.rms_contour_error_m * 1e6:.2f} um,"
           f" max following error {result.max_following_error_m * 1e6:.2f} um\n"
           f"  cycle time {result.cycle_time_s:.3f} s, path {result.path_length_m * 1e3:.3f} of "
           f"{result.total_length_m * 1e3:.3f} mm, {result.ticks} ticks" + (f", bag {result.bag_path}"
                                                                              if result.bag_path else ""), flush=True)
-    return EXIT_CODES[int(result.outcome)]
 
 
-def _wait(node: Any, future: Any) -> Any:
+def _wait(node: Any, future: Any, timeout_s: float = float("inf")) -> Any:
+    """Spin ``node`` until ``future`` is done (or ``timeout_s`` of wall time passed: None) and return its result."""
     import rclpy
 
-    while not future.done():
+    deadline_s = time.monotonic() + timeout_s
+    while not future.done() and rclpy.ok() and time.monotonic() < deadline_s:
         rclpy.spin_once(node, timeout_sec=0.1)
-    return future.result()
+    return future.result() if future.done() else None
 
 
 class FeedbackPrinter:

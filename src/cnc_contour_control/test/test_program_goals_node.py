@@ -1,0 +1,127 @@
+"""Tier 2: RunProgram goals that must never stall or kill the interpolator, in-process with real rclpy.
+
+A managed action-mode interpolator is ticked by the test (a perfect machine:
+each joint state is the previous reference). Every goal gets a result with a
+code and a reason: refused ones (inactive, a directory, a huge malformed file)
+come back REJECTED; an 8-bit comment runs; a 100 000-line file is read and
+planned off the tick's path while the ticks go on; deactivation ends a goal
+ABORTED. The result codes start at 1: a default result (0) is UNKNOWN.
+"""
+from __future__ import annotations
+
+import math
+import time
+import uuid
+from pathlib import Path
+from typing import Any
+
+import pytest
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
+from rclpy.action import ActionClient
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
+
+from cnc_contour_control.nodes.common import ns_to_stamp, stamp_to_ns
+from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
+from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.action import RunProgram
+from cnc_contour_interfaces.msg import Reference
+
+pytestmark = pytest.mark.nodes
+T_NS = 10_000_000
+PARAMS = {"axes": ["x", "y"], "program_source": "action", "program_file": "", "managed": True,
+          "settle_time_s": 0.02, "feedback_period_s": 0.05}
+#: Wall time one tick may take while a goal is planned: far below any servo's input timeout. Measured: the
+#: 100 000-line file (1.9 MB) took 7 s to read and plan inside the goal callback before, every tick waiting.
+TICK_BOUND_S = 1.0
+
+
+class Machine:
+    """The test's lockstep: joint state k (at the last reference), then wait for reference k."""
+
+    def __init__(self, probe: TopicProbe, ns: str) -> None:
+        self.probe, self.ns, self.k = probe, ns, 0
+        self.pub = probe.publisher(JointState, f"{ns}/joint_states")
+        self.position_m = [0.0, 0.0]
+        self.tick_s: list[float] = []
+
+    def tick(self) -> None:
+        start_s = time.monotonic()
+        self.pub.publish(JointState(header=Header(stamp=ns_to_stamp(self.k * T_NS)), name=["x", "y"],
+                                    position=list(self.position_m), velocity=[0.0, 0.0]))
+        stamp = self.k * T_NS
+        refs = lambda: [m for m in self.probe.received(f"{self.ns}/reference")
+                        if stamp_to_ns(m.header.stamp) == stamp]
+        self.probe.wait_for(refs, 20.0, f"reference {self.k}")
+        self.position_m = list(refs()[0].position_m)
+        self.tick_s.append(time.monotonic() - start_s)
+        self.k += 1
+
+    def until(self, future: Any, max_ticks: int = 2000) -> Any:
+        for _ in range(max_ticks):
+            if future.done():
+                return future.result()
+            self.tick()
+        raise AssertionError(f"no answer within {max_ticks} ticks")
+
+
+def change(probe: TopicProbe, ns: str, transition_id: int) -> bool:
+    return bool(probe.call(ChangeState, f"{ns}/interpolator/change_state",
+                           ChangeState.Request(transition=Transition(id=transition_id))).success)
+
+
+def run_goal(machine: Machine, client: ActionClient, goal: Any, max_ticks: int = 2000) -> Any:
+    handle = machine.until(client.send_goal_async(goal), max_ticks)
+    assert handle.accepted, "every goal is accepted; a refusal is its result"
+    return machine.until(handle.get_result_async(), max_ticks).result
+
+
+def big_program(path: Path, lines: int) -> Path:
+    """``lines`` short moves on a 20 mm circle, then a line with an unknown word (found only at the end)."""
+    moves = (f"X{20 * math.cos(i * 1e-3) - 20:.4f} Y{20 * math.sin(i * 1e-3):.4f}" for i in range(lines))
+    path.write_text("G1 F1200\n" + "\n".join(moves) + "\nG1 X0 Q3\n")
+    return path
+
+
+def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_path: Path) -> None:
+    ns = f"/goals_{uuid.uuid4().hex[:8]}"
+    latin1 = tmp_path / "fraeser.ngc"
+    latin1.write_bytes("(Fräser Ø 6 mm)\nG1 X1 F1200 (Zustellung ½ mm)\n".encode("latin-1"))
+    folder = tmp_path / "folder.ngc"
+    folder.mkdir()
+    big = big_program(tmp_path / "big.ngc", 100_000)
+    assert RunProgram.Result().outcome == RunProgram.Result.UNKNOWN != RunProgram.Result.COMPLETED
+    with TopicProbe({f"{ns}/reference": Reference}) as probe, \
+            InProcessNode(InterpolatorNode, PARAMS, namespace=ns) as interpolator:
+        client = ActionClient(probe.node, RunProgram, f"{ns}/run_program")
+        assert change(probe, ns, Transition.TRANSITION_CONFIGURE)
+        probe.wait_for(client.server_is_ready, 20.0, "the RunProgram server")
+        machine = Machine(probe, ns)
+        probe.wait_for(lambda: machine.pub.get_subscription_count() > 0, 20.0, "the joint_states reader")
+        inactive = run_goal(machine, client, RunProgram.Goal(gcode="G1 X1 F1200"))
+        assert change(probe, ns, Transition.TRANSITION_ACTIVATE)
+        fraeser = run_goal(machine, client, RunProgram.Goal(program_file=str(latin1)))
+        directory = run_goal(machine, client, RunProgram.Goal(program_file=str(folder)))
+        machine.tick_s.clear()
+        huge = run_goal(machine, client, RunProgram.Goal(program_file=str(big)), max_ticks=20_000)
+        planning_ticks, planning_s = len(machine.tick_s), sum(machine.tick_s)
+        handle = machine.until(client.send_goal_async(RunProgram.Goal(gcode="G1 X20 F1200")))
+        for _ in range(10):
+            machine.tick()
+        assert change(probe, ns, Transition.TRANSITION_DEACTIVATE)
+        deactivated = machine.until(handle.get_result_async()).result
+        assert not interpolator.node.finished, "no goal ended the node"
+
+    assert (inactive.outcome, inactive.reason) == (RunProgram.Result.REJECTED, "the interpolator is not active "
+                                                   "(lifecycle): activate it first")
+    assert fraeser.outcome == RunProgram.Result.COMPLETED and fraeser.reason.startswith("completed")
+    assert fraeser.program_name == "fraeser" and fraeser.path_length_m == pytest.approx(1e-3)
+    assert directory.outcome == RunProgram.Result.REJECTED and "is a directory" in directory.reason
+    assert huge.outcome == RunProgram.Result.REJECTED, huge.reason
+    assert huge.reason.startswith("line 100002: unsupported word Q3"), huge.reason
+    assert huge.ticks == 0 and math.isnan(huge.max_contour_error_m)
+    assert planning_ticks > 10, f"the ticks went on while the file was read ({planning_ticks} in {planning_s:.1f} s)"
+    assert max(machine.tick_s) < TICK_BOUND_S, f"longest tick {max(machine.tick_s):.3f} s"
+    assert deactivated.outcome == RunProgram.Result.ABORTED and "deactivated" in deactivated.reason
+    assert 0.0 < deactivated.path_length_m < deactivated.total_length_m and deactivated.ticks > 10
