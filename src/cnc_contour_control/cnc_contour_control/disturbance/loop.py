@@ -76,7 +76,8 @@ def _paths(blocks: LoopBlocks) -> tuple[list[control.TransferFunction], list[str
                     _system(blocks.h, dt, "res", "te", "h")]
         terms.append("-te")
     if blocks.q is not None:
-        systems += [_system(blocks.q_inverse_model, dt, "y", "qy", "q_inverse"),
+        # LoopBlocks gives q_inverse_model whenever it gives q
+        systems += [_system(blocks.q_inverse_model, dt, "y", "qy", "q_inverse"),  # type: ignore[arg-type]  # see above
                     control.summing_junction(["v", "te"] if blocks.h is not None else ["v"], "uin", name="uin"),
                     _system(blocks.q, dt, "uin", "qu", "q"),
                     control.summing_junction(["qy", "-qu"], "dh", name="dob")]

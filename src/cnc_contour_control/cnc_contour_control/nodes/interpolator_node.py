@@ -125,7 +125,7 @@ class InterpolatorNode(SuiteNode):
     def _make_session(self, source: str, params: ProgramSessionParams) -> ProgramSession:
         """Action mode: the session that runs goals (always through the live override: a cancel ramps to 0)."""
         config, override, limits = self._declare_planning(source)
-        self.live = None
+        self.live: LiveReference | None = None
         return ProgramSession(self.axes, limits, config, override, params)
 
     def _make_interpolator(self, program_file: str, source: str) -> Interpolator:

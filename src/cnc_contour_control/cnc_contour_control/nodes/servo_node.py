@@ -132,7 +132,9 @@ class ServoNode(SuiteNode):
         refused = self.controller.follow_spindle(stamp_ns)  # the commanded spindle speed, as the engine at this tick
         if refused is not None:
             self.report(DiagnosticStatus.WARN, f"servo {self.axis}: {refused}",
-                        {"stamp_ns": str(stamp_ns), "spindle_rpm": str(self.controller.spindle.commanded_rpm)})
+                        # a refusal comes only from a spindle follower
+                        {"stamp_ns": str(stamp_ns),
+                         "spindle_rpm": str(self.controller.spindle.commanded_rpm)})  # type: ignore[union-attr]
         # the following-error trip is checked in there, while enabled (LinuxCNC), as the engine checks it
         output = self.held.step(stamp_ns, dt_ns / NS_PER_S, ref[0], ref[1], ref[2], position_m, velocity_m_s,
                                 correction)

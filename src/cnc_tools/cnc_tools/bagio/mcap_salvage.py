@@ -221,7 +221,7 @@ def crc_problem(data: bytes) -> str:
     if not len(MAGIC) <= data_end < footer or data[data_end] != _OP_DATA_END:
         return f"no DataEnd record before the summary (summary start {summary_start})"
     (data_crc,) = struct.unpack_from("<I", data, data_end + 9)
-    if data_crc and zlib.crc32(data[:data_end]) != data_crc:
+    if data_crc and zlib.crc32(memoryview(data)[:data_end]) != data_crc:  # a view: no copy of the file
         return "the data section fails its CRC (a damaged byte among the recorded data)"
     if summary_crc and zlib.crc32(data[summary_from:footer + 9 + 16]) != summary_crc:
         return "the summary section fails its CRC"
