@@ -185,8 +185,8 @@ class PdcStackLaw:
             raise FaultError(f"{self.NAME}: dt_s must be the model's sample time {self.sample_time_s:g} s, "
                              f"got {sample.dt_s!r}")
         inner = self.inner.step(sample)
-        # retune(), which __init__ calls, sets _h
-        te = self._h.step(sample.velocity_counts_s - self._model.step(sample.applied_command))  # type: ignore[union-attr]
+        h = self._h  # retune(), which __init__ calls, sets it
+        te = h.step(sample.velocity_counts_s - self._model.step(sample.applied_command))  # type: ignore[union-attr]  # see above
         out = self.output
         out.feedback = inner.feedback - te
         out.disturbance_estimate = inner.disturbance_estimate + te

@@ -17,8 +17,8 @@ from typing import cast
 
 import numpy as np
 
-from cnc_contour_control.motion.blend_table import BlendTable
 from cnc_contour_control.motion.arc import ArcSegment
+from cnc_contour_control.motion.blend_table import BlendTable
 from cnc_contour_control.motion.geometry import LineSegment, Program, Segment
 from cnc_contour_control.motion.points import MIN_LENGTH_M, FloatArray
 from cnc_contour_control.motion.segment_batch import arc_segments, line_segments

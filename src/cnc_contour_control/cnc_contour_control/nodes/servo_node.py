@@ -134,7 +134,7 @@ class ServoNode(SuiteNode):
             self.report(DiagnosticStatus.WARN, f"servo {self.axis}: {refused}",
                         # a refusal comes only from a spindle follower
                         {"stamp_ns": str(stamp_ns),
-                         "spindle_rpm": str(self.controller.spindle.commanded_rpm)})  # type: ignore[union-attr]
+                         "spindle_rpm": str(self.controller.spindle.commanded_rpm)})  # type: ignore[union-attr]  # see above
         # the following-error trip is checked in there, while enabled (LinuxCNC), as the engine checks it
         output = self.held.step(stamp_ns, dt_ns / NS_PER_S, ref[0], ref[1], ref[2], position_m, velocity_m_s,
                                 correction)

@@ -3,6 +3,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -14,7 +15,7 @@ from cnc_contour_interfaces.msg import AxisCommand
 from cnc_plant_sim.process.cutting import TOOL_FRAME
 
 
-def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float], velocities_m_s: Sequence[float],
+def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float] | np.ndarray, velocities_m_s: Sequence[float],
                     stamp_ns: int) -> JointState:
     """Axis positions [m] and velocities [m/s] to a JointState stamped ``stamp_ns``."""
     msg = JointState()

@@ -111,7 +111,7 @@ class CuttingConfig:
         if len(times) != len(depths):
             raise ConfigError(f"cutting.depth_schedule_mm must have one depth per time ({len(times)}), "
                               f"got {len(depths)}")
-        turning = self.turning
+        turning: object = self.turning  # a mapping from a file until built below
         if isinstance(turning, Mapping):
             turning = dict(turning)
             derived = turning.pop("depth_schedule", None)  # config_values gives it back: the same is fine
