@@ -146,13 +146,6 @@ def test_line_nearest_clamps_to_the_end_points() -> None:
     assert_allclose(s, [0.5, 0.0, 1.0])
 
 
-def test_signed_errors() -> None:
-    line = LineSegment([0.0, 0.0], [1.0, 0.0], FEED_M_S)
-    assert_allclose(line.signed_error(np.array([[0.3, 0.2], [0.3, -0.1]])), [0.2, -0.1])
-    arc = quarter_arc()
-    assert_allclose(arc.signed_error(np.array([[0.0, -0.001], [0.0, 0.005]])), [0.001, -0.005], atol=1e-15)
-
-
 @pytest.mark.parametrize("kwargs, message", [
     ({"end_m": [0.0201, 0.02]}, "end radius 0.0201 m, start radius 0.02 m"),
     ({"end_m": [0.02, 0.02], "center_m": [0.0, 0.0]}, "radius_m must be > 0"),

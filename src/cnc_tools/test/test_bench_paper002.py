@@ -13,11 +13,10 @@ import pytest
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.laws import law_config
 from cnc_contour_control.laws.loop_report import loop_figures
-from cnc_contour_control.motion.program import load_program
 from cnc_tools.bench.registry import BENCHES
 from cnc_tools.reproductions.paper002 import data
 from cnc_tools.reproductions.paper002.bench import design_config
-from cnc_tools.reproductions.paper002.measures import lock_in_amplitude, signed_contour_error
+from cnc_tools.reproductions.paper002.measures import lock_in_amplitude
 from cnc_tools.reproductions.paper002.runs import Case, run_case, scenario_for
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -40,15 +39,6 @@ def test_lock_in_finds_a_sinusoid_under_a_ramp_and_noise() -> None:
     assert lock_in_amplitude(t, x - 0.37 * np.sin(2 * np.pi * 50.0 * t + 0.4), 50.0) < 0.03
     with pytest.raises(ConfigError, match="lock-in needs >= 2 periods of f_hz 50 in its window, got 0.03 s"):
         lock_in_amplitude(t[:31], x[:31], 50.0)
-
-
-def test_signed_contour_error_is_the_scorers_distance_with_a_side() -> None:
-    circle = load_program({"shape": "circle", "radius_mm": 6.0, "feed_mm_min": 120.0})
-    points = np.array([[0.0, -1e-6], [0.0, 2e-6], [6e-3, 6e-3 + 3e-6]])  # outside, inside, outside (centre (0, 6) mm)
-    signed = signed_contour_error(circle, points)
-    distance, _ = circle.contour_distance(points)
-    np.testing.assert_allclose(np.abs(signed), distance, rtol=1e-12)
-    assert list(np.sign(signed)) == [1.0, -1.0, 1.0]
 
 
 # ---------------------------------------------------------------- cases

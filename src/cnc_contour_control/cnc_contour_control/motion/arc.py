@@ -204,12 +204,6 @@ class ArcSegment:
             high[axis] = self.center_m[axis] + self.radius_m
         return low, high
 
-    def signed_error(self, points: ArrayLike) -> FloatArray:
-        """Radial deviation in the plane, ``|p - c| - r`` (m, shape ``(N,)``), > 0 outside."""
-        p = as_points(points, self.n_axes)
-        a, b = self.plane
-        return np.hypot(p[:, a] - self.center_m[a], p[:, b] - self.center_m[b]) - self.radius_m
-
     def nearest(self, points: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Distance from each point to the arc and where it is reached.
 

@@ -137,16 +137,6 @@ class LineSegment:
         distance = np.linalg.norm(relative - s[:, None] * self.unit_vector, axis=1)
         return distance, s
 
-    def signed_error(self, points: ArrayLike, plane: tuple[int, int] = (0, 1)) -> FloatArray:
-        """Signed distance (m, shape ``(N,)``) from the infinite line in ``plane``, left of travel > 0."""
-        relative = as_points(points, self.n_axes) - self.start_m
-        a, b = plane
-        direction = self.unit_vector[[a, b]]
-        norm = float(np.hypot(direction[0], direction[1]))
-        if norm < 1e-12:
-            raise ProgramError(f"line does not move in plane {plane}; signed_error is undefined")
-        return (direction[0] * relative[:, b] - direction[1] * relative[:, a]) / norm
-
 
 Segment = LineSegment | ArcSegment
 

@@ -1,9 +1,9 @@
 """What the paper-002 bench measures in a run: the contour error at constant speed, its RMS and its f_d line.
 
-- :func:`signed_contour_error`: the scorer's exact contour error
-  (:meth:`Program.contour_distance`) with the sign of the nearest segment's
-  ``signed_error`` (left of a line / outside the circle > 0), so a periodic
-  error stays a sinusoid (the unsigned distance would rectify it).
+- The contour error is :func:`cnc_contour_control.estimators.signed_contour_error`:
+  the scorer's exact distance (:meth:`Program.contour_distance`) with a side
+  (left of travel > 0), so a periodic error stays a sinusoid (the unsigned
+  distance would rectify it).
 - :func:`constant_speed_mask`: the samples where the reference moves at the
   programmed feed (within ``tolerance``): the paper's "constant speed".
 - :func:`lock_in_amplitude`: the amplitude of one frequency in a sampled
@@ -22,7 +22,6 @@ import numpy as np
 import numpy.typing as npt
 
 from cnc_contour_control.core.errors import ConfigError
-from cnc_contour_control.motion.geometry import Program
 from cnc_tools.run_record import RunRecord
 
 FloatArray = npt.NDArray[np.float64]
@@ -32,17 +31,6 @@ BoolArray = npt.NDArray[np.bool_]
 DETREND_DEGREE = 3
 #: Relative deviation of the reference speed from the programmed feed that still counts as constant speed.
 SPEED_TOLERANCE = 1.0e-3
-
-
-def signed_contour_error(program: Program, points_m: FloatArray) -> FloatArray:
-    """Contour error [m], shape (N,): the exact distance to ``program`` signed by the nearest segment's side."""
-    distance, index = program.contour_distance(points_m)
-    sign = np.ones_like(distance)
-    for i, segment in enumerate(program.segments):
-        mine = index == i
-        if np.any(mine):
-            sign[mine] = np.where(segment.signed_error(points_m[mine]) < 0.0, -1.0, 1.0)
-    return sign * distance
 
 
 def constant_speed_mask(record: RunRecord, tolerance: float = SPEED_TOLERANCE) -> BoolArray:

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from cnc_contour_control.core.velocity_models import PAPER002_MODELS
+from cnc_contour_control.estimators import signed_contour_error
 from cnc_plant_sim.models.velocity_loop import pi_loop_from_discrete
 from cnc_tools.reproductions.paper002 import data
 from cnc_tools.reproductions.paper002.measures import (
@@ -36,7 +37,6 @@ from cnc_tools.reproductions.paper002.measures import (
     constant_speed_mask,
     lock_in_amplitude,
     rms,
-    signed_contour_error,
 )
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
@@ -158,7 +158,7 @@ def _window(record: RunRecord, case: Case) -> np.ndarray:
 
 def measure(record: RunRecord, case: Case) -> tuple[Measure, FloatArray]:
     """The case's measure, and the signed contour error of the whole run [pulse]."""
-    error_pulse = signed_contour_error(record.program, record.joint_states.position_m) / data.M_PER_PULSE
+    error_pulse = signed_contour_error(record.program, record.joint_states.position_m)[0] / data.M_PER_PULSE
     mask, t = _window(record, case), record.time_s
     found = Measure(rms(error_pulse[mask]), lock_in_amplitude(t[mask], error_pulse[mask], case.f_d_hz),
                     case.f_d_hz, (float(t[mask][0]), float(t[mask][-1])), int(np.count_nonzero(mask)))

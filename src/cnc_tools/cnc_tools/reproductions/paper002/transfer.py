@@ -33,12 +33,13 @@ from typing import Any
 
 from cnc_contour_control.disturbance.loop import tf
 from cnc_contour_control.disturbance.stack_loop import StackBlocks, pid_transfer, sampled_plant, stack_figures
+from cnc_contour_control.estimators import signed_contour_error
 from cnc_plant_sim.models.nominal_models import canceller_model_params, continuous_velocity_model, drive_velocity_model
 from cnc_plant_sim.models.plant import PlantConfig
 from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.reproductions.paper000.runs import CONTROLLERS
 from cnc_tools.reproductions.paper002 import data
-from cnc_tools.reproductions.paper002.measures import constant_speed_mask, lock_in_amplitude, rms, signed_contour_error
+from cnc_tools.reproductions.paper002.measures import constant_speed_mask, lock_in_amplitude, rms
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.scenario import Scenario, load_scenario
@@ -133,7 +134,7 @@ def scenario_for(target: Target, run: str) -> Scenario:
 def measure_run(target: Target, run: str) -> dict[str, float]:
     """One run on the engine: RMS contour error and its f_d line at constant speed [µm]."""
     record = run_engine(scenario_for(target, run))
-    error_um = signed_contour_error(record.program, record.joint_states.position_m) * UM_PER_M
+    error_um = signed_contour_error(record.program, record.joint_states.position_m)[0] * UM_PER_M
     mask, t = constant_speed_mask(record), record.time_s
     return {"rms_um": rms(error_um[mask]), "fd_um": lock_in_amplitude(t[mask], error_um[mask], target.f_d_hz)}
 
