@@ -1,7 +1,6 @@
 """Tier 3: the recorder in a real run: nothing lost, standard files, clean stop, no overwrite."""
 from __future__ import annotations
 
-import os
 import signal
 import subprocess
 import sys
@@ -15,6 +14,7 @@ from rosbags.highlevel import AnyReader
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.core.errors import BagError
+from cnc_contour_control.nodes.common import EXIT_FAULT
 from cnc_contour_control.testing import TopicProbe
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.typestore import project_typestore
@@ -96,15 +96,14 @@ def test_recorder_refuses_an_existing_output_folder(tmp_path: Path) -> None:
     existing = tmp_path / "bag"
     existing.mkdir()
     (existing / "keep.txt").write_text("precious")
-    recorder = Path(os.environ["AMENT_PREFIX_PATH"].split(os.pathsep)[0])
     from cnc_tools.runs.graph import find_executable
 
     result = subprocess.run([str(find_executable("cnc_tools", "recorder")), "--ros-args", "-p", f"output:={existing}"],
                             capture_output=True, text=True, timeout=60)
-    assert result.returncode != 0
-    assert "exists already" in result.stdout + result.stderr
+    output = result.stdout + result.stderr
+    assert result.returncode == EXIT_FAULT, output  # the node's fault, not a crash
+    assert f"bag folder {existing} exists already" in output, output
     assert (existing / "keep.txt").read_text() == "precious"
-    assert recorder  # the workspace is sourced
     with pytest.raises(BagError):
         read_bag(existing)
 
