@@ -10,14 +10,15 @@ import pytest
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool
 
-from cnc_contour_control.core.errors import FaultError
 from cnc_contour_control.nodes.safety_io import RUNNING
 from cnc_contour_control.testing import TopicProbe
 from cnc_contour_interfaces.msg import AxisCommand, Reference
+from cnc_tools.analysis.verdict import judge
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.diagnostics import read_statuses
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.graph import NodeDied, run_graph
+from cnc_tools.runs.outputs import judge_bag
 from cnc_tools.runs.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -31,13 +32,14 @@ pytestmark = pytest.mark.e2e
 
 def test_following_error_trip_faults_naming_the_axis_on_the_engines_tick(tmp_path: Path) -> None:
     scenario = load_scenario(CIRCLE, {"duration_s": 1.0, "servo": TRIP})
-    with pytest.raises(FaultError) as engine_fault:
-        run_engine(scenario)
+    record = run_engine(scenario)  # the engine ends the run at the fault and keeps every tick before it
+    assert record.summary["status"] == "faulted" and judge(record).status == "faulted"
     with pytest.raises(NodeDied) as graph_fault:
         run_graph(scenario, tmp_path, record=False)
-    engine = FAULT.search(str(engine_fault.value))
+    engine = FAULT.search(record.summary["faults"][0])
     graph = FAULT.search(str(graph_fault.value))
-    assert engine is not None and graph is not None, (str(engine_fault.value), str(graph_fault.value))
+    assert engine is not None and graph is not None, (record.summary["faults"], str(graph_fault.value))
+    assert record.joint_states.stamp_ns[-1] == round(float(engine.group(4)) * 1e9), "cut at the fault's tick"
     assert graph_fault.value.node == "servo_x"
     assert graph.group(1) == engine.group(1) == "x"
     assert graph.group(4) == engine.group(4) != "0.000000", "the same tick"
@@ -101,6 +103,8 @@ def test_estop_mid_run_latches_stops_the_axes_and_is_in_the_bag(tmp_path: Path) 
         result = run_graph(scenario, tmp_path, record=True, extra_subscribers=1, namespace=ns,
                            on_poll=read_ticks_once_the_estop_is_heard)
     assert sent and result.faults == [] and result.summary["estop_latches"] == 1
+    _, verdict = judge_bag(result.bag_path)
+    assert verdict.status == "faulted" and "e-stop latched 1 time" in verdict.describe(), verdict.describe()
     _, statuses = read_statuses(result.bag_path)
     latched = {s.name.rsplit("/", 1)[-1]: s for s in statuses if s.message.startswith("e-stop latched")}
     assert set(latched) == {"plant", "servo_x", "servo_y"}, "each latch once (the servos freeze their laws)"

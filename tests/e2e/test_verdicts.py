@@ -6,6 +6,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -138,3 +139,42 @@ def test_a_node_killed_mid_run_gives_a_faulted_verdict_naming_it(tmp_path: Path,
     assert record.ticks > 0 and record.integrity.complete, record.integrity.describe()
 
 
+
+
+class _StopWhenRunning:
+    """on_poll: once the run's summary says running, SIGSTOP one node for ``pause_s``, then SIGCONT it."""
+
+    def __init__(self, run_dir: Path, name: str, pause_s: float) -> None:
+        self.run_dir, self.name, self.pause_s = run_dir, name, pause_s
+        self.pid: int | None = None
+        self.stopped_at: float | None = None
+        self.resumed = False
+
+    def __call__(self) -> None:
+        if self.pid is None and _summary(self.run_dir).get("status") == "running":
+            self.pid = _node_pids(self.run_dir)[self.name]
+            os.kill(self.pid, signal.SIGSTOP)
+            self.stopped_at = time.monotonic()
+        elif self.stopped_at is not None and time.monotonic() - self.stopped_at >= self.pause_s:
+            self.resume()
+
+    def resume(self) -> None:
+        """SIGCONT the node if it is still stopped (also when the test fails)."""
+        if self.pid is not None and not self.resumed:
+            os.kill(self.pid, signal.SIGCONT)
+            self.resumed = True
+
+
+def test_a_servo_stalled_for_a_second_in_real_time_faults_the_run_on_its_window(tmp_path: Path) -> None:
+    """A 1 s stall in a 20 s run is 5 % of the run's commands (under max_late_share 0.25) but every command of one
+    axis in a 100-tick window: the run faults naming the axis, not "no fault"."""
+    scenario = load_scenario(CIRCLE, {"duration_s": 20.0, "mode": "realtime"})
+    stopper = _StopWhenRunning(tmp_path, "servo_x", 1.0)
+    try:
+        result = run_graph(scenario, tmp_path, record=False, on_poll=stopper, timeout_s=120.0)
+    finally:
+        stopper.resume()
+    assert stopper.pid is not None, "the servo was stopped mid-run"
+    assert result.summary["status"] == "faulted", result.summary
+    assert "of axis x's 100 commands" in result.faults[0] and "max_late_share_window" in result.faults[0], \
+        result.faults

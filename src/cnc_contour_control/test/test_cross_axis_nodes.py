@@ -117,12 +117,18 @@ def test_compensator_node_stops_diverging_learning_and_zeroes_its_output() -> No
                 pubs[name].publish(msg)
         probe.wait_for(lambda: len(probe.received("/cnc/compensation")) == 40, 10.0, "40 compensations")
         fault = node.node.compensator.fault
+
+        def guard_errors() -> list[DiagnosticStatus]:
+            return [s for a in probe.received("/diagnostics") for s in a.status if s.level == DiagnosticStatus.ERROR]
+
+        probe.wait_for(guard_errors, 10.0, "the guard's ERROR status")
+        errors = guard_errors()
     assert fault is not None, "the guard tripped"
     received = probe.received("/cnc/compensation")
     stopped = [k for k, m in enumerate(received) if not m.learning]
     assert stopped and all(list(m.correction) == [0.0, 0.0] for m in received[stopped[0]:])
-    warnings = [s for a in probe.received("/diagnostics") for s in a.status if s.level == DiagnosticStatus.WARN]
-    assert warnings and "compensator" in warnings[0].message
+    assert "compensator" in errors[0].message and "learning stopped" in errors[0].message, \
+        "an ERROR, so the run's verdict is faulted"
 
 
 @pytest.mark.parametrize(("content", "words"), [

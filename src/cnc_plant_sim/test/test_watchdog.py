@@ -2,6 +2,8 @@
 from __future__ import annotations
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_plant_sim.run.run_params import PlantRunParams
@@ -43,3 +45,47 @@ def test_the_plant_run_parameters_declare_the_watchdog_with_ranges() -> None:
     assert CommandWatchdog(run, 2).max_age_ns == 50_000_000
     with pytest.raises(ConfigError, match="max_late_share"):
         PlantRunParams(max_late_share=1.5)
+
+
+def test_a_stalled_second_faults_a_long_run_naming_the_axis_and_the_window() -> None:
+    """A servo stopped for 1 s of a 10 s run is 10 % of the run (under max_late_share) but 100 % of a window."""
+    dog = CommandWatchdog(WatchdogParams(), 2, ("x", "y"))
+    stall = range(300, 400)
+    with pytest.raises(FaultError, match=r"of axis x's 100 commands from t = .* late .*max_late_share_window 0.5"):
+        for k in range(1000):
+            dog.tick(k * T_NS, [k not in stall, True], [1.0, 1.0])
+            dog.check()
+    assert dog.ticks < 400, "faulted during the stall, not after the run"
+    assert dog.late_share < dog.params.max_late_share
+
+
+def _oracle_faults(pattern: list[list[bool]], params: WatchdogParams) -> bool:
+    """Whether any prefix of ``pattern`` (late flags per tick and axis) breaks either share, by brute force."""
+    n_axes = len(pattern[0])
+    for end in range(1, len(pattern) + 1):
+        late = sum(map(sum, pattern[:end]))
+        if end >= params.late_share_min_ticks and late / (end * n_axes) > params.max_late_share:
+            return True
+        window = pattern[end - params.late_window_ticks:end] if end >= params.late_window_ticks else []
+        if window and any(sum(row[i] for row in window) / params.late_window_ticks > params.max_late_share_window
+                          for i in range(n_axes)):
+            return True
+    return False
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.lists(st.booleans(), min_size=2, max_size=2), min_size=1, max_size=60),
+       st.integers(1, 20), st.sampled_from([0.0, 0.25, 0.5, 0.75, 1.0]), st.sampled_from([0.25, 0.5, 1.0]))
+def test_the_watchdog_faults_exactly_when_a_share_is_exceeded(pattern: list[list[bool]], window: int,
+                                                               window_share: float, share: float) -> None:
+    params = WatchdogParams(max_late_share=share, late_share_min_ticks=5, max_late_share_window=window_share,
+                            late_window_ticks=window)
+    dog = CommandWatchdog(params, 2)
+    faulted = False
+    try:
+        for k, late in enumerate(pattern):
+            dog.tick(k * T_NS, [not x for x in late], [0.0, 0.0])
+            dog.check()
+    except FaultError:
+        faulted = True
+    assert faulted == _oracle_faults(pattern, params)

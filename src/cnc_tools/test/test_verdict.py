@@ -54,7 +54,8 @@ def _run_folder(root: Path, traj: Trajectory | None = None, summary: dict | None
                                                                          traj.reference_velocity_m_s[k]))
             if k not in skip:
                 writer.write_message("/cnc/reference", stamp, reference(stamp, program.axis_names, traj.reference_m[k],
-                                                                        traj.reference_velocity_m_s[k]))
+                                                                        traj.reference_velocity_m_s[k],
+                                                                        done=k == len(traj.stamp_ns) - 1))
             for axis in program.axis_names:
                 writer.write_message(f"/cnc/servo/{axis}/command", stamp, axis_command(stamp, axis, 1.0, 0.0))
         if statuses:

@@ -81,8 +81,10 @@ class CompensatorNode(SuiteNode):
         self.publisher.publish(compensation_to_msg(correction, self.axes, self.command_unit, stamp_ns,
                                                    self.settings.method, learning))
         if self.compensator.fault is not None and not self._fault_reported:
-            self._fault_reported = True  # the compensation is zeroed and learning stopped; the run goes on
-            self.report(DiagnosticStatus.WARN, f"compensator: {self.compensator.fault}")
+            # the compensation is zeroed and learning stopped; the run goes on but did not run as asked: an ERROR,
+            # so the run's verdict is faulted (docs/design.md, verdicts)
+            self._fault_reported = True
+            self.report(DiagnosticStatus.ERROR, f"compensator: {self.compensator.fault}", stamp_ns=stamp_ns)
 
     def _watch_run_end(self, msg: DiagnosticArray) -> None:
         for status in msg.status:

@@ -11,10 +11,15 @@ velocity-commanded axes (papers 002/003) stop and hold their position.
 Once ``late_share_min_ticks`` ticks have run, a share of late commands
 (late / (ticks · axes)) above ``max_late_share`` is a fault: a run whose
 loop does not keep its deadline ends faulted instead of reporting no fault.
+The run's share alone would let a long run hide a stalled second (a servo
+stopped for 1 s of a 10 s run is 10 %): so, per axis, a share above
+``max_late_share_window`` within any ``late_window_ticks`` consecutive ticks
+is a fault too, naming the axis and the window's time.
 Lockstep runs wait for every command and never consult the watchdog.
 """
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -37,6 +42,11 @@ class WatchdogParams:
                                               "(1: never)")
     late_share_min_ticks: int = param(100, low=1, high=1_000_000_000, read_only=True,
                                       description="real time: ticks before the late share is judged")
+    max_late_share_window: float = param(0.5, low=0.0, high=1.0, read_only=True,
+                                         description="real time: one axis's share of late commands within any "
+                                                     "late_window_ticks ticks above this faults the run (1: never)")
+    late_window_ticks: int = param(100, low=1, high=1_000_000_000, read_only=True,
+                                   description="real time: ticks of the window max_late_share_window is judged on")
 
     def __post_init__(self) -> None:
         check_ranges(self)
@@ -51,11 +61,14 @@ class CommandWatchdog:
         Limits (any object with its fields, e.g. ``PlantRunParams``).
     n_axes : int
         Number of axes (commands per tick).
+    axis_names : sequence of str, optional
+        The axes' names, for the faults (default: their indices).
     """
 
-    def __init__(self, params: WatchdogParams, n_axes: int) -> None:
+    def __init__(self, params: WatchdogParams, n_axes: int, axis_names: Sequence[str] = ()) -> None:
         self.params = params
         self.n_axes = int(n_axes)
+        self.axis_names = tuple(axis_names) or tuple(str(i) for i in range(self.n_axes))
         self.max_age_ns = seconds_to_ns(params.command_max_age_s)
         self.reset()
 
@@ -65,6 +78,8 @@ class CommandWatchdog:
         self.late_commands = 0
         self.held_commands = 0
         self._fresh_ns = [0] * self.n_axes
+        self._window: deque[tuple[int, tuple[bool, ...]]] = deque()  # (stamp, late per axis) of the last ticks
+        self._window_late = [0] * self.n_axes
 
     def tick(self, stamp_ns: int, received: Sequence[bool], commands: Sequence[float]) -> list[float]:
         """The commands to apply at ``stamp_ns``: fresh ones, held late ones, zero for stale ones."""
@@ -78,7 +93,17 @@ class CommandWatchdog:
                 out[i] = 0.0
                 self.held_commands += 1
         self.ticks += 1
+        self._slide(stamp_ns, tuple(not fresh for fresh in received))
         return out
+
+    def _slide(self, stamp_ns: int, late: tuple[bool, ...]) -> None:
+        """Add this tick's late flags to the window and drop the tick that left it."""
+        self._window.append((stamp_ns, late))
+        for i, was_late in enumerate(late):
+            self._window_late[i] += was_late
+        if len(self._window) > self.params.late_window_ticks:
+            for i, was_late in enumerate(self._window.popleft()[1]):
+                self._window_late[i] -= was_late
 
     @property
     def late_share(self) -> float:
@@ -86,9 +111,23 @@ class CommandWatchdog:
         return self.late_commands / (self.ticks * self.n_axes) if self.ticks else 0.0
 
     def check(self) -> None:
-        """Raise :class:`FaultError` when the late share exceeds ``max_late_share`` (after the minimum ticks)."""
+        """Raise :class:`FaultError` when the late share exceeds ``max_late_share`` (after the minimum ticks), or
+        one axis's share within the last ``late_window_ticks`` ticks exceeds ``max_late_share_window``."""
+        self._check_window()
         if self.ticks < self.params.late_share_min_ticks or self.late_share <= self.params.max_late_share:
             return
         raise FaultError(f"plant: {self.late_commands} of {self.ticks * self.n_axes} commands late "
                          f"({100 * self.late_share:.1f} %) after {self.ticks} ticks: late share "
                          f"{self.late_share:.4f} exceeds max_late_share {self.params.max_late_share:g}")
+
+    def _check_window(self) -> None:
+        window = self.params.late_window_ticks
+        if len(self._window) < window:
+            return
+        for name, late in zip(self.axis_names, self._window_late, strict=True):
+            if late / window > self.params.max_late_share_window:
+                start_s, end_s = self._window[0][0] * 1e-9, self._window[-1][0] * 1e-9
+                raise FaultError(f"plant: {late} of axis {name}'s {window} commands from t = {start_s:.3f} s to "
+                                 f"{end_s:.3f} s late ({100 * late / window:.1f} %): exceeds "
+                                 f"max_late_share_window {self.params.max_late_share_window:g} "
+                                 f"(late_window_ticks {window})")

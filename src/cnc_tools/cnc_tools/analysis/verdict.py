@@ -11,7 +11,17 @@ intact, not that the run behind it ended well. The verdict asks the run:
   (:meth:`~cnc_contour_control.core.stages.Pipeline.per_tick_topics`) holds one
   message per finished tick, with contiguous stamps (lockstep: spaced by T)
   shared with ``joint_states``;
-* **faults**: in ``summary.json`` and as ERROR statuses on ``/diagnostics``;
+* **faults**: in ``summary.json`` and as ERROR statuses on ``/diagnostics``; an
+  e-stop latched during the run (``estop_latches``) and a guard that stopped
+  the compensator (``compensator.fault``) are faults too: the machine did not
+  do what the run asked, whatever the contour looks like;
+* **the program's end**: a run that ends by its program (no ``duration_s`` of
+  its own, ``ends_by: program`` in the summary) needs its reference to have
+  reached the program's end; once the reference has, every axis must stand
+  within ``end_tolerance_m`` of the program's end point at the last sample.
+  An e-stop that left the axes short, or a run cut before its program ended,
+  is partial; a run told to end at its ``duration_s`` (``ends_by: duration``)
+  may end with its program unfinished;
 * **non-finite samples** (NaN, inf) in positions, references and commands,
   each reported with its topic and the time of the first one;
 * **the file**: a bag salvaged record by record is partial.
@@ -32,6 +42,12 @@ from cnc_tools.run_record import IntArray, RunRecord
 
 #: Verdicts, best first.
 VERDICTS = ("complete", "partial", "faulted")
+#: How far from the program's end point the axes may stand when a run that ends by its program ends [m]
+#: (the summary's ``end_tolerance_m`` overrides it): catches an axis left short (e-stop, a stop, a cut run),
+#: not a loop's settling error.
+END_TOLERANCE_M = 5.0e-4
+#: A run ends when its program has ended (the reference done) or at its own ``duration_s``.
+ENDS_BY = ("program", "duration")
 #: ``DiagnosticStatus.ERROR``: a fault of the node that sent it (STALE, 3, is a node waiting for a partner: no fault).
 ERROR_LEVEL = 2
 #: Record attribute of each optional stage's per-tick series, by stage name.
@@ -115,7 +131,8 @@ def judge(record: RunRecord, statuses: Sequence[Status] = (), namespace: str = t
     ticks, end_problems = _finished_ticks(summary, statuses)
     gaps = [] if ticks is None else _gaps(record, ticks, _period_ns(summary, record), namespace)
     file_problems = [] if record.integrity.complete else [f"bag {record.integrity.describe()}"]
-    partial = [*end_problems, *gaps, *file_problems]
+    program = [] if ticks is None or faults else program_end_problems(record, summary)
+    partial = [*end_problems, *gaps, *file_problems, *program]
     status = "faulted" if faults or non_finite else "partial" if partial else "complete"
     reasons = (*faults, *(n.describe() for n in non_finite), *partial)
     return Verdict(status, tuple(reasons), ticks, tuple(non_finite))
@@ -132,10 +149,42 @@ def _faults(summary: Mapping[str, Any], statuses: Iterable[Status]) -> list[str]
     found = [str(f) for f in summary.get("faults") or []]
     if summary.get("status") == "faulted" and not found:
         found.append(f"summary.json says faulted: {summary.get('reason') or 'no reason given'}")
+    latches = int(summary.get("estop_latches") or 0)
+    if latches:
+        found.append(f"the e-stop latched {latches} time{'s' if latches > 1 else ''} during the run "
+                     "(summary.json estop_latches): the machine stopped")
+    compensator = summary.get("compensator")
+    if isinstance(compensator, Mapping) and compensator.get("fault"):
+        found.append(f"the compensator's guard stopped it: {compensator['fault']}")
     for status in statuses:
         if status.level == ERROR_LEVEL and not any(status.message in f for f in found):
             found.append(f"{status.name}: {status.message}" if status.name else status.message)
     return found
+
+
+def program_end_problems(record: RunRecord, summary: Mapping[str, Any]) -> list[str]:
+    """Why a run did not end its program: the reference short of the program's end (unless the run ends by its own
+    duration), or, once the reference ended it, an axis away from the program's end point by more than the end
+    tolerance at the last sample. None when it ended it."""
+    reference, positions = record.reference, record.joint_states.position_m
+    if reference is None or not len(reference.done) or not len(positions):
+        return []
+    if not bool(reference.done[-1]):
+        if summary.get("ends_by", "program") == "duration":
+            return []  # cut by its own duration_s, as asked
+        done_s, total_s = float(reference.path_length_m[-1]), float(record.program.total_length_m)
+        return [f"the program did not finish: the reference stood at {1e3 * done_s:.3f} of {1e3 * total_s:.3f} mm "
+                f"of the path when the run ended"]
+    tolerance_m = float(summary.get("end_tolerance_m") or END_TOLERANCE_M)
+    end = np.asarray(record.program.end_m, float)
+    last = np.asarray(positions[-1], float)[:end.size]
+    off = np.abs(last - end)
+    if not np.all(off <= tolerance_m):
+        worst = int(np.argmax(off))
+        axes = ", ".join(f"{name} {1e3 * d:.3f}" for name, d in zip(record.axis_names, off))
+        return [f"the program did not finish: axis {record.axis_names[worst]} ended {1e3 * off[worst]:.3f} mm from "
+                f"the program's end point ({axes} mm; end tolerance {1e3 * tolerance_m:g} mm)"]
+    return []
 
 
 def _finished_ticks(summary: Mapping[str, Any], statuses: Iterable[Status]) -> tuple[int | None, list[str]]:

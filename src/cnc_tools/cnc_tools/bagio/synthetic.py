@@ -102,12 +102,12 @@ def joint_state(stamp_ns: int, names: Sequence[str], position: np.ndarray, veloc
 
 
 def reference(stamp_ns: int, names: Sequence[str], position: np.ndarray, velocity: np.ndarray,
-              path_length_m: float = 0.0) -> object:
+              path_length_m: float = 0.0, done: bool = False) -> object:
     return project_typestore().types["cnc_contour_interfaces/msg/Reference"](
         header=header(stamp_ns, "machine"), axis_names=list(names), position_m=np.asarray(position, float),
         velocity_m_s=np.asarray(velocity, float), acceleration_m_s2=np.zeros(len(names)),
         path_length_m=path_length_m, segment_index=0, feed_m_s=0.01, programmed_feed_m_s=0.01,
-        feed_override_ratio=1.0, done=False)
+        feed_override_ratio=1.0, done=done)
 
 
 def axis_command(stamp_ns: int, axis: str, command: float, error_m: float) -> object:
@@ -143,7 +143,8 @@ def write_run_bag(path: Path, program: Program, traj: Trajectory, *, commands: b
                                  joint_state(stamp, names, traj.position_m[k, index],
                                              traj.reference_velocity_m_s[k, index]))
             writer.write_message(f"{NS}/reference", stamp,
-                                 reference(stamp, axes, traj.reference_m[k], traj.reference_velocity_m_s[k]))
+                                 reference(stamp, axes, traj.reference_m[k], traj.reference_velocity_m_s[k],
+                                           done=k == len(traj.stamp_ns) - 1))
             for j, axis in enumerate(axes if commands else ()):
                 error = float(traj.reference_m[k, j] - traj.position_m[k, j])
                 writer.write_message(f"{NS}/servo/{axis}/command", stamp, axis_command(stamp, axis, 1e5 * error, error))

@@ -1,11 +1,17 @@
-"""The ``cnc-contour`` command: a parser per subcommand of :data:`cnc_tools.cli.registry.COMMANDS`."""
+"""The ``cnc-contour`` command: a parser per subcommand of :data:`cnc_tools.cli.registry.COMMANDS`.
+
+Exit codes (docs/design.md, "Verdicts"): 0 the command did what it was asked and every verdict it gives is
+complete; 1 a run or a recording faulted or is partial (a fault during the run, a dead node, a bag that cannot be
+read whole); 2 a usage or configuration error (a bad option, scenario, program or parameter: nothing ran);
+128 + N a signal N stopped it (130 for Ctrl-C).
+"""
 from __future__ import annotations
 
 import argparse
 import sys
 from collections.abc import Sequence
 
-from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.core.errors import BagError, CncError, FaultError
 from cnc_tools.cli.registry import COMMANDS
 
 
@@ -32,10 +38,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.handler(args))
     except CncError as err:
         print(f"cnc-contour {args.command}: error: {err}", file=sys.stderr)
-        return 2
+        return exit_code(err)
     except KeyboardInterrupt as err:  # Ctrl-C, or SIGTERM/SIGHUP during a run (RunInterrupted: 128 + signal)
         print(f"cnc-contour {args.command}: {err or 'interrupted'}", file=sys.stderr)
         return int(getattr(err, "exit_code", 130))
+
+
+#: Exit code of a run or a recording that faulted or is partial.
+EXIT_FAULTED = 1
+#: Exit code of a usage or configuration error (nothing ran).
+EXIT_USAGE = 2
+
+
+def exit_code(err: CncError) -> int:
+    """1 for what went wrong while running or reading a run (a fault, a bad bag), 2 for bad input (nothing ran)."""
+    return EXIT_FAULTED if isinstance(err, (FaultError, BagError)) else EXIT_USAGE
 
 
 if __name__ == "__main__":

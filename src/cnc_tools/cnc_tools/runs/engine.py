@@ -23,9 +23,14 @@ with :meth:`Interpolator.sample_array`, which agrees with the node's per-tick
 override it is stepped per tick (:class:`~cnc_contour_control.motion.feed_override.LiveReference`,
 the request on ``Board.feed_override_request``). The node graph gives the same trajectories
 (``test_lockstep_graph_matches_engine_to_1e9``).
+
+A fault during the run (a following-error trip, non-finite data) ends it at that tick, as it ends a graph run:
+the record holds every tick up to the fault, its summary says ``faulted`` with the fault's message, and the
+stages' ``finish`` (a learner's state file) is skipped.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -33,7 +38,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.core.lockstep import NS_PER_S, duration_to_ns, seconds_to_ns
 from cnc_contour_control.core.stages import Pipeline
 from cnc_contour_control.motion.interpolation import with_planning_tolerance
@@ -95,11 +100,16 @@ def run_engine(scenario: Scenario, clock: Callable[[], float] | None = None,
     stamps_ns = np.arange(tick_count(scenario), dtype=np.int64) * sample_ns
     stages = build_stages(scenario, pipeline, stamps_ns)
     started = wall()
-    _tick_loop(stages, stamps_ns, sample_ns)
+    fault: FaultError | None = None
+    try:
+        _tick_loop(stages, stamps_ns, sample_ns)
+    except FaultError as err:
+        fault = err
     wall_time_s = wall() - started
-    for stage in stages:
-        stage.finish()
-    return _record(scenario, stages, stamps_ns, wall_time_s, run_dir)
+    if fault is None:
+        for stage in stages:
+            stage.finish()
+    return _record(scenario, stages, stamps_ns, wall_time_s, run_dir, fault)
 
 
 def _tick_loop(stages: list[EngineStage], stamps_ns: IntArray, sample_ns: int) -> None:
@@ -130,21 +140,54 @@ def _tick_loop(stages: list[EngineStage], stamps_ns: IntArray, sample_ns: int) -
 
 
 def _record(scenario: Scenario, stages: list[EngineStage], stamps_ns: IntArray, wall_time_s: float,
-            run_dir: Path | None) -> RunRecord:
-    """The run record of a finished engine run (every stage contributes its series)."""
+            run_dir: Path | None, fault: FaultError | None = None) -> RunRecord:
+    """The run record of an engine run (every stage contributes its series), cut at the fault's tick if it faulted."""
     parts: dict[str, Any] = {"summary": {}}
     for stage in stages:
         series = stage.series()
         parts["summary"].update(series.pop("summary", {}))
         parts.update(series)
     ticks = int(stamps_ns.size)
+    if fault is not None:
+        ticks = _ticks_recorded(parts)
+        parts = {name: _cut(value, ticks) for name, value in parts.items()}
     simulated_s = (ticks * (stamps_ns[1] - stamps_ns[0]) if ticks > 1 else 0) / NS_PER_S
-    summary = {"status": "finished", "ticks": ticks, "simulated_time_s": float(stamps_ns[-1]) / NS_PER_S,
+    ended = {"status": "finished", "faults": []} if fault is None else {
+        "status": "faulted", "faults": [str(fault)], "reason": str(fault)}
+    summary = {**ended, "ticks": ticks, "simulated_time_s": float(stamps_ns[max(ticks - 1, 0)]) / NS_PER_S,
                "wall_time_s": wall_time_s, "real_time_factor": simulated_s / wall_time_s if wall_time_s > 0 else
-               float("nan"), "late_commands": 0, "faults": [], "ran_on": "engine", **parts.pop("summary", {})}
+               float("nan"), "late_commands": 0, "ran_on": "engine", "ends_by": scenario.ends_by,
+               **parts.pop("summary", {})}
     found = dict.fromkeys(scenario.pipeline().per_tick_topics(), ticks)
     integrity = BagIntegrity(True, "engine", found, dict(found), "engine (in-process, no bag)")
     joint_states: JointStateSeries = parts.pop("joint_states")
     return RunRecord(name=scenario.name, source=run_dir or Path("engine"),
                      program=with_planning_tolerance(scenario.program, scenario.interpolator),
                      joint_states=joint_states, integrity=integrity, summary=summary, backend="engine", **parts)
+
+
+def _series_length(value: Any) -> int | None:
+    """Ticks held by a series (its ``stamp_ns``), the fewest of a per-axis mapping; None for anything else."""
+    if isinstance(value, dict):
+        lengths = [n for n in map(_series_length, value.values()) if n is not None]
+        return min(lengths) if lengths else None
+    stamps = getattr(value, "stamp_ns", None)
+    return None if stamps is None else len(stamps)
+
+
+def _ticks_recorded(parts: dict[str, Any]) -> int:
+    """The ticks every stage recorded whole before a fault stopped the run."""
+    lengths = [n for name, value in parts.items() if name != "summary" and (n := _series_length(value)) is not None]
+    return min(lengths) if lengths else 0
+
+
+def _cut(value: Any, ticks: int) -> Any:
+    """A series (or a per-axis mapping of them) cut to its first ``ticks`` rows; anything else as it is."""
+    if isinstance(value, dict):
+        return {key: _cut(item, ticks) for key, item in value.items()}
+    stamps = getattr(value, "stamp_ns", None)
+    if stamps is None or not dataclasses.is_dataclass(value) or isinstance(value, type):
+        return value
+    arrays = {f.name: getattr(value, f.name) for f in dataclasses.fields(value)}
+    return dataclasses.replace(value, **{name: array[:ticks] for name, array in arrays.items()
+                                         if isinstance(array, np.ndarray) and len(array) == len(stamps)})

@@ -30,7 +30,14 @@ from cnc_tools.nodes.host_spec import HOST, MemberExit, exits_path, read_exits
 from cnc_tools.runs.compose import ProcessGroup, group_nodes, write_host_spec
 from cnc_tools.runs.dds import loopback_env
 from cnc_tools.runs.graph_nodes import NAMESPACE, NodeSpec, graph_nodes, recorder_spec, write_params_dir
-from cnc_tools.runs.lifetime import RunInterrupted, StopSignals, die_with_parent, read_summary, settle_summary
+from cnc_tools.runs.lifetime import (
+    RunInterrupted,
+    StopSignals,
+    amend_summary,
+    die_with_parent,
+    read_summary,
+    settle_summary,
+)
 from cnc_tools.runs.managed import managed_nodes
 from cnc_tools.runs.namespaces import remap_arguments, run_namespace
 from cnc_tools.runs.scenario import Scenario
@@ -308,6 +315,7 @@ def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_sub
         except BaseException as err:
             settle_summary(run_dir / "summary.json", _ended_as(err), str(err), run.exit_codes())
             raise
+    summary = amend_summary(run_dir / "summary.json", {"ends_by": scenario.ends_by})
     result = RunResult(run_dir, summary, run.exit_codes(), namespace=namespace)
     if record:
         result.bag_path = run_dir / "bag"

@@ -2,9 +2,10 @@
 
 Every way out of ``cnc-contour run`` stops and reaps the graph:
 
-* SIGINT, SIGTERM, SIGHUP to the runner: :class:`StopSignals` notes the first
-  signal (later ones are ignored while the stop is under way) and the runner's
-  wait loop raises :class:`RunInterrupted` at its next poll (within 50 ms), so
+* SIGINT, SIGTERM, SIGHUP to the runner: :class:`~cnc_contour_control.core.stop_signals.StopSignals`
+  notes the first signal (later ones are ignored while the stop is under way) and
+  the runner's wait loop raises :class:`RunInterrupted` at its next poll
+  (:func:`check_stop`, within 50 ms), so
   :class:`~cnc_tools.runs.graph.GraphRun` stops every node (SIGINT, SIGTERM,
   SIGKILL) and reaps it; the recorder closes its bag.
 * An exception in the runner: the same stop, from ``GraphRun.__exit__``.
@@ -52,38 +53,15 @@ class RunInterrupted(KeyboardInterrupt):
         super().__init__(f"interrupted by {signal.Signals(signum).name}{where}")
 
 
-class StopSignals:
-    """Within ``with``: SIGINT, SIGTERM and SIGHUP are noted, not acted on; :meth:`check` raises for the first.
+def runner_stop_signals() -> StopSignals:
+    """The runner's stop signals (:data:`STOP_SIGNALS`), for a ``with`` around its wait loop."""
+    return StopSignals(STOP_SIGNALS)
 
-    A signal handler that raised would leave the run at an arbitrary point
-    (between a fork and the bookkeeping of the child); a noted signal is acted
-    on by the runner's wait loop, where stopping is safe. Outside the main thread
-    (where Python cannot install handlers) this does nothing.
-    """
 
-    def __init__(self, run_dir: Path | None = None) -> None:
-        self.run_dir = run_dir
-        self.received: int | None = None
-        self._previous: dict[int, Any] = {}
-
-    def __enter__(self) -> StopSignals:
-        if threading.current_thread() is threading.main_thread():
-            self._previous = {s: signal.signal(s, self._note) for s in STOP_SIGNALS}
-        return self
-
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 traceback: TracebackType | None) -> None:
-        for signum, handler in self._previous.items():
-            signal.signal(signum, handler)
-
-    def _note(self, signum: int, frame: FrameType | None) -> None:
-        if self.received is None:
-            self.received = signum
-
-    def check(self) -> None:
-        """Raise :class:`RunInterrupted` if a stop signal arrived."""
-        if self.received is not None:
-            raise RunInterrupted(self.received, self.run_dir)
+def check_stop(signals: StopSignals, run_dir: Path | None = None) -> None:
+    """Raise :class:`RunInterrupted` if a stop signal reached ``signals`` (``run_dir`` keeps what was recorded)."""
+    if signals.signum is not None:
+        raise RunInterrupted(signals.signum, run_dir)
 
 
 def die_with_parent() -> Callable[[], None] | None:
@@ -115,6 +93,21 @@ def read_summary(path: Path) -> dict[str, Any] | None:
     return summary if isinstance(summary, dict) else None
 
 
+def amend_summary(path: Path, values: Mapping[str, Any]) -> dict[str, Any]:
+    """Add the runner's ``values`` (what only the scenario knows, e.g. ``ends_by``) to the plant's ``summary.json``
+    of a run that ended, and return it."""
+    summary = {**(read_summary(path) or {}), **values}
+    _write_summary(path, summary)
+    return summary
+
+
+def _write_summary(path: Path, summary: Mapping[str, Any]) -> None:
+    """Write ``summary.json`` atomically (a reader sees the old or the new file, never half of one)."""
+    partial = path.with_name(f".{path.name}.partial")
+    partial.write_text(json.dumps(summary, indent=2))
+    os.replace(partial, path)
+
+
 def settle_summary(path: Path, status: str, reason: str, exit_codes: Mapping[str, int | None]) -> dict[str, Any]:
     """Give ``summary.json`` the runner's account of a run that did not end well, and return it.
 
@@ -132,9 +125,7 @@ def settle_summary(path: Path, status: str, reason: str, exit_codes: Mapping[str
         if status == "node died":
             summary["faults"] = [*summary.get("faults", []), reason]
     summary["exit_codes"] = dict(exit_codes)
-    partial = path.with_name(f".{path.name}.partial")
-    partial.write_text(json.dumps(summary, indent=2))
-    os.replace(partial, path)
+    _write_summary(path, summary)
     return summary
 
 
