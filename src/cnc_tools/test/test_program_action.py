@@ -26,6 +26,7 @@ from cnc_contour_interfaces.action import RunProgram
 from cnc_contour_interfaces.msg import Path as PathMsg
 from cnc_contour_interfaces.msg import Reference
 from cnc_plant_sim.nodes.plant_node import PlantNode
+from cnc_tools.cli import send_program
 from cnc_tools.cli.main import main as cli
 from cnc_tools.runs.graph_nodes import graph_specs
 from cnc_tools.runs.scenario import load_scenario
@@ -91,6 +92,22 @@ def assert_scored(result: Any) -> None:
     assert result.ticks > 0 and result.bag_path == ""
 
 
+def ctrl_c(self: Any, msg: Any) -> None:
+    """A feedback printer whose user pressed Ctrl-C once, at the first feedback."""
+    if not getattr(self, "pressed", False):
+        self.pressed = True
+        raise KeyboardInterrupt
+
+
+def test_send_program_refuses_a_binary_file_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    part = tmp_path / "part.ngc"
+    part.write_bytes(b"G1 X1\0\x01\x02")
+    assert cli(["send-program", str(part)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "not a text file (NUL byte at offset 5)" in err, err
+    assert cli(["send-program", str(tmp_path)]) == 2 and "is a directory" in capsys.readouterr().err
+
+
 def references_between(probe: TopicProbe, start_ns: int, end_ns: int) -> np.ndarray:
     refs = [m for m in probe.received("/cnc/reference") if start_ns <= stamp_to_ns(m.header.stamp) < end_ns]
     return np.array([list(m.position_m) for m in refs])
@@ -131,7 +148,16 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
         part.write_text("G1 X2\n")
         assert cli(["send-program", str(part), "--feed-mm-min", "1200", "--path-tolerance-mm", "0.02"]) == 0, \
             "the CLI client: completed"
-    assert "part: completed" in capsys.readouterr().out
+        part_out = capsys.readouterr().out
+        long = tmp_path / "long.ngc"
+        long.write_bytes("(Fräser Ø 6 mm)\nG1 X-20 F1200\n".encode("latin-1"))
+        with pytest.MonkeyPatch.context() as patch:  # Ctrl-C at the first feedback line
+            patch.setattr(send_program.FeedbackPrinter, "__call__", ctrl_c)
+            interrupted = cli(["send-program", str(long)])
+        interrupted_out = capsys.readouterr().out
+    assert "part: completed" in part_out
+    assert interrupted == 130
+    assert interrupted_out.count("interrupted:") == 1 and "long: canceled at" in interrupted_out, interrupted_out
     assert busy.outcome == RunProgram.Result.REJECTED and busy.reason.startswith("busy: program 'gcode' is running")
     assert malformed.outcome == RunProgram.Result.REJECTED
     assert malformed.reason.startswith("line 2: unsupported word Q3"), malformed.reason
@@ -150,8 +176,8 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
     stamps = np.array([stamp_to_ns(m.header.stamp) for m in probe.received("/cnc/reference")])
     assert np.all(np.diff(stamps) == T_NS), "one reference per tick, stamps increasing across programs"
     starts = [stamp_to_ns(p.header.stamp) for p in paths]
-    assert [p.program_name for p in paths] == ["gcode"] * 3 + ["part"] and starts == sorted(starts)
-    assert [p.path_tolerance_m for p in paths] == [0.0] * 3 + [pytest.approx(2e-5)], "the goal's tolerance"
+    assert [p.program_name for p in paths] == ["gcode"] * 3 + ["part", "long"] and starts == sorted(starts)
+    assert [p.path_tolerance_m for p in paths] == [0.0] * 3 + [pytest.approx(2e-5), 0.0], "the goal's tolerance"
     cancelled = references_between(probe, starts[1], starts[2])
     assert np.all(cancelled[:, 1] == pytest.approx(5e-3, abs=1e-12)), "stopped on the path (y = 5 mm)"
     assert -0.02 < cancelled[-1, 0] < 0.01 - 0.4 * 0.03
