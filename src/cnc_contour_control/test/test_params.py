@@ -24,7 +24,7 @@ from cnc_contour_control.graph.stage_params import (
 from cnc_contour_control.laws import LAWS, law_config_class
 from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig
 from cnc_plant_sim.models.axis import AxisConfig
-from cnc_plant_sim.models.plant import PlantConfig, VariationConfig
+from cnc_plant_sim.models.plant import PLANTS, PlantConfig, VariationConfig
 from cnc_plant_sim.run.run_params import PlantRunParams
 
 CONFIGS: dict[type, dict[str, Any]] = {
@@ -62,8 +62,14 @@ def _outside(spec: ParamSpec, bound: float, direction: float) -> float:
     return bound + direction if spec.kind is int else math.nextafter(bound, direction * math.inf)
 
 
+def _model_base(cls: type, base: dict[str, Any], spec: ParamSpec) -> dict[str, Any]:
+    """A plant config's base with the model whose own section holds ``spec`` (a plant takes its model's only)."""
+    models = [name for name, entry in PLANTS.items() if entry.section == spec.name.split(".")[0]]
+    return {**base, "model": models[0]} if cls is PlantConfig and models else base
+
+
 def _bounds() -> list[Any]:
-    return [pytest.param(cls, base, spec, bound, direction,
+    return [pytest.param(cls, _model_base(cls, base, spec), spec, bound, direction,
                          id=f"{cls.__name__}.{spec.name}{'<' if direction < 0 else '>'}")
             for cls, base in CONFIGS.items() for spec, bound, direction in declared_bounds(cls)]
 

@@ -12,9 +12,10 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.params import config_values, flat_specs
 from cnc_plant_sim.models.axis import AxisConfig, FeedDriveAxis
 from cnc_plant_sim.models.feed_drives import FEED_DRIVE_MODELS, FeedDrivePlant
-from cnc_plant_sim.models.plant import PLANTS, Plant, PlantConfig, PlantEntry, make_plant
+from cnc_plant_sim.models.plant import MODEL_SECTIONS, PLANTS, Plant, PlantConfig, PlantEntry, make_plant
 
 NO_VARIATION = {"gain_pct": 0, "time_constant_pct": 0, "friction_pct": 0}
 
@@ -125,7 +126,16 @@ def test_custom_plant_and_overrides() -> None:
     ({"axis_overrides": {"x": {"time_constant_s": 0}}}, "time_constant_s must be > 0, got 0"),
     ({"model": "custom", "axes": ["a"]},
      "axis_overrides.a.gain_blu_s_per_dac is required for model 'custom'"),
-    ({"sead": 1}, "plant.sead: unknown key; valid keys are"),
+    ({"sead": 1}, "plant.sead: unknown key of plant model 'paper000'; valid keys are"),
+    ({"model": "paper001", "flutes": 2}, "plant.flutes: unknown key of plant model 'paper001'; valid keys are"),
+    ({"mass_friction": {"length_unit": "mm"}},
+     "plant.mass_friction: a section of plant model(s) ['paper001'], not of model 'paper000' "
+     "(whose section is variation)"),
+    ({"model": "paper001", "variation": NO_VARIATION},
+     "plant.variation: a section of plant model(s) ['custom', 'paper000'], not of model 'paper001'"),
+    ({"model": "paper003", "velocity_loop": {"spindle": 0}},
+     "velocity_loop.spindle: unknown key; valid keys are ['encoder_pulse_m', 'flutes', 'spindle_rpm', "
+     "'spindle_schedule_rpm', 'spindle_schedule_t_s'] (plant model 'paper003')"),
 ])
 def test_bad_plant_config(mapping: dict, message: str) -> None:
     with pytest.raises(ConfigError) as info:
@@ -136,6 +146,19 @@ def test_bad_plant_config(mapping: dict, message: str) -> None:
 def test_registry_names() -> None:
     assert set(PLANTS) == {"paper000", "custom", "paper001", "paper002", "paper003"}
     assert isinstance(make_plant(PlantConfig()), Plant)
+
+
+@pytest.mark.parametrize("model", sorted(PLANTS))
+def test_a_plant_config_holds_its_models_section_only(model: str) -> None:
+    overrides = {"x": {"gain_blu_s_per_dac": 20.0, "time_constant_s": 0.05}} if model == "custom" else {}
+    config = PlantConfig.from_mapping({"model": model, "axes": ["x"], "axis_overrides": overrides})
+    entry = PLANTS[model]
+    assert isinstance(config.options(), entry.options) and config.options() == entry.options()
+    assert [name for name in MODEL_SECTIONS if getattr(config, name) is not None] == [entry.section]
+    assert all(spec.info.description for spec in flat_specs(entry.options))
+    values = config_values(config)
+    assert values[entry.section] == config_values(entry.options())
+    assert PlantConfig.from_mapping({k: v for k, v in values.items() if v is not None}) == config
 
 
 @pytest.mark.parametrize("model", sorted(FEED_DRIVE_MODELS))  # paper001: test_mass_friction.py
@@ -190,7 +213,7 @@ def check_no_z(config: PlantConfig) -> None:
 
 
 def test_a_plant_added_to_the_registry_is_built_by_make_plant() -> None:
-    PLANTS["constant_speed"] = PlantEntry(ConstantSpeedPlant, check_no_z)
+    PLANTS["constant_speed"] = PlantEntry("variation", ConstantSpeedPlant, check_no_z)
     try:
         plant = make_plant({"model": "constant_speed", "axes": ["x", "y"]})
         assert isinstance(plant, Plant) and not isinstance(plant, FeedDrivePlant)

@@ -8,9 +8,12 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from sensor_msgs.msg import JointState
 
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.params import flat_specs
 from cnc_contour_control.nodes.common import ns_to_stamp
 from cnc_contour_control.testing import InProcessNode, TopicProbe
 from cnc_contour_interfaces.msg import AxisCommand
+from cnc_plant_sim.models.plant import MODEL_SECTIONS, PLANTS
 from cnc_plant_sim.nodes.plant_node import PlantNode
 
 pytestmark = pytest.mark.nodes
@@ -44,3 +47,20 @@ def test_plant_node_steps_once_all_commands_of_a_tick_are_in_and_never_applies_n
     assert ticks[1].position[0] > 0.0 > ticks[1].position[1], "commands reached the right axes"
     status = probe.received("/diagnostics")[0].status[0]
     assert status.level == DiagnosticStatus.ERROR and "servo/x/command" in status.message
+
+
+@pytest.mark.parametrize(("model", "section"), [("paper000", "variation"), ("paper001", "mass_friction"),
+                                                ("paper003", "velocity_loop")])
+def test_plant_node_declares_its_models_section_only(model: str, section: str) -> None:
+    with InProcessNode(PlantNode, {**PARAMS, "model": model}) as plant:
+        names = set(plant.node.get_parameters_by_prefix(""))
+    sections = {name.split(".")[0] for name in names} & set(MODEL_SECTIONS)
+    assert sections == {section}
+    assert {f"{section}.{spec.name}" for spec in flat_specs(PLANTS[model].options)} <= names
+
+
+def test_plant_node_refuses_another_models_section_naming_the_parameter_and_the_model() -> None:
+    with pytest.raises(ConfigError) as err:
+        InProcessNode(PlantNode, {**PARAMS, "model": "paper001", "velocity_loop.spindle_rpm": 3000.0})
+    assert str(err.value).startswith("velocity_loop.spindle_rpm: a section of plant model(s) ['paper002', "
+                                     "'paper003'], not of model 'paper001'"), str(err.value)

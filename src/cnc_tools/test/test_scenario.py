@@ -7,6 +7,8 @@ import pytest
 import yaml
 
 from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_plant_sim.models.plant import MODEL_SECTIONS, PLANTS
+from cnc_tools.runs.graph_nodes import graph_specs
 from cnc_tools.runs.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -21,6 +23,14 @@ def test_shipped_scenarios_load(path: Path) -> None:
         assert scenario.duration_s > scenario.make_interpolator().duration_s
     else:
         assert scenario.duration_s == pytest.approx(12.0)  # paper 004's scenario: 12 s of cutting
+
+
+@pytest.mark.parametrize("path", SHIPPED, ids=[p.stem for p in SHIPPED])
+def test_the_plant_node_of_a_shipped_scenario_gets_its_models_section_only(path: Path, tmp_path: Path) -> None:
+    scenario = load_scenario(path)
+    plant = next(spec.parameters for spec in graph_specs(scenario, tmp_path) if spec.name == "plant")
+    assert set(plant) & set(MODEL_SECTIONS) == {PLANTS[scenario.plant.model].section}
+    assert ("periodic_load" in plant) == scenario.plant.periodic_load.active
 
 
 def test_paper000_six_table5_scenarios_are_shipped() -> None:
@@ -63,6 +73,12 @@ ARC_OFF_CIRCLE = {"axes": ["x", "y"], "start_mm": [0, 0], "feed_mm_min": 400,
         ({"mode": "fast"}, ConfigError, ["mode", "lockstep", "fast"]),
         ({"servo.law": "magic"}, ConfigError, ["magic", "pid"]),
         ({"plant.model": "lathe"}, ConfigError, ["lathe", "paper000"]),
+        ({"plant.velocity_loop": {"spindle_rpm": 0}}, ConfigError,
+         ["scenario.plant.velocity_loop", "a section of plant model(s) ['paper002', 'paper003']", "'paper000'"]),
+        ({"plant.variation.noise_pct": 1}, ConfigError, ["variation.noise_pct", "unknown key", "'paper000'"]),
+        ({"plant.spindle_rpm": 1}, ConfigError,
+         ["scenario.plant.spindle_rpm", "unknown key of plant model 'paper000'"]),
+        ({"servo.follow_spindle": True}, ConfigError, ["follow_spindle", "velocity_loop", "'paper000'"]),
     ],
 )
 def test_bad_scenarios_are_refused_naming_the_problem(tmp_path: Path, overrides: dict, error: type,

@@ -34,7 +34,7 @@ ContinuousModel = Callable[[PlantConfig, str, bool], tuple[tuple[float, ...], tu
 
 def _feed_drive(config: PlantConfig, axis: str, drawn: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """K/(τs + 1) in m/s per DAC (the nominal axis, or as the plant draws it with the config's seed)."""
-    axes = FeedDrivePlant(config.model, config.nominal_axes(), config.variation, config.seed).axis_configs \
+    axes = FeedDrivePlant(config.model, config.nominal_axes(), config.options(), config.seed).axis_configs \
         if drawn else config.nominal_axes()
     drive = next(a for a in axes if a.name == axis)
     return (drive.gain_blu_s_per_dac * drive.blu_m,), (drive.time_constant_s, 1.0)
@@ -43,7 +43,7 @@ def _feed_drive(config: PlantConfig, axis: str, drawn: bool) -> tuple[tuple[floa
 def _mass_friction(config: PlantConfig, axis: str, drawn: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """1/(m s + B) in m/s per N (Table 1 with the overrides, in the model's length unit; no variation)."""
     mass = next(a for a in paper001_axes(config.axes, config.axis_overrides) if a.name == axis)
-    return (LENGTH_UNITS[config.mass_friction.length_unit],), (mass.mass, mass.viscous)
+    return (LENGTH_UNITS[config.options().length_unit],), (mass.mass, mass.viscous)
 
 
 #: Continuous drive-input -> velocity models by plant model name.

@@ -10,12 +10,14 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
+from rcl_interfaces.msg import ParameterDescriptor
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.axis.safety import EstopLatch
-from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.core.errors import CncError, ConfigError
 from cnc_contour_control.core.lockstep import NS_PER_S, StampMatcher
+from cnc_contour_control.core.params import flat_specs
 from cnc_contour_control.core.topics import RUN_FINISHED, TICKS_KEY
 from cnc_contour_control.nodes.common import (
     LOCKSTEP_QOS,
@@ -35,7 +37,7 @@ from cnc_plant_sim.models.axis import AxisConfig
 from cnc_plant_sim.models.friction import friction_config_class
 from cnc_plant_sim.models.machine_faults import AxisFaults, FaultedPlant, MachineFaults, tool_positions_m
 from cnc_plant_sim.models.periodic_load import set_spindle_rpm
-from cnc_plant_sim.models.plant import PLANTS, PlantConfig, make_plant
+from cnc_plant_sim.models.plant import MODEL_SECTIONS, PLANTS, PlantConfig, make_plant, other_section_error
 from cnc_plant_sim.nodes.conversions import clock_msg, command_value, joint_command_values, joint_state_msg, wrench_msg
 from cnc_plant_sim.process.cutting import CuttingConfig, cutting_plant
 from cnc_plant_sim.process.turning import TurningConfig
@@ -57,12 +59,16 @@ CUTTING = "cutting"
 
 
 def plant_parameters(node: SuiteNode) -> ConfigParameters[PlantConfig]:
-    """PlantConfig's fields as parameters (``variation.*`` nested) and each axis's overrides, unset unless given."""
+    """PlantConfig's fields as parameters, the model's own section only (``variation.*``, ``mass_friction.*`` or
+    ``velocity_loop.*``, as a servo's ``gains.*``), and each axis's overrides, unset unless given."""
     parameters = ConfigParameters(node, lambda mapping: PlantConfig.from_mapping(mapping))
-    values = parameters.add(Section(PlantConfig, skip=(OVERRIDES, FAULTS, CUTTING)))
+    values = parameters.add(Section(PlantConfig, skip=(OVERRIDES, FAULTS, CUTTING, *MODEL_SECTIONS)))
     axes = values["axes"]
     axes = [a for a in axes if isinstance(a, str)] if isinstance(axes, list) else []
     entry = PLANTS.get(values["model"])  # an unknown model: declare() reports it with the config's error
+    if entry is not None:
+        _refuse_other_sections(node, values["model"])
+        parameters.add(Section(entry.options, entry.section))
     axis_config = entry.axis_config if entry is not None else AxisConfig
     for axis in axes:
         parameters.add(Section(axis_config, f"{OVERRIDES}.{axis}", skip=("name", "friction_params"), unset=True))
@@ -75,6 +81,17 @@ def plant_parameters(node: SuiteNode) -> ConfigParameters[PlantConfig]:
         parameters.add(Section(friction_config_class(friction), f"{OVERRIDES}.{axis}.friction_params", unset=True,
                                read_only=True))
     return parameters
+
+
+def _refuse_other_sections(node: SuiteNode, model: str) -> None:
+    """A parameter of another model's section (``mass_friction.*`` for paper000) given to this plant is an error
+    naming it and the model, as in a plant config: the node would not declare it, so it would do nothing."""
+    for section, options in MODEL_SECTIONS.items():
+        for name in (f"{section}.{spec.name}" for spec in flat_specs(options) if section != PLANTS[model].section):
+            given = node.declare_parameter(name, None, ParameterDescriptor(dynamic_typing=True)).value
+            node.undeclare_parameter(name)
+            if given is not None:
+                raise ConfigError(f"{name}: {other_section_error(model, section)}")
 
 
 def _frictions(parameters: ConfigParameters[PlantConfig], axes: list[str]) -> dict[str, str]:

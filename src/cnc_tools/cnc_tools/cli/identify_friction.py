@@ -359,7 +359,7 @@ def _outputs(args: argparse.Namespace, config: fid.IdentificationConfig, constan
         fits = None
     files = [write_points_csv(out_dir / "points.csv", points), write_curve_csv(out_dir / "curve.csv", summaries),
              write_figure(out_dir / "friction_velocity.png", points, summaries, constants, fits,
-                          last.scenario.plant.variation.friction_pct if config.seeds else 0.0)]
+                          last.scenario.plant.options().friction_pct if config.seeds else 0.0)]
     if fits is not None:
         print_fits(fits, constants)
         table = fcurve.fitted_table(fits, max(config.speeds_mm_s))

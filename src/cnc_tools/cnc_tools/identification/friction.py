@@ -243,7 +243,7 @@ def dac_speed_limit_mm_s(scenario: Scenario, constants: AxisConstants) -> float:
 
     The lowest gain and the highest friction scale the scenario's plant variation can draw count.
     """
-    variation = scenario.plant.variation
+    variation = scenario.plant.options()  # a feed drive's VariationConfig (the constants are its nominal axis's)
     gain = constants.gain_blu_s_per_dac * (1.0 - variation.gain_pct / 100.0)
     scale = 1.0 + variation.friction_pct / 100.0
     mm_per_blu = constants.encoder_counts_per_blu / constants.counts_per_m / M_PER_MM

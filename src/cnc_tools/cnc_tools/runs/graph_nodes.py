@@ -40,6 +40,7 @@ from cnc_contour_control.graph.stage_params import (
     ServoRunParams,
     servo_config_values,
 )
+from cnc_plant_sim.models.plant import PLANTS
 from cnc_plant_sim.run.run_params import PlantRunParams
 from cnc_tools.runs.scenario import Scenario
 
@@ -143,7 +144,7 @@ def _merge(*parts: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def _plant_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
-    """PlantConfig and the plant's run parameters."""
+    """PlantConfig (the model's own section, the wrappers switched on) and the plant's run parameters."""
     scenario = run.scenario
     plant_run = PlantRunParams(
         initial_position_m=tuple(float(v) for v in scenario.program.start_m),
@@ -151,14 +152,17 @@ def _plant_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
         summary_file=str(run.run_dir / "summary.json"),
         command_timeout_s=PLANT_TIMEOUT_FACTOR * run.input_timeout_s,
         startup_timeout_s=max(PlantRunParams.startup_timeout_s, PLANT_TIMEOUT_FACTOR * run.input_timeout_s))
-    plant = config_values(scenario.plant)
+    # other models' sections are None: the node declares only its model's
+    plant = {k: v for k, v in config_values(scenario.plant).items() if v is not None}
     if not scenario.plant.faults.active:  # the node's defaults: no faults (an empty mapping is no parameter)
         del plant["faults"]
     if scenario.plant.cutting.active:  # the schedule as the two lists the node declares
         plant["cutting"] = scenario.plant.cutting.values()
     else:
         del plant["cutting"]
-    for section in (plant["velocity_loop"], plant["periodic_load"]):
+    if not scenario.plant.periodic_load.active:  # the node's defaults: no load
+        del plant["periodic_load"]
+    for section in (plant[PLANTS[scenario.plant.model].section], plant.get("periodic_load", {})):
         for key in [k for k, v in section.items() if isinstance(v, (list, tuple)) and not v]:
             del section[key]  # an empty list is the node's default, and no typed parameter (rcl cannot type it)
     return _merge(plant, config_values(plant_run))

@@ -30,12 +30,14 @@ from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_contour_control.motion.program import load_program
 from cnc_plant_sim.models.plant import PlantConfig
+from cnc_plant_sim.models.velocity_loop import VelocityLoopOptions
 from cnc_plant_sim.run.run_params import PlantRunParams
+from cnc_tools.runs.scenario_format import check_format
 
 MODES = ("lockstep", "realtime")
 #: Scenario sections that switch on an optional stage of the pipeline (the section's name is the stage's).
 OPTIONAL_STAGE_KEYS: tuple[str, ...] = ("estimator", "compensator", "force_regulator")
-_TOP_KEYS = ("name", "description", "sample_time_s", "duration_s", "settle_s", "seed", "mode",
+_TOP_KEYS = ("name", "format_version", "description", "sample_time_s", "duration_s", "settle_s", "seed", "mode",
              "plant", "limits", "program", "servo", "interpolator", "paper", "feed_override",
              *OPTIONAL_STAGE_KEYS)
 _LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2")
@@ -191,6 +193,7 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
 
 
 def _check_force_loop(scenario: Scenario) -> None:
+    check_format(raw, scenario.servos, sample_time_s)
     """A force regulator needs a plant that cuts, and an interpolator that takes its highest override."""
     settings = scenario.force_regulator
     if settings is None:
@@ -321,14 +324,22 @@ def _servos(section: Any, plant: PlantConfig) -> tuple[ServoConfig, ...]:
 
 def _commanded_spindle(plant: PlantConfig) -> dict[str, tuple[float, ...]]:
     """The plant's spindle speed over the run as a servo's schedule: its speed from 0 s, then each change."""
-    loop = plant.velocity_loop
+    loop = _plant_spindle(plant)
     return {"spindle_schedule_t_s": (0.0, *loop.spindle_schedule_t_s),
             "spindle_schedule_rpm": (loop.spindle_rpm, *loop.spindle_schedule_rpm)}
+
+def _plant_spindle(plant: PlantConfig) -> VelocityLoopOptions:
+    """The plant's spindle: its velocity_loop section; a model without one is an error naming it."""
+    if plant.velocity_loop is None:
+        raise ConfigError(f"scenario.servo.follow_spindle needs a plant with a spindle (a velocity_loop section: "
+                          f"models paper002, paper003), got plant model {plant.model!r}")
+    return plant.velocity_loop
+
 
 
 def _check_flutes(servos: tuple[ServoConfig, ...], plant: PlantConfig) -> None:
     """A law that follows the spindle must count the plant's flutes, or its f_d is not the plant's."""
-    flutes = plant.velocity_loop.flutes
+    flutes = _plant_spindle(plant).flutes
     for servo in servos:
         law_flutes = getattr(servo.law_config(), "flutes", flutes)
         if law_flutes != flutes:
