@@ -258,3 +258,49 @@ def test_the_goals_feed_is_the_gcodes_until_its_first_f() -> None:
     assert [seg.feed_m_s for seg in program.segments] == pytest.approx([0.01, 0.02, 0.02])
     with pytest.raises(ConfigError, match="feed_mm_min must be > 0"):
         parse_gcode("G1 X5", ("x", "y"), feed_mm_min=-1.0)
+
+
+# ----------------------------------------------------------------------------------------------- planned elsewhere
+def test_a_reserved_goal_holds_the_axes_until_its_plan_starts_it() -> None:
+    machine = Machine(session())
+    machine.tick()
+    hold_m = machine.s.reserve("square")
+    assert machine.s.busy and np.array_equal(hold_m, [0.0, 0.0])
+    with pytest.raises(ProgramError, match="busy: program 'square' is being planned"):
+        machine.s.reserve("other")
+    for _ in range(3):
+        assert machine.tick() is None
+    assert all(np.array_equal(r, [0.0, 0.0]) for r in machine.references), "held while planned"
+    machine.s.start(*machine.s.plan(ProgramGoal(gcode=SQUARE), hold_m))
+    assert machine.s.pending is None
+    outcome = next(o for o in iter(machine.tick, "never") if o is not None)
+    assert outcome.outcome == "completed" and outcome.program_name == "gcode"
+
+
+@pytest.mark.parametrize("end, outcome, reason", [
+    (lambda s: s.refuse("line 3: unsupported word Q3"), "rejected", "line 3: unsupported word Q3"),
+    (lambda s: s.cancel(), "canceled", "cancelled before it started"),
+    (lambda s: s.deactivate(), "aborted", "aborted: the interpolator was deactivated before the program started"),
+    (lambda s: s.machine_stopped("estop"), "faulted", "machine stopped: estop"),
+    (lambda s: s.abort("node faulted"), "faulted", "node faulted"),
+])
+def test_a_reserved_goal_ends_with_its_reason_before_it_started(end: object, outcome: str, reason: str) -> None:
+    s = session()
+    s.step(0, [0.0, 0.0])
+    s.reserve("part")
+    end(s)  # type: ignore[operator]  # the parametrised lambdas take the session
+    result = s.take_outcome()
+    assert result is not None and (result.outcome, result.reason, result.program_name) == (outcome, reason, "part")
+    assert result.ticks == 0 and math.isnan(result.max_contour_error_m) and not s.busy
+
+
+def test_deactivation_stops_on_the_path_and_ends_aborted() -> None:
+    machine = Machine(session())
+    machine.tick()
+    machine.s.start(*machine.s.prepare(ProgramGoal(gcode="G1 X20 F1200")))
+    for _ in range(20):
+        machine.tick()
+    assert machine.s.deactivate() and machine.s.cancel(), "a cancel after it keeps the deactivation's outcome"
+    outcome = next(o for o in iter(machine.tick, "never") if o is not None)
+    assert outcome.outcome == "aborted" and "deactivated" in outcome.reason
+    assert 0.0 < outcome.path_length_m < 0.02 and not machine.s.deactivate(), "nothing left to stop"

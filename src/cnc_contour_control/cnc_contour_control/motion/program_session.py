@@ -279,16 +279,18 @@ class ProgramSession:
 
     def cancel(self) -> bool:
         """Stop the running program on its path (the feed-hold ramp), or end a planned one; False if none."""
-        return self.stop("canceled", "cancelled: stopped on the path")
+        return self.stop("canceled", "cancelled: stopped on the path", "cancelled before it started")
 
     def deactivate(self) -> bool:
         """The interpolator is deactivated: stop on the path as :meth:`cancel` does, the outcome ``aborted``."""
-        return self.stop("aborted", DEACTIVATED_REASON)
+        return self.stop("aborted", DEACTIVATED_REASON,
+                         "aborted: the interpolator was deactivated before the program started")
 
-    def stop(self, outcome: str, reason: str) -> bool:
-        """Stop on the path; once at rest the program ends as ``outcome`` with ``reason``. False if none runs."""
+    def stop(self, outcome: str, reason: str, unstarted_reason: str) -> bool:
+        """Stop on the path; once at rest the program ends as ``outcome`` with ``reason`` (a program not yet
+        started ends at once, with ``unstarted_reason``). False if none runs."""
         if self.pending is not None:
-            self._end_pending(outcome, reason.split(";")[0] + "; before it started")
+            self._end_pending(outcome, unstarted_reason)
             return True
         if self._run is None:
             return False
