@@ -71,6 +71,12 @@ class Scenario:
         return self.plant.axes
 
     @property
+    def ends_by(self) -> str:
+        """``duration`` when the scenario sets its own ``duration_s`` (the run may cut its program), else
+        ``program`` (the run lasts the planned program plus ``settle_s``): the verdict's ``ends_by``."""
+        return "duration" if self.raw.get("duration_s") is not None else "program"
+
+    @property
     def override_active(self) -> bool:
         """True when the feed can be overridden on line: a ``feed_override`` section or a force regulator."""
         return self.feed_override is not None or self.pipeline().has("force_regulator")
@@ -187,13 +193,13 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         feed_override=feed_override,
         **_cross_axis(raw),
     )
+    check_format(raw, scenario.servos, sample_time_s)
     scenario.check_override_requests()
     _check_force_loop(scenario)
     return scenario
 
 
 def _check_force_loop(scenario: Scenario) -> None:
-    check_format(raw, scenario.servos, sample_time_s)
     """A force regulator needs a plant that cuts, and an interpolator that takes its highest override."""
     settings = scenario.force_regulator
     if settings is None:
@@ -322,12 +328,6 @@ def _servos(section: Any, plant: PlantConfig) -> tuple[ServoConfig, ...]:
     return servos
 
 
-def _commanded_spindle(plant: PlantConfig) -> dict[str, tuple[float, ...]]:
-    """The plant's spindle speed over the run as a servo's schedule: its speed from 0 s, then each change."""
-    loop = _plant_spindle(plant)
-    return {"spindle_schedule_t_s": (0.0, *loop.spindle_schedule_t_s),
-            "spindle_schedule_rpm": (loop.spindle_rpm, *loop.spindle_schedule_rpm)}
-
 def _plant_spindle(plant: PlantConfig) -> VelocityLoopOptions:
     """The plant's spindle: its velocity_loop section; a model without one is an error naming it."""
     if plant.velocity_loop is None:
@@ -335,6 +335,12 @@ def _plant_spindle(plant: PlantConfig) -> VelocityLoopOptions:
                           f"models paper002, paper003), got plant model {plant.model!r}")
     return plant.velocity_loop
 
+
+def _commanded_spindle(plant: PlantConfig) -> dict[str, tuple[float, ...]]:
+    """The plant's spindle speed over the run as a servo's schedule: its speed from 0 s, then each change."""
+    loop = _plant_spindle(plant)
+    return {"spindle_schedule_t_s": (0.0, *loop.spindle_schedule_t_s),
+            "spindle_schedule_rpm": (loop.spindle_rpm, *loop.spindle_schedule_rpm)}
 
 
 def _check_flutes(servos: tuple[ServoConfig, ...], plant: PlantConfig) -> None:
