@@ -6,9 +6,7 @@ package's ``conversions`` module and call the ROS-free core.
 from __future__ import annotations
 
 import importlib
-import signal
 import sys
-import threading
 import time
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -26,6 +24,7 @@ from rclpy.signals import SignalHandlerOptions
 
 from cnc_contour_control.core.errors import CncError, FaultError
 from cnc_contour_control.core.lockstep import NS_PER_S, StampMatcher, join_ns, split_ns
+from cnc_contour_control.core.stop_signals import StopSignals
 from cnc_contour_control.core.topics import RUN_ID_KEY, qualify
 from cnc_contour_control.nodes import fast_cdr, local_bus
 from cnc_contour_control.nodes.lifecycle import ManagedNode
@@ -392,52 +391,9 @@ def wall_time_s() -> float:
     return time.monotonic()
 
 
-class StopSignals:
-    """SIGINT and SIGTERM noted, not raised, while in the ``with`` block (main thread only; elsewhere rclpy's).
-
-    rclpy's own handlers shut the context down at once, in the middle of
-    whatever callback runs: its next publish raises "publisher's context is
-    invalid" (a traceback on Ctrl-C). Noted instead, the signal ends the spin
-    loop at its next turn, and the node is destroyed with its context alive.
-    """
-
-    SIGNALS = (signal.SIGINT, signal.SIGTERM)
-    #: The process's installed instance, while its ``with`` block runs.
-    active: StopSignals | None = None
-
-    def __init__(self) -> None:
-        self.signum: int | None = None
-        self.installed = threading.current_thread() is threading.main_thread()
-        self._previous: dict[int, Any] = {}
-
-    def __enter__(self) -> StopSignals:
-        if self.installed:
-            self._previous = {signum: signal.signal(signum, self._note) for signum in self.SIGNALS}
-            StopSignals.active = self
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        if StopSignals.active is self:
-            StopSignals.active = None
-        for signum, handler in self._previous.items():
-            signal.signal(signum, handler)
-
-    def _note(self, signum: int, frame: object) -> None:
-        self.signum = self.signum or signum  # the first one counts; later ones while stopping are ignored
-
-    @property
-    def requested(self) -> bool:
-        """True once a stop signal came."""
-        return self.signum is not None
-
-    @classmethod
-    def stopping(cls) -> bool:
-        """True once a signal came to the process's active instance (its guarded callbacks then do nothing)."""
-        return cls.active is not None and cls.active.requested
-
-    def init_ros(self, args: Sequence[str] | None) -> None:
-        """``rclpy.init`` without rclpy's signal handlers when ours are installed."""
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if self.installed else None)
+def init_ros(stop: StopSignals, args: Sequence[str] | None) -> None:
+    """``rclpy.init`` without rclpy's signal handlers when ``stop``'s are installed (the main thread)."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if stop.installed else None)
 
 
 def spin_node(factory: Callable[[], SuiteNode], args: Sequence[str] | None = None) -> int:
@@ -450,7 +406,7 @@ def spin_node(factory: Callable[[], SuiteNode], args: Sequence[str] | None = Non
     node: SuiteNode | None = None
     code = 0
     with StopSignals() as stop:
-        stop.init_ros(args)
+        init_ros(stop, args)
         try:
             node = factory()
             executor = make_executor(node.context)

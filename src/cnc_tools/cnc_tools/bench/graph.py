@@ -40,7 +40,7 @@ from cnc_tools.bench.engine import BASELINE_COMMIT, PACKAGES, extract_src
 from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import POLL_S
-from cnc_tools.runs.lifetime import StopSignals, die_with_parent, stop_process
+from cnc_tools.runs.lifetime import check_stop, die_with_parent, runner_stop_signals, stop_process
 
 SCENARIO = "scenarios/paper000_circle_high.yaml"
 SAMPLE_TIMES_S = (0.01, 0.001)
@@ -221,10 +221,10 @@ def run_side(side: Side, run_dir: Path, record: bool, plan: Plan) -> dict[str, A
 
 def _wait_child(child: subprocess.Popen[bytes]) -> int:
     """The child's exit code; on SIGINT, SIGTERM or SIGHUP to the bench the child is stopped first."""
-    with StopSignals() as signals:
+    with runner_stop_signals() as signals:
         try:
             while child.poll() is None:
-                signals.check()
+                check_stop(signals)
                 time.sleep(POLL_S)
         except BaseException:
             stop_process(child, 30.0)

@@ -34,12 +34,13 @@ import rclpy
 from rclpy.executors import ExternalShutdownException
 
 from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.core.stop_signals import StopSignals
 from cnc_contour_control.nodes import local_bus
 from cnc_contour_control.nodes.common import (
     EXIT_FAULT,
-    StopSignals,
     SuiteNode,
     flush_and_destroy,
+    init_ros,
     make_executor,
     wall_time_s,
 )
@@ -85,7 +86,8 @@ class ComposedHost:
     def add(self, name: str, cls: type[SuiteNode], arguments: Sequence[str]) -> None:
         """Build one member with its own ROS arguments; a failure is that member's end, not the host's."""
         try:
-            node = cls(context=self.context, cli_args=list(arguments), use_global_arguments=False)
+            # a member class's __init__ gives SuiteNode its name itself
+            node = cls(context=self.context, cli_args=list(arguments), use_global_arguments=False)  # type: ignore[call-arg]
         except CncError as err:
             self._note(name, EXIT_FAULT, f"FAULT: {err}")
             return
@@ -177,7 +179,7 @@ def run_host(spec_file: Path, args: Sequence[str] | None = None) -> int:
     spec = read_host_spec(spec_file)
     host: ComposedHost | None = None
     with StopSignals() as stop:  # SIGINT/SIGTERM: members destroyed in a live context, no traceback, exit code 0
-        stop.init_ros(args)
+        init_ros(stop, args)
         try:
             host = ComposedHost(rclpy.get_default_context(),
                                 Path(spec["exits_file"]) if spec.get("exits_file") else None, stop)

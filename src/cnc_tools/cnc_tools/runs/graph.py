@@ -32,10 +32,11 @@ from cnc_tools.runs.dds import loopback_env
 from cnc_tools.runs.graph_nodes import NAMESPACE, NodeSpec, graph_nodes, recorder_spec, write_params_dir
 from cnc_tools.runs.lifetime import (
     RunInterrupted,
-    StopSignals,
     amend_summary,
+    check_stop,
     die_with_parent,
     read_summary,
+    runner_stop_signals,
     settle_summary,
 )
 from cnc_tools.runs.managed import managed_nodes
@@ -308,10 +309,10 @@ def run_graph(scenario: Scenario, run_dir: Path, record: bool = False, extra_sub
     if managed:
         nodes = managed_nodes(nodes)
     run = GraphRun(nodes, run_dir, env, namespace, compose)
-    with StopSignals(run_dir) as signals:
+    with runner_stop_signals() as signals:
         try:
             with run:
-                summary = _supervise(run, record, timeout_s, _chain(signals.check, on_poll))
+                summary = _supervise(run, record, timeout_s, _chain(lambda: check_stop(signals, run_dir), on_poll))
         except BaseException as err:
             settle_summary(run_dir / "summary.json", _ended_as(err), str(err), run.exit_codes())
             raise

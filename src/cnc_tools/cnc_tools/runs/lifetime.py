@@ -26,11 +26,11 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from types import FrameType, TracebackType
 from typing import Any
+
+from cnc_contour_control.core.stop_signals import StopSignals
 
 #: Signals that stop a run cleanly (the runner's own SIGINT handler replaces KeyboardInterrupt).
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)

@@ -1,0 +1,41 @@
+"""StopSignals: a signal inside the block is noted, not acted on; the previous handlers come back after it."""
+from __future__ import annotations
+
+import os
+import signal
+import threading
+
+from cnc_contour_control.core.stop_signals import NODE_STOP_SIGNALS, StopSignals
+
+
+def test_a_signal_is_noted_the_first_counts_and_the_handler_comes_back() -> None:
+    before = signal.getsignal(signal.SIGTERM)
+    with StopSignals() as stop:
+        assert not stop.requested and not StopSignals.stopping()
+        os.kill(os.getpid(), signal.SIGTERM)  # delivered to the main thread before kill returns
+        os.kill(os.getpid(), signal.SIGINT)
+        assert stop.signum == signal.SIGTERM and stop.requested and StopSignals.stopping()
+    assert signal.getsignal(signal.SIGTERM) is before and StopSignals.active is None
+
+
+def test_the_runner_adds_sighup_and_an_inner_block_gives_the_outer_one_back() -> None:
+    with StopSignals((*NODE_STOP_SIGNALS, signal.SIGHUP)) as outer:
+        with StopSignals() as inner:
+            assert StopSignals.active is inner
+        assert StopSignals.active is outer
+        os.kill(os.getpid(), signal.SIGHUP)
+        assert outer.signum == signal.SIGHUP and not inner.requested
+    assert StopSignals.active is None
+
+
+def test_outside_the_main_thread_nothing_is_installed() -> None:
+    found: list[StopSignals] = []
+
+    def enter() -> None:
+        with StopSignals() as stop:
+            found.append(stop)
+
+    worker = threading.Thread(target=enter)
+    worker.start()
+    worker.join()
+    assert not found[0].installed and StopSignals.active is None
