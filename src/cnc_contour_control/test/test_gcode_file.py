@@ -4,6 +4,7 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -16,6 +17,7 @@ from cnc_contour_control.motion.program_file import read_program_file
 from cnc_contour_control.motion.program_goal import ProgramGoal, goal_program
 
 XY = ("x", "y")
+HOLD_M = np.zeros(2)
 LATIN1_PART = "(Fräser Ø 6 mm)\nG1 X10 F600 (Zustellung ½ mm)\nY5\n".encode("latin-1")
 
 
@@ -33,7 +35,7 @@ def test_a_latin1_comment_is_read_as_written(tmp_path: Path) -> None:
 def test_a_latin1_goal_file_is_planned(tmp_path: Path) -> None:
     part = tmp_path / "part.ngc"
     part.write_bytes(LATIN1_PART)
-    program = goal_program(ProgramGoal(program_file=str(part)), XY, [0.0, 0.0], 1e-6)
+    program = goal_program(ProgramGoal(program_file=str(part)), XY, HOLD_M, 1e-6)
     assert program.name == "part" and program.total_length_m == pytest.approx(0.015)
 
 
@@ -57,7 +59,7 @@ def test_what_is_no_gcode_file_is_refused_with_the_reason(tmp_path: Path, make: 
     with pytest.raises(CncError, match=message):
         read_program_file(path, XY)
     with pytest.raises(ProgramError, match=message):
-        goal_program(ProgramGoal(program_file=str(path)), XY, [0.0, 0.0], 1e-6)
+        goal_program(ProgramGoal(program_file=str(path)), XY, HOLD_M, 1e-6)
     with pytest.raises(ConfigError, match=message):
         load_program({"gcode_file": str(path), "axes": list(XY)})
 
@@ -66,7 +68,7 @@ def test_a_directory_named_like_gcode_is_a_directory(tmp_path: Path) -> None:
     folder = tmp_path / "part.ngc"
     folder.mkdir()
     with pytest.raises(ProgramError, match=r"'.*part.ngc' is a directory"):
-        goal_program(ProgramGoal(program_file=str(folder)), XY, [0.0, 0.0], 1e-6)
+        goal_program(ProgramGoal(program_file=str(folder)), XY, HOLD_M, 1e-6)
 
 
 def test_a_file_over_the_limit_is_refused(tmp_path: Path) -> None:

@@ -51,9 +51,11 @@ class Machine:
         self.pub.publish(JointState(header=Header(stamp=ns_to_stamp(self.k * T_NS)), name=["x", "y"],
                                     position=list(self.position_m), velocity=[0.0, 0.0]))
         stamp = self.k * T_NS
-        refs = lambda: [m for m in self.probe.received(f"{self.ns}/reference")
-                        if stamp_to_ns(m.header.stamp) == stamp]
-        self.probe.wait_for(refs, 20.0, f"reference {self.k}")
+
+        def refs() -> list[Any]:
+            return [m for m in self.probe.received(f"{self.ns}/reference") if stamp_to_ns(m.header.stamp) == stamp]
+
+        self.probe.wait_for(lambda: bool(refs()), 20.0, f"reference {self.k}")
         self.position_m = list(refs()[0].position_m)
         self.tick_s.append(time.monotonic() - start_s)
         self.k += 1
