@@ -1,8 +1,10 @@
 """``cnc-contour bench engine``: this tree's engine against another commit's, side by side in one run.
 
-The other commit's ``src/`` is extracted with ``git archive`` into a temporary
-folder and its engine runs in a child process (its own imports, this
-environment's packages); this tree's engine runs in another child. The two
+The other commit is ``--against REV`` (a tag, branch or commit; default the
+previous release tag, else ``HEAD~1``: :func:`resolve_against`). Its ``src/``
+is extracted with ``git archive`` into a temporary folder and its engine runs
+in a child process (its own imports, this environment's packages); this
+tree's engine runs in another child. The two
 alternate, run after run, on the same scenario, so both see the same machine
 load; each run is timed in CPU time of its process (``time.process_time``:
 less sensitive to other processes than wall time); the figure that counts is
@@ -26,8 +28,12 @@ from cnc_contour_control.core.errors import CncError
 from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.runs.folders import project_root
 
-#: The last commit before the reshape of issue 7 (its engine is the yardstick).
-BASELINE_COMMIT = "fd8ef2a"
+#: ``--against``'s default in a repository without a tag before HEAD: the commit before this one.
+PREVIOUS_COMMIT = "HEAD~1"
+#: ``--against``'s help (the engine and graph benches share the option).
+AGAINST_HELP = ("engine and graph benches: the tag, branch or commit whose engine or node graph is the yardstick "
+                "(default: the previous release tag, the newest tag before HEAD, if the repository has tags; "
+                f"else {PREVIOUS_COMMIT})")
 SCENARIO = "scenarios/paper000_circle_high.yaml"
 #: The paper's T: both commits run the same loop there (the old per-sample gains are only right at 10 ms).
 SAMPLE_TIME_S = 0.01
@@ -48,6 +54,43 @@ for _ in range(int(sys.argv[3])):
     costs.append(elapsed / ticks * 1e6)
 print(json.dumps({{"us_per_tick": costs, "ticks": ticks}}))
 """
+
+
+def _git(root: Path, *args: str) -> subprocess.CompletedProcess[str]:
+    """``git -C root ARGS`` (output captured; a missing git is a CncError naming ``--against``)."""
+    try:
+        return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, check=False)
+    except FileNotFoundError as err:
+        raise CncError(f"--against needs git to read another commit, and git is not installed ({err})") from err
+
+
+def default_against(root: Path) -> str:
+    """``--against``'s default: the newest tag reachable from ``HEAD~1`` if the repository has tags, else ``HEAD~1``."""
+    if _git(root, "tag", "--list").stdout.strip():
+        described = _git(root, "describe", "--tags", "--abbrev=0", PREVIOUS_COMMIT)
+        if described.returncode == 0 and described.stdout.strip():
+            return described.stdout.strip()
+    return PREVIOUS_COMMIT
+
+
+def resolve_against(rev: str | None, root: Path) -> tuple[str, str]:
+    """``(label, commit hash)`` of ``--against REV`` (None: :func:`default_against`).
+
+    Raises
+    ------
+    CncError
+        ``REV`` names no commit of the repository at ``root`` (the message names ``--against`` and the value).
+    """
+    name = rev if rev is not None else default_against(root)
+    if not name.strip() or name.startswith("-"):
+        raise CncError(f"--against must name a tag, branch or commit, got {name!r}")
+    found = _git(root, "rev-parse", "--verify", "--quiet", "--end-of-options", f"{name}^{{commit}}")
+    commit = found.stdout.strip()
+    if found.returncode != 0 or not commit:
+        given = "" if rev is not None else " (its default: no tag before HEAD, so the commit before HEAD)"
+        raise CncError(f"--against {name!r}{given} names no commit of {root}: give a tag, branch or commit "
+                       "hash that git rev-parse knows (a shallow clone lacks older commits)")
+    return (name if commit.startswith(name) else f"{name} = {commit[:9]}"), commit
 
 
 def extract_src(commit: str, root: Path, into: Path) -> Path:
@@ -88,20 +131,18 @@ def time_engine(src: Path, scenario: Path, sample_time_s: float, repeats: int) -
 
 def add_options(parser: argparse.ArgumentParser) -> None:
     """The bench's own options (``cnc-contour bench engine --against REV``)."""
-    parser.add_argument("--against", default=BASELINE_COMMIT,
-                        help="commit whose engine or node graph is the yardstick (engine and graph benches; "
-                        f"default {BASELINE_COMMIT})")
+    parser.add_argument("--against", metavar="REV", help=AGAINST_HELP)
 
 
 def engine_bench(options: argparse.Namespace) -> int:
     """This tree's engine vs ``--against``'s: median µs per tick, alternating rounds, and their ratio."""
     root = project_root()
-    against = getattr(options, "against", None) or BASELINE_COMMIT
+    against, commit = resolve_against(getattr(options, "against", None), root)
     rounds, repeats = (4, 5) if options.quick else (10, 10)
     sample_time_s = SAMPLE_TIME_S
     load = machine()["load_average_1min"]
     with tempfile.TemporaryDirectory(prefix="cnc_bench_engine_") as tmp:
-        theirs_src = extract_src(against, root, Path(tmp))
+        theirs_src = extract_src(commit, root, Path(tmp))
         ours_src = root / "src"
         ours: list[float] = []
         theirs: list[float] = []

@@ -36,7 +36,7 @@ from typing import Any
 from cnc_contour_control.core.errors import CncError
 from cnc_contour_control.core.stages import pipeline
 from cnc_tools.analysis.tables import format_table, machine, write_json
-from cnc_tools.bench.engine import BASELINE_COMMIT, PACKAGES, extract_src
+from cnc_tools.bench.engine import PACKAGES, extract_src, resolve_against
 from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import POLL_S
@@ -248,16 +248,16 @@ def add_options(parser: argparse.ArgumentParser) -> None:
 def graph_bench(options: argparse.Namespace) -> int:
     """This tree's node graph vs ``--against``'s: median CPU and wall per tick, alternating, and their ratios."""
     root = project_root()
-    against = getattr(options, "against", None) or BASELINE_COMMIT
+    against, commit = resolve_against(getattr(options, "against", None), root)
     plan, record = (QUICK if options.quick else FULL), bool(getattr(options, "record", False))
     run_dir = options.out or root / "bags" / "bench" / "graph" / timestamp()
     load = machine()["load_average_1min"]
-    require_same_messages(root, against)
+    require_same_messages(root, commit)
     print(f"graph bench ({'quick' if options.quick else 'full'}, {'recorded' if record else 'not recorded'}) "
           f"on {SCENARIO}, this tree against {against}; run files in {run_dir}", flush=True)
     samples: dict[str, list[dict[float, tuple[float, float]]]] = {"ours": [], "theirs": []}
     with tempfile.TemporaryDirectory(prefix="cnc_bench_graph_") as tmp:
-        sides = {"theirs": other_side(against, root, Path(tmp)),
+        sides = {"theirs": other_side(commit, root, Path(tmp)),
                  "ours": Side("this tree", root / "src", root / SCENARIO, dict(os.environ))}
         for index in range(plan.rounds):
             order = ("theirs", "ours") if index % 2 == 0 else ("ours", "theirs")
