@@ -12,10 +12,12 @@ from sensor_msgs.msg import JointState
 from cnc_contour_control.core.errors import FaultError
 from cnc_contour_control.testing import TopicProbe, dds_ports, ephemeral_port_range, udp_sockets
 from cnc_contour_interfaces.msg import AxisCommand, Reference
+from cnc_tools.analysis.verdict import judge
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.runs.engine import run_engine, tick_count
 from cnc_tools.runs.graph import GraphRun, graph_nodes, run_graph
 from cnc_tools.runs.namespaces import run_namespace
+from cnc_tools.runs.outputs import judge_bag
 from cnc_tools.runs.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -44,6 +46,9 @@ def test_lockstep_graph_matches_engine_to_1e9(tmp_path: Path) -> None:
         np.testing.assert_array_equal(series.stamp_ns, engine.joint_states.stamp_ns)
         np.testing.assert_allclose(series.command, engine.command_array()[:, i], rtol=0.0, atol=1e-9)
     assert np.ptp(engine.joint_states.position_m[:, 1]) > 1e-3, "the axes really moved"
+    graph_verdict, engine_verdict = judge_bag(result.bag_path)[1], judge(engine)
+    assert graph_verdict.complete and engine_verdict.complete, (graph_verdict.describe(), engine_verdict.describe())
+    assert result.summary["ends_by"] == engine.summary["ends_by"] == "duration", "cut by its duration_s, as asked"
 
 
 def test_dds_sockets_stay_on_loopback(tmp_path: Path) -> None:
