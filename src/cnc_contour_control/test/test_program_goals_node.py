@@ -16,9 +16,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import rclpy
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
 from rclpy.action import ActionClient
+from rclpy.context import Context
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
@@ -86,7 +89,18 @@ def big_program(path: Path, lines: int) -> Path:
     return path
 
 
-def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_path: Path) -> None:
+class EventsNode(InProcessNode):
+    """InProcessNode spun by the nodes' own executor (rclpy's EventsExecutor), where an error once crashed."""
+
+    def __init__(self, factory: Any, parameters: dict[str, Any], namespace: str) -> None:
+        context = Context()
+        rclpy.init(context=context)
+        overrides = [Parameter(name, value=value) for name, value in parameters.items()]
+        self._attach(context, factory(context=context, namespace=namespace, parameter_overrides=overrides), True)
+
+
+@pytest.mark.parametrize("host", [InProcessNode, EventsNode], ids=["single", "events"])
+def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_path: Path, host: type) -> None:
     ns = f"/goals_{uuid.uuid4().hex[:8]}"
     latin1 = tmp_path / "fraeser.ngc"
     latin1.write_bytes("(Fräser Ø 6 mm)\nG1 X1 F1200 (Zustellung ½ mm)\n".encode("latin-1"))
@@ -95,7 +109,7 @@ def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_
     big = big_program(tmp_path / "big.ngc", 100_000)
     assert RunProgram.Result().outcome == RunProgram.Result.UNKNOWN != RunProgram.Result.COMPLETED
     with TopicProbe({f"{ns}/reference": Reference}) as probe, \
-            InProcessNode(InterpolatorNode, PARAMS, namespace=ns) as interpolator:
+            host(InterpolatorNode, PARAMS, namespace=ns) as interpolator:
         client = ActionClient(probe.node, RunProgram, f"{ns}/run_program")
         assert change(probe, ns, Transition.TRANSITION_CONFIGURE)
         probe.wait_for(client.server_is_ready, 20.0, "the RunProgram server")

@@ -138,7 +138,7 @@ class ProgramActionServer:
         except CncError as err:
             return self._refused(goal_handle, name, str(err))
         self._handle, self._outcome = goal_handle, Future()
-        self._planning = self._planner.submit(self.session.plan, goal_from_msg(goal_handle.request), hold_m)
+        self._planning = self._planner.submit(self._plan, goal_handle.request, hold_m)
         outcome: ProgramOutcome = await self._outcome
         if self._handle is goal_handle:
             self._handle = self._outcome = None
@@ -167,6 +167,10 @@ class ProgramActionServer:
             goal_handle.abort()
         self.node.get_logger().info(f"RunProgram: {outcome.program_name!r} {outcome.outcome}: {outcome.reason}")
         return outcome_to_result(outcome, self.bag_path)
+
+    def _plan(self, request: Any, hold_m: Any) -> tuple[Program, LiveReference]:
+        """In the worker thread: the goal message read and planned from the hold position ``hold_m`` [m]."""
+        return self.session.plan(goal_from_msg(request), hold_m)
 
     def _collect_plan(self) -> None:
         """A plan the worker finished: start it at the next tick, or refuse the goal with the reason."""
