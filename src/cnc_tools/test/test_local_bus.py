@@ -16,6 +16,8 @@ from cnc_contour_control.nodes import local_bus
 from cnc_contour_control.nodes.common import SuiteNode
 from cnc_tools.nodes.composed_host import ComposedHost
 
+pytestmark = pytest.mark.nodes  # a composed host and an outside node: real participants
+
 NAMESPACE = "/local_bus_test"
 TOPIC = f"{NAMESPACE}/chatter"
 

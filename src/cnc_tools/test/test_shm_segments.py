@@ -8,6 +8,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 from cnc_contour_control.testing import wait_until
 from cnc_tools.runs.dds import loopback_env
 from cnc_tools.runs.shm import SHM_DIR, fast_dds_segments, is_stale, remove_stale_segments
@@ -40,6 +42,7 @@ def test_only_the_sessions_own_unheld_segments_are_removed(tmp_path: Path) -> No
     assert before.exists() and held.exists() and young.exists() and (tmp_path / "fastrtps_port7411").exists()
 
 
+@pytest.mark.nodes
 def test_a_killed_participant_leaves_a_segment_that_is_found_stale() -> None:
     """Tier 2: a real participant killed by SIGKILL leaves its segment with nobody holding the lock."""
     present = fast_dds_segments()
