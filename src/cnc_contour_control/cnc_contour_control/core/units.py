@@ -19,6 +19,8 @@ M_PER_UM = 1.0e-6
 M_PER_BLU_PAPER000 = 1.0e-5
 #: Paper 002's encoder pulse, 1/2.4 µm.
 M_PER_PULSE_PAPER002 = 1.0e-6 / 2.4
+#: mm/min per m/s (the feed of the cutting processes, paper 004).
+MM_MIN_PER_M_S = 60000.0
 
 
 def mm_to_m(value_mm: _Value) -> _Value:

@@ -36,6 +36,7 @@ from cnc_contour_control.axis.spindle_follower import spindle_schedule
 from cnc_contour_control.core.config import build_config
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.params import check_ranges, config_values, param
+from cnc_contour_control.disturbance.design import disturbance_frequency_hz
 
 #: Largest load amplitude a config accepts [command unit].
 MAX_AMPLITUDE = 1.0e6
@@ -158,6 +159,16 @@ def schedule_from(schedule: SpindleSchedule, t_s: float, frequency_hz: float) ->
     return SpindleSchedule(starts, frequencies)
 
 
+def overridden_schedule(schedule: SpindleSchedule, t_s: float, spindle_rpm: float, flutes: int,
+                        sample_time_s: float) -> SpindleSchedule:
+    """``schedule`` with ``spindle_rpm`` [rpm] held from ``t_s`` [s] on (a spindle override, φ continuous).
+
+    f_d at or above Nyquist at ``sample_time_s`` is a :class:`ConfigError` (:func:`require_below_nyquist_rpm`).
+    """
+    rpm = require_below_nyquist_rpm("spindle_rpm", spindle_rpm, int(flutes), sample_time_s)
+    return schedule_from(schedule, t_s, disturbance_frequency_hz(rpm, flutes))
+
+
 def require_below_nyquist_rpm(name: str, spindle_rpm: float, flutes: int, sample_time_s: float) -> float:
     """``spindle_rpm`` if 0 < f_d = rpm · flutes / 60 < 1/(2T); else a :class:`ConfigError` naming the bound."""
     limit_rpm = 30.0 / (sample_time_s * flutes)
@@ -219,8 +230,7 @@ class PeriodicLoadPlant:
 
     def set_spindle_rpm(self, spindle_rpm: float, sample_time_s: float) -> None:
         """The load's speed from now on (see :class:`SpindleDriven`)."""
-        rpm = require_below_nyquist_rpm("spindle_rpm", spindle_rpm, int(self.load.flutes), sample_time_s)
-        self.schedule = schedule_from(self.schedule, self.time_s, rpm * self.load.flutes / 60.0)
+        self.schedule = overridden_schedule(self.schedule, self.time_s, spindle_rpm, self.load.flutes, sample_time_s)
 
     def describe(self) -> dict[str, Any]:
         """The inner plant as drawn, with the load."""

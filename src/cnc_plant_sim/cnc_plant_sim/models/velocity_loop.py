@@ -59,7 +59,7 @@ from cnc_contour_control.core.velocity_models import (
     DiscreteVelocityModel,
     PiVelocityLoop,
 )
-from cnc_plant_sim.models.periodic_load import SpindleFields, require_below_nyquist_rpm, schedule_from
+from cnc_plant_sim.models.periodic_load import SpindleFields, overridden_schedule
 from cnc_plant_sim.models.step_checks import check_length, check_step, is_finite_number
 
 #: Paper 003's table, "standard" column: K1 = K_si [Nm/rad], K2 = K_sp [Nm s/rad].
@@ -346,8 +346,8 @@ class VelocityLoopPlant:
         """Hold ``spindle_rpm`` from the present time on (a spindle override;
         :func:`~cnc_plant_sim.models.periodic_load.set_spindle_rpm`); f_d at or above Nyquist at ``sample_time_s``
         is a :class:`ConfigError`, nothing changed."""
-        rpm = require_below_nyquist_rpm("spindle_rpm", spindle_rpm, int(self.options.flutes), sample_time_s)
-        self.schedule = schedule_from(self.schedule, self.time_s, rpm * self.options.flutes / 60.0)
+        self.schedule = overridden_schedule(self.schedule, self.time_s, spindle_rpm, self.options.flutes,
+                                            sample_time_s)
 
     def disturbance(self, index: int, velocity_m_s: float, command_m_s: float, t_s: float) -> float:
         """d = friction + A sin(φ(t) + θ) of axis ``index`` [m/s] (friction in Karnopp's form)."""

@@ -46,9 +46,9 @@ from cnc_contour_control.core.config import require_choice, require_finite, requ
 from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.core.force_model import CHIP_TIME_FACTOR, DepthSchedule, FirstOrderLag
 from cnc_contour_control.core.params import check_ranges, param
+from cnc_contour_control.core.units import MM_MIN_PER_M_S
+from cnc_contour_control.disturbance.design import disturbance_frequency_hz
 
-#: mm/min per m/s.
-MM_MIN_PER_M_S = 60000.0
 #: Immersion angles (φ_st, φ_ex) [rad] of each milling direction, from a_e/D.
 IMMERSIONS = {
     "up": lambda ratio: (0.0, math.acos(1.0 - 2.0 * ratio)),
@@ -129,7 +129,7 @@ class MillingConfig:
     @property
     def tooth_frequency_hz(self) -> float:
         """f_d = N z / 60 [Hz]."""
-        return self.spindle_rpm * self.flutes / 60.0
+        return disturbance_frequency_hz(self.spindle_rpm, self.flutes)
 
     @property
     def pass_tau_s(self) -> float:

@@ -25,11 +25,10 @@ from cnc_contour_control.core.config import require_finite, require_non_negative
 from cnc_contour_control.core.errors import FaultError
 from cnc_contour_control.core.force_model import CHIP_TIME_FACTOR, DepthSchedule, FirstOrderLag
 from cnc_contour_control.core.params import check_ranges, param
+from cnc_contour_control.core.units import MM_MIN_PER_M_S
 
 #: The paper's depth schedule: 1 -> 2 -> 3 mm every 4 s.
 PAPER004_DEPTHS: tuple[tuple[float, float], ...] = ((0.0, 1.0), (4.0, 2.0), (8.0, 3.0))
-#: mm/min per m/s.
-MM_MIN_PER_M_S = 60000.0
 
 
 @dataclass(frozen=True)
