@@ -46,8 +46,6 @@ VERDICTS = ("complete", "partial", "faulted")
 #: (the summary's ``end_tolerance_m`` overrides it): catches an axis left short (e-stop, a stop, a cut run),
 #: not a loop's settling error.
 END_TOLERANCE_M = 5.0e-4
-#: A run ends when its program has ended (the reference done) or at its own ``duration_s``.
-ENDS_BY = ("program", "duration")
 #: ``DiagnosticStatus.ERROR``: a fault of the node that sent it (STALE, 3, is a node waiting for a partner: no fault).
 ERROR_LEVEL = 2
 #: Record attribute of each optional stage's per-tick series, by stage name.
