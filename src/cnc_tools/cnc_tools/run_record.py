@@ -242,7 +242,7 @@ class RunRecord:
     @property
     def time_s(self) -> FloatArray:
         """Joint-state stamps in seconds, (N,)."""
-        return self.joint_states.stamp_ns * 1e-9
+        return self.joint_states.stamp_ns * np.float64(1e-9)
 
     def command_array(self) -> FloatArray:
         """The commands of every axis as (N, n_axes) in axis order (NaN where an axis has none)."""

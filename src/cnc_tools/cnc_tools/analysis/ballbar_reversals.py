@@ -226,7 +226,7 @@ def write_polar_plot(traces: Sequence[CircleTrace], diagnosis: BallbarDiagnosis,
     for r in reversals.reversals:
         ax.plot(math.radians(r.angle_deg), high + 0.1 * span, "v", ms=5, color=PLOT_COLOURS[r.direction])
     ax.set_ylim(low - 0.2 * span, high + 0.2 * span)
-    ax.set_rorigin(low - 1.5 * span)
+    ax.set_rorigin(low - 1.5 * span)  # type: ignore[attr-defined]  # a PolarAxes (projection="polar")
     ax.tick_params(axis="y", labelsize="x-small")
     ax.set_title(f"R = {traces[0].radius_m * 1e3:g} mm, radial deviation [µm]", fontsize="small")
     ax.legend(loc="lower left", fontsize="x-small", bbox_to_anchor=(-0.15, -0.12))

@@ -82,8 +82,8 @@ class CircularTest:
 
 def circle_of(program: Program) -> Circle | None:
     """The circle that every segment of ``program`` lies on, or ``None`` (lines, several circles)."""
-    segments = program.segments
-    if not all(isinstance(s, ArcSegment) for s in segments):
+    segments = [s for s in program.segments if isinstance(s, ArcSegment)]
+    if len(segments) != len(program.segments):
         return None
     first = segments[0]
     a, b = first.plane

@@ -73,7 +73,8 @@ METRICS: dict[str, Metric] = {
         Metric("max", "largest |error|", 1, False, _empty_guard(lambda e, w: np.max(np.abs(e)))),
         Metric("rms", "root mean square of the samples", 1, False,
                _empty_guard(lambda e, w: np.sqrt(np.mean(np.square(e))))),
-        Metric("mean_abs", "mean |error| of the samples", 1, False, _empty_guard(lambda e, w: np.mean(np.abs(e)))),
+        Metric("mean_abs", "mean |error| of the samples", 1, False,
+               _empty_guard(lambda e, w: float(np.mean(np.abs(e))))),
         Metric("ise", "integral of error² over time (trapezoid rule)", 2, True,
                _empty_guard(lambda e, w: np.sum(np.square(e) * w))),
     )

@@ -94,5 +94,5 @@ def reference_deviation(run: RunRecord) -> ReferenceDeviation | None:
     finite = np.isfinite(run.reference.position_m).all(axis=1)
     points, stamps = run.reference.position_m[finite], run.reference.stamp_ns[finite]
     distance = run.program.contour_distance(points)[0] if points.size else np.zeros(0)
-    values = evaluate(get_metrics(DEVIATION_METRICS), distance, trapezoid_weights_s(stamps * 1e-9))
+    values = evaluate(get_metrics(DEVIATION_METRICS), distance, trapezoid_weights_s(stamps * np.float64(1e-9)))
     return ReferenceDeviation(int(distance.size), values, run.program.path_tolerance_m)

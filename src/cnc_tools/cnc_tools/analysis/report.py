@@ -112,7 +112,7 @@ def _nearest_points(item: _Item) -> np.ndarray:
 
 def _plane(run: RecordedRun) -> tuple[int, int]:
     arcs = [seg.plane for seg in run.program.segments if hasattr(seg, "plane")]
-    return tuple(arcs[0]) if arcs else (0, 1)  # type: ignore[return-value]
+    return tuple(arcs[0]) if arcs else (0, 1)
 
 
 def _xy(items: Sequence[_Item], magnification: float) -> Figure:
@@ -161,9 +161,9 @@ def _polar_panel(ax: Axes, item: _Item) -> None:
     for reversal in test.reversals:
         ax.plot(math.radians(reversal.angle_deg), reversal.peak_radial_deviation_m / M_PER_UM, "rv", ms=5)
     ax.set_ylim(min(low, 0.0) - 0.2 * span, max(high, 0.0) + 0.2 * span)
-    ax.set_rorigin(min(low, 0.0) - 1.5 * span)
+    ax.set_rorigin(min(low, 0.0) - 1.5 * span)  # type: ignore[attr-defined]  # a PolarAxes (projection="polar")
     ax.yaxis.set_major_locator(MaxNLocator(4))
-    ax.set_rlabel_position(67.5)
+    ax.set_rlabel_position(67.5)  # type: ignore[attr-defined]  # a PolarAxes, as above
     ax.tick_params(axis="y", labelsize="x-small")
     ax.set_title(f"{item.label}: R = {test.circle.radius_m / M_PER_MM:g} mm, "
                  f"G = {test.circular_deviation_m / M_PER_UM:.3g} µm\n(radial axis: deviation [µm])",

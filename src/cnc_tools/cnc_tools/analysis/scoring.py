@@ -18,6 +18,7 @@ import json
 import math
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
+from typing import cast
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,7 +60,7 @@ class ContourErrorSeries:
     @property
     def time_s(self) -> FloatArray:
         """Sample times, s (simulation clock)."""
-        return self.stamp_ns * 1e-9
+        return self.stamp_ns * np.float64(1e-9)
 
 
 @dataclass(frozen=True)
@@ -129,7 +130,7 @@ def contour_error_series(run: RecordedRun) -> tuple[ContourErrorSeries, ScoredWi
     error, index = run.program.contour_distance(points)
     index = index.astype(np.int64)
     series = ContourErrorSeries(stamps, points, error, index, _path_length_m(run.program, points, index),
-                                trapezoid_weights_s(stamps * 1e-9))
+                                trapezoid_weights_s(stamps * np.float64(1e-9)))
     return series, window
 
 
@@ -147,7 +148,7 @@ def tracking_errors(run: RecordedRun) -> tuple[IntArray, FloatArray]:
 def _tracking_stats(run: RecordedRun) -> tuple[tuple[ErrorStats, ...], str]:
     stamps, error = tracking_errors(run)
     metrics = get_metrics(TRACKING_METRICS)
-    weight = trapezoid_weights_s(stamps * 1e-9)
+    weight = trapezoid_weights_s(stamps * np.float64(1e-9))
     stats = tuple(ErrorStats(axis, int(stamps.size), evaluate(metrics, error[:, k], weight))
                   for k, axis in enumerate(run.axis_names))
     n_ref = 0 if run.reference is None else run.reference.stamp_ns.size
@@ -321,7 +322,7 @@ def _circular_dict(test: CircularTest, units: Mapping[str, float]) -> dict[str, 
 def _csv_groups(data: Mapping[str, object]) -> list[tuple[str, list[dict[str, object]]]]:
     """(scope, items) of the score's plain data; every item has ``item``, ``n_samples`` and unit-suffixed values."""
     groups = [("contour", [data["contour_error"]]), ("segment", data["segments"]),
-              ("tracking", list(data["tracking_error"].values()))]  # type: ignore[union-attr]
+              ("tracking", list(cast(Mapping[str, object], data["tracking_error"]).values()))]
     deviation = data["reference_deviation"]
     if isinstance(deviation, dict):
         groups.append(("reference_deviation", [{"item": "reference", "n_samples": deviation["n_samples"],

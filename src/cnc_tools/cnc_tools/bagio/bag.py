@@ -22,7 +22,7 @@ from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import TracebackType
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 from rosbags.interfaces import Connection, Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
@@ -75,7 +75,7 @@ _DIAGNOSTICS_TYPE = "diagnostic_msgs/msg/DiagnosticArray"
 class _CheckedWriter(Writer):
     """rosbags' rosbag2 writer on :class:`CheckedMcapStorage` (chunk CRCs, small chunks)."""
 
-    STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: CheckedMcapStorage}  # type: ignore[dict-item]
+    STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: CheckedMcapStorage}
 
 
 # =========================================================================== writing
@@ -291,8 +291,11 @@ def _fill_axes(out: dict[str, np.ndarray], block: ColumnBlock, spec: _Fields, ax
 
 
 def _columns(raw: RawBag, topic: str, spec: _Fields, axes: tuple[str, ...],
-             names: TopicNames) -> dict[str, np.ndarray | str]:
-    """Decode a topic sorted by header stamp: per-axis fields (N, n_axes), scalars (N,), strings joined by '|'."""
+             names: TopicNames) -> dict[str, Any]:
+    """Decode a topic sorted by header stamp: per-axis fields (N, n_axes), scalars (N,), strings joined by '|'.
+
+    Typed ``Any``: each value is an array or a string by its field, as the series classes take them.
+    """
     count = len(raw.data[topic])
     out: dict[str, np.ndarray] = {"stamp_ns": np.zeros(count, np.int64)}
     out.update({name: np.full((count, len(axes)), np.nan) for name in spec.axis_fields})
@@ -303,7 +306,7 @@ def _columns(raw: RawBag, topic: str, spec: _Fields, axes: tuple[str, ...],
         if missing:
             raise BagError(f"{topic}: the recorded {raw.msgtypes[topic]} has no fields {missing}")
         sec = block.numbers["header.stamp.sec"].astype(np.int64)
-        out["stamp_ns"][block.rows] = sec * NS_PER_S + block.numbers["header.stamp.nanosec"]
+        out["stamp_ns"][block.rows] = sec * NS_PER_S + block.numbers["header.stamp.nanosec"].astype(np.int64)
         _fill_axes(out, block, spec, axes, topic)
         for name in spec.scalars:
             out.setdefault(name, np.zeros(count, block.numbers[name].dtype))[block.rows] = block.numbers[name]
@@ -318,7 +321,7 @@ def _joint_states(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> Join
     if not raw.data.get(topic):
         raise BagError(f"bag has no {topic} messages; found {sorted(t for t in raw.data if raw.data[t])}")
     cols = _columns(raw, topic, _Fields("name", {"position": True, "velocity": False}), axes, names)
-    return JointStateSeries(cols["stamp_ns"], cols["position"], cols["velocity"])  # type: ignore[arg-type]
+    return JointStateSeries(cols["stamp_ns"], cols["position"], cols["velocity"])
 
 
 _REFERENCE = _Fields("axis_names", {"position_m": True, "velocity_m_s": False, "acceleration_m_s2": False},
@@ -330,9 +333,9 @@ def _reference(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> Referen
     if not raw.data.get(topic):
         return None
     c = _columns(raw, topic, _REFERENCE, axes, names)
-    return ReferenceSeries(c["stamp_ns"], c["position_m"], c["velocity_m_s"], c["acceleration_m_s2"],  # type: ignore[arg-type]
-                           c["path_length_m"], c["segment_index"].astype(np.int64), c["feed_m_s"],  # type: ignore[union-attr]
-                           c["done"].astype(bool), c["feed_override_ratio"])  # type: ignore[union-attr,arg-type]
+    return ReferenceSeries(c["stamp_ns"], c["position_m"], c["velocity_m_s"], c["acceleration_m_s2"],
+                           c["path_length_m"], c["segment_index"].astype(np.int64), c["feed_m_s"],
+                           c["done"].astype(bool), c["feed_override_ratio"])
 
 
 _COMMAND = _Fields(scalars=("command", "feedback", "feedforward", "compensation", "disturbance_estimate",
@@ -345,8 +348,8 @@ def _commands(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict[str
         axis = names.command_axis(topic)
         if axis is not None and raw.data[topic]:
             cols = _columns(raw, topic, _COMMAND, axes, names)
-            cols["saturated"] = cols["saturated"].astype(bool)  # type: ignore[union-attr]
-            series[axis] = CommandSeries(axis_name=axis, **cols)  # type: ignore[arg-type]
+            cols["saturated"] = cols["saturated"].astype(bool)
+            series[axis] = CommandSeries(axis_name=axis, **cols)
     return series
 
 
@@ -365,40 +368,41 @@ def _stage_series(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict
     if raw.data.get(topic):
         c = _columns(raw, topic, _ESTIMATE, axes, names)
         out["contour_error"] = EstimateSeries(
-            c["stamp_ns"], c["contour_error_m"], c["tracking_error_m"], c["segment_index"].astype(np.int64),  # type: ignore[arg-type, union-attr]
-            c["angle_rad"], c["point_a_m"], c["point_b_m"], c["window_size"].astype(np.int64),  # type: ignore[arg-type, union-attr]
-            c["window_steps"].astype(np.int64), str(c["method"]))  # type: ignore[union-attr]
+            c["stamp_ns"], c["contour_error_m"], c["tracking_error_m"], c["segment_index"].astype(np.int64),
+            c["angle_rad"], c["point_a_m"], c["point_b_m"], c["window_size"].astype(np.int64),
+            c["window_steps"].astype(np.int64), str(c["method"]))
     topic = names.topic(topics.COMPENSATION.name)
     if raw.data.get(topic):
         c = _columns(raw, topic, _COMPENSATION, axes, names)
-        out["compensation"] = CompensationSeries(c["stamp_ns"], c["correction"], str(c["command_unit"]),  # type: ignore[arg-type]
-                                                 c["learning"].astype(bool), str(c["method"]))  # type: ignore[union-attr]
+        out["compensation"] = CompensationSeries(c["stamp_ns"], c["correction"], str(c["command_unit"]),
+                                                 c["learning"].astype(bool), str(c["method"]))
     topic = names.topic(topics.FEED_OVERRIDE.name)
     if raw.data.get(topic):
         c = _columns(raw, topic, _FEED_OVERRIDE, axes, names)
-        out["feed_override"] = FeedOverrideSeries(c["stamp_ns"], c["requested_ratio"], c["applied_ratio"])  # type: ignore[arg-type]
+        out["feed_override"] = FeedOverrideSeries(c["stamp_ns"], c["requested_ratio"], c["applied_ratio"])
     topic = names.topic(topics.CUTTING_FORCE.name)
     if raw.data.get(topic):
         c = _columns(raw, topic, _WRENCH, axes, names)
         force, torque = (np.column_stack([c[f"wrench.{part}.{x}"] for x in _XYZ]) for part in ("force", "torque"))
-        out["cutting_force"] = ForceSeries(c["stamp_ns"], force, torque)  # type: ignore[arg-type]
+        out["cutting_force"] = ForceSeries(c["stamp_ns"], force, torque)
     topic = names.topic(topics.TOOL_POSITION.name)
     if raw.data.get(topic):
         c = _columns(raw, topic, _Fields("name", {"position": True}), axes, names)
-        out["tool_position"] = ToolPositionSeries(c["stamp_ns"], c["position"])  # type: ignore[arg-type]
+        out["tool_position"] = ToolPositionSeries(c["stamp_ns"], c["position"])
     return out
 
 
 # --------------------------------------------------------------------------- path -> program
-def _line(seg: object, clockwise: bool) -> LineSegment:
-    return LineSegment(start_m=np.asarray(seg.start_m, float), end_m=np.asarray(seg.end_m, float),  # type: ignore[attr-defined]
-                       feed_m_s=float(seg.feed_m_s))  # type: ignore[attr-defined]
+def _line(seg: Any, clockwise: bool) -> LineSegment:
+    return LineSegment(start_m=np.asarray(seg.start_m, np.float64), end_m=np.asarray(seg.end_m, np.float64),
+                       feed_m_s=float(seg.feed_m_s))
 
 
-def _arc(seg: object, clockwise: bool) -> ArcSegment:
-    return ArcSegment(start_m=np.asarray(seg.start_m, float), end_m=np.asarray(seg.end_m, float),  # type: ignore[attr-defined]
-                      center_m=np.asarray(seg.center_m, float), clockwise=clockwise,  # type: ignore[attr-defined]
-                      plane=tuple(int(i) for i in seg.plane_axes), feed_m_s=float(seg.feed_m_s))  # type: ignore[attr-defined]
+def _arc(seg: Any, clockwise: bool) -> ArcSegment:
+    return ArcSegment(start_m=np.asarray(seg.start_m, np.float64), end_m=np.asarray(seg.end_m, np.float64),
+                      center_m=np.asarray(seg.center_m, np.float64), clockwise=clockwise,
+                      plane=tuple(int(i) for i in seg.plane_axes),  # type: ignore[arg-type]  # ArcSegment checks: 2 axes
+                      feed_m_s=float(seg.feed_m_s))
 
 
 #: PathSegment.kind -> (builder, clockwise).
@@ -407,21 +411,21 @@ _SEGMENT_KINDS: dict[int, tuple[Callable[[object, bool], LineSegment | ArcSegmen
 }
 
 
-def program_from_path(message: object) -> Program:
+def program_from_path(message: Any) -> Program:
     """Build the program geometry from a deserialised ``cnc_contour_interfaces/msg/Path``.
 
     Its ``path_tolerance_m`` is the message's; None when the message says NaN (not known) or was recorded
     with a ``Path`` definition that lacks the field (the bag's own schema, before the field existed).
     """
     segments = []
-    for index, seg in enumerate(message.segments):  # type: ignore[attr-defined]
+    for index, seg in enumerate(message.segments):
         if seg.kind not in _SEGMENT_KINDS:
             raise BagError(f"path segment {index}: kind {seg.kind} is not one of {sorted(_SEGMENT_KINDS)}")
         build, clockwise = _SEGMENT_KINDS[seg.kind]
         segments.append(build(seg, clockwise))
     tolerance_m = float(getattr(message, "path_tolerance_m", math.nan))
-    return Program(name=message.program_name, axis_names=tuple(message.axis_names),  # type: ignore[attr-defined]
-                   segments=segments, path_tolerance_m=None if math.isnan(tolerance_m) else tolerance_m)
+    return Program(name=message.program_name, axis_names=tuple(message.axis_names),
+                   segments=tuple(segments), path_tolerance_m=None if math.isnan(tolerance_m) else tolerance_m)
 
 
 def _program(raw: RawBag, topic: str) -> Program:
@@ -492,6 +496,6 @@ def read_bag(path: str | Path, *, namespace: str | None = None, commands: bool =
             joint_states=_joint_states(raw, names, axes),
             reference=_reference(raw, names, axes),
             commands=_commands(raw, names, axes) if commands else {}, integrity=integrity,
-            **_stage_series(raw, names, axes))  # type: ignore[arg-type]
+            **_stage_series(raw, names, axes))  # type: ignore[arg-type]  # each series under its RunRecord field
     except BagError as err:
         raise BagError(f"{path}: {err}" + ("" if integrity.complete else f" [{integrity.describe()}]")) from err

@@ -7,6 +7,7 @@ the run's namespace (``/cnc/<run id>/diagnostics``). Both spellings are read.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 from cnc_contour_control.core import topics as t
 from cnc_contour_control.core.errors import BagError
@@ -37,7 +38,7 @@ def read_statuses(bag: str | Path) -> tuple[str, tuple[Status, ...]]:
             namespace = topic[: -len(_RELATIVE) - 1]
         for index, data in enumerate(raw.data[topic]):
             try:
-                message = store.deserialize_cdr(data, msgtype)
+                message: Any = store.deserialize_cdr(data, msgtype)
             except Exception as err:
                 raise BagError(f"{bag}: {topic} message {index} cannot be decoded "
                                f"({type(err).__name__}: {err})") from err

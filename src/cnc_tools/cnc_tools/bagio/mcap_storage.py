@@ -62,12 +62,12 @@ class _FileWriter(Protocol):
 
 def _our_writer(stream: BinaryIO) -> _FileWriter:
     """:class:`McapWriter` in 64 KiB chunks."""
-    return McapWriter(stream, CHUNK_SIZE_BYTES)  # type: ignore[return-value]
+    return McapWriter(stream, CHUNK_SIZE_BYTES)
 
 
 def _library_writer(stream: BinaryIO) -> _FileWriter:
     """``mcap.writer.Writer`` with the same options (uncompressed 64 KiB chunks, chunk and data CRCs)."""
-    return McapFileWriter(stream, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.NONE,  # type: ignore[return-value]
+    return McapFileWriter(stream, chunk_size=CHUNK_SIZE_BYTES, compression=CompressionType.NONE,
                           enable_crcs=True, enable_data_crcs=True)
 
 

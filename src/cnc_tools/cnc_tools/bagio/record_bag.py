@@ -67,7 +67,9 @@ def _commands(series: CommandSeries) -> Iterator[tuple[int, Any]]:
 
 def _estimates(record: RunRecord) -> Iterator[tuple[int, Any]]:
     make, e = project_typestore().types[topics.CONTOUR_ERROR.type_name], record.contour_error
-    for k, stamp in enumerate([] if e is None else e.stamp_ns.tolist()):
+    if e is None:
+        return
+    for k, stamp in enumerate(e.stamp_ns.tolist()):
         yield stamp, make(header=_header(stamp), axis_names=list(record.axis_names),
                           contour_error_m=float(e.contour_error_m[k]), tracking_error_m=e.tracking_error_m[k].copy(),
                           segment_index=int(e.segment_index[k]), angle_rad=float(e.angle_rad[k]),
@@ -77,7 +79,9 @@ def _estimates(record: RunRecord) -> Iterator[tuple[int, Any]]:
 
 def _compensations(record: RunRecord) -> Iterator[tuple[int, Any]]:
     make, c = project_typestore().types[topics.COMPENSATION.type_name], record.compensation
-    for k, stamp in enumerate([] if c is None else c.stamp_ns.tolist()):
+    if c is None:
+        return
+    for k, stamp in enumerate(c.stamp_ns.tolist()):
         yield stamp, make(header=_header(stamp), axis_names=list(record.axis_names),
                           correction=c.correction[k].copy(), command_unit=c.command_unit, method=c.method,
                           learning=bool(c.learning[k]) if c.learning is not None else False)
@@ -85,7 +89,9 @@ def _compensations(record: RunRecord) -> Iterator[tuple[int, Any]]:
 
 def _overrides(record: RunRecord) -> Iterator[tuple[int, Any]]:
     make, o = project_typestore().types[topics.FEED_OVERRIDE.type_name], record.feed_override
-    for k, stamp in enumerate([] if o is None else o.stamp_ns.tolist()):
+    if o is None:
+        return
+    for k, stamp in enumerate(o.stamp_ns.tolist()):
         yield stamp, make(header=_header(stamp), requested_ratio=float(o.requested_ratio[k]),
                           applied_ratio=float(o.applied_ratio[k]), quantum=0.0)
 
@@ -93,7 +99,9 @@ def _overrides(record: RunRecord) -> Iterator[tuple[int, Any]]:
 def _wrenches(record: RunRecord) -> Iterator[tuple[int, Any]]:
     types, w = project_typestore().types, record.cutting_force
     vector, wrench = types["geometry_msgs/msg/Vector3"], types["geometry_msgs/msg/Wrench"]
-    for k, stamp in enumerate([] if w is None else w.stamp_ns.tolist()):
+    if w is None:
+        return
+    for k, stamp in enumerate(w.stamp_ns.tolist()):
         yield stamp, types[topics.CUTTING_FORCE.type_name](
             header=_header(stamp, "tool"), wrench=wrench(force=vector(*map(float, w.force_n[k])),
                                                          torque=vector(*map(float, w.torque_n_m[k]))))
@@ -102,7 +110,9 @@ def _wrenches(record: RunRecord) -> Iterator[tuple[int, Any]]:
 def _tool_positions(record: RunRecord) -> Iterator[tuple[int, Any]]:
     make, p = project_typestore().types[topics.TOOL_POSITION.type_name], record.tool_position
     names = list(record.axis_names)
-    for k, stamp in enumerate([] if p is None else p.stamp_ns.tolist()):
+    if p is None:
+        return
+    for k, stamp in enumerate(p.stamp_ns.tolist()):
         yield stamp, make(header=_header(stamp), name=names, position=p.position_m[k].copy(),
                           velocity=np.zeros(0), effort=np.zeros(0))
 
@@ -121,7 +131,9 @@ def _tagged(order: int, topic: str, stream: Iterator[tuple[int, Any]]) -> Iterat
 
 def write_record_bag(record: RunRecord, path: Path, namespace: str = topics.DEFAULT_NAMESPACE) -> Path:
     """Write ``record`` to a new bag folder ``path`` (refused if it exists) and return it."""
-    q = lambda name: topics.qualify(namespace, name)
+    def q(name: str) -> str:
+        return topics.qualify(namespace, name)
+
     streams: dict[str, Iterator[tuple[int, Any]]] = {
         q(topics.JOINT_STATES.name): _joint_states(record), q(topics.REFERENCE.name): _references(record)}
     streams.update({q(topics.command_topic(axis)): _commands(s) for axis, s in record.commands.items()})
@@ -134,6 +146,6 @@ def write_record_bag(record: RunRecord, path: Path, namespace: str = topics.DEFA
     with BagWriter(path, types) as writer:
         writer.write_message(q(topics.PATH.name), 0, path_message(record.program))
         tagged = [_tagged(order, topic, stream) for order, (topic, stream) in enumerate(streams.items())]
-        for stamp, _, topic, message in heapq.merge(*tagged, key=lambda item: item[:2]):  # tick order, as recorded
-            writer.write_message(topic, stamp, message)
+        for stamp, _, name, message in heapq.merge(*tagged, key=lambda item: item[:2]):  # tick order, as recorded
+            writer.write_message(name, stamp, message)
     return path

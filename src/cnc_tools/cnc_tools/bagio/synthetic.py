@@ -5,6 +5,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -74,6 +75,7 @@ def path_message(program: Program) -> object:
     types = project_typestore().types
     segment_type = types["cnc_contour_interfaces/msg/PathSegment"]
     segments = []
+    seg: Any  # a line or an arc: the arc's fields are read only where is_arc
     for seg in program.segments:
         is_arc = isinstance(seg, ArcSegment)
         segments.append(segment_type(
@@ -88,7 +90,7 @@ def path_message(program: Program) -> object:
         path_tolerance_m=math.nan if program.path_tolerance_m is None else float(program.path_tolerance_m))
 
 
-def header(stamp_ns: int, frame_id: str) -> object:
+def header(stamp_ns: int, frame_id: str) -> Any:
     types = project_typestore().types
     sec, nanosec = split_ns(stamp_ns)
     stamp = types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)

@@ -20,6 +20,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -176,18 +177,18 @@ class MessageLayout:
         return self.buf[start:start + max(size - 1, 0)].decode("utf-8", errors="replace")
 
 
-def _walk_message(layout: MessageLayout, fielddefs: Mapping[str, object], msgtype: str, prefix: str) -> None:
-    for name, (node, desc) in fielddefs[msgtype][1]:  # type: ignore[index]
+def _walk_message(layout: MessageLayout, fielddefs: Mapping[str, Any], msgtype: str, prefix: str) -> None:
+    for name, (node, desc) in fielddefs[msgtype][1]:
         _walk_field(layout, fielddefs, prefix + name, node, desc)
 
 
-def _walk_field(layout: MessageLayout, fielddefs: Mapping[str, object], path: str, node: int, desc: object) -> None:
+def _walk_field(layout: MessageLayout, fielddefs: Mapping[str, Any], path: str, node: int, desc: Any) -> None:
     if node == Nodetype.NAME:
         _walk_message(layout, fielddefs, str(desc), path + ".")
     elif node == Nodetype.BASE:
-        _walk_values(layout, path, desc[0], 1, scalar=True)  # type: ignore[index]
+        _walk_values(layout, path, desc[0], 1, scalar=True)
     else:
-        (sub_node, sub_desc), length = desc  # type: ignore[misc]
+        (sub_node, sub_desc), length = desc
         count = layout.count() if node == Nodetype.SEQUENCE else int(length)
         if sub_node != Nodetype.BASE:
             raise _NotColumnar(path)
@@ -274,7 +275,7 @@ def decode_columns(raws: Sequence[bytes | memoryview], msgtype: str,
     try:
         for length in np.unique(lengths):
             rows = np.flatnonzero(lengths == length)
-            joined = b"".join(raws[i] for i in rows)
+            joined = b"".join(raws[i] for i in rows.tolist())
             matrix = np.frombuffer(joined, dtype=np.uint8).reshape(len(rows), int(length))
             blocks.extend(_decode_same_length(matrix, rows, msgtype, typestore))
     except _NotColumnar as err:

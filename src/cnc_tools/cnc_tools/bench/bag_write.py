@@ -42,7 +42,7 @@ Message = tuple[str, int, bytes]
 class _LibraryRosbagWriter(Writer):
     """rosbags' rosbag2 writer on :class:`LibraryMcapStorage`."""
 
-    STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: LibraryMcapStorage}  # type: ignore[dict-item]
+    STORAGE_PLUGINS = {**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: LibraryMcapStorage}
 
 
 class LibraryBagWriter(BagWriter):

@@ -105,7 +105,7 @@ def program_figures(program: Program, spacing_m: float) -> dict[str, Any]:
 
 def _row(f: dict[str, Any], arc_s: float) -> list[object]:
     worst = max(max(f["velocity_ratio"]), max(f["acceleration_ratio"]))
-    to_arc = f["cycle_s"] / arc_s if f["program"].startswith("circle") else ""
+    to_arc: Any = f["cycle_s"] / arc_s if f["program"].startswith("circle") else ""  # a ratio, or "" (no circle)
     return [f["program"], f["segments"], f["blends"], f["stops"], round(f["exact_stop_s"], 2), round(f["cycle_s"], 3),
             round(f["toppra_s"], 3), round(f["cycle_s"] / f["toppra_s"], 3), to_arc and round(to_arc, 3),
             " ".join(f"{v:.6f}" for v in f["velocity_ratio"]), " ".join(f"{a:.6f}" for a in f["acceleration_ratio"]),

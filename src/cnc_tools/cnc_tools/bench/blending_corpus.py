@@ -15,6 +15,11 @@ import numpy as np
 from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program, Segment
 
 FEED_M_S = 1300.0 / 60000.0
+
+
+def _xy(x_m: float, y_m: float) -> np.ndarray:
+    """A point of the xy plane, m."""
+    return np.array([x_m, y_m])
 CIRCLE_RADIUS_M = 0.02
 
 
@@ -34,8 +39,8 @@ def polygon(sides: int, radius_m: float = CIRCLE_RADIUS_M) -> Program:
 
 def true_circle(radius_m: float = CIRCLE_RADIUS_M) -> Program:
     """The full circle the polygons approximate, as one arc."""
-    start = [radius_m, 0.0]
-    return Program("circle-arc", ("x", "y"), (ArcSegment(start, start, [0.0, 0.0], False, (0, 1), FEED_M_S),))
+    start = _xy(radius_m, 0.0)
+    return Program("circle-arc", ("x", "y"), (ArcSegment(start, start, _xy(0.0, 0.0), False, (0, 1), FEED_M_S),))
 
 
 def star(tips: int = 5, outer_m: float = 0.02, inner_m: float = 0.006) -> Program:
@@ -67,7 +72,8 @@ def arc_chain(radii_m: tuple[float, ...] = (5e-4, 1e-3, 2e-3, 4e-3), repeats: in
     x = 0.0
     for i in range(repeats * len(radii_m)):
         radius = radii_m[i % len(radii_m)]
-        segments.append(ArcSegment([x, 0.0], [x + 2 * radius, 0.0], [x + radius, 0.0], i % 2 == 0, (0, 1), FEED_M_S))
+        segments.append(ArcSegment(_xy(x, 0.0), _xy(x + 2 * radius, 0.0), _xy(x + radius, 0.0), i % 2 == 0, (0, 1),
+                                   FEED_M_S))
         x += 2 * radius
     return Program("arc-chain", ("x", "y"), tuple(segments))
 
@@ -80,8 +86,8 @@ def arc_scallops(radii_m: tuple[float, ...] = (5e-4, 1e-3, 2e-3, 4e-3), repeats:
     for i in range(repeats * len(radii_m)):
         radius = radii_m[i % len(radii_m)]
         chord = 2.0 * radius * math.sin(0.5 * sweep_rad)
-        segments.append(ArcSegment([x, 0.0], [x + chord, 0.0], [x + 0.5 * chord, -radius * math.cos(0.5 * sweep_rad)],
-                                   True, (0, 1), FEED_M_S))
+        center = _xy(x + 0.5 * chord, -radius * math.cos(0.5 * sweep_rad))
+        segments.append(ArcSegment(_xy(x, 0.0), _xy(x + chord, 0.0), center, True, (0, 1), FEED_M_S))
         x += chord
     return Program("arc-scallops", ("x", "y"), tuple(segments))
 
@@ -93,10 +99,10 @@ def lines_and_arcs(radii_m: tuple[float, ...] = (5e-4, 1e-3, 2e-3, 4e-3), repeat
     x = 0.0
     for i in range(repeats * len(radii_m)):
         radius = radii_m[i % len(radii_m)]
-        segments.append(LineSegment([x, 0.0], [x + line_m, 0.0], FEED_M_S))
+        segments.append(LineSegment(_xy(x, 0.0), _xy(x + line_m, 0.0), FEED_M_S))
         x += line_m
         chord = 2.0 * radius * math.sin(math.pi / 3.0)
-        segments.append(ArcSegment([x, 0.0], [x + chord, 0.0], [x + 0.5 * chord, -0.5 * radius], True, (0, 1),
+        segments.append(ArcSegment(_xy(x, 0.0), _xy(x + chord, 0.0), _xy(x + 0.5 * chord, -0.5 * radius), True, (0, 1),
                                    FEED_M_S))
         x += chord
     return Program("lines-and-arcs", ("x", "y"), tuple(segments))

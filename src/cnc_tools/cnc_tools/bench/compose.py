@@ -170,7 +170,7 @@ def period_errors(bag: Path, sample_time_s: float) -> tuple[float | None, float 
         stamps = read_bag(bag, commands=False).joint_states.stamp_ns
     except (CncError, OSError, ValueError, KeyError):
         return None, None
-    errors = np.abs(np.diff(stamps.astype(np.int64)) * 1e-9 - sample_time_s)
+    errors = np.abs(np.diff(stamps.astype(np.int64)).astype(np.float64) * 1e-9 - sample_time_s)
     if errors.size == 0:
         return None, None
     return float(np.percentile(errors, 50)), float(np.percentile(errors, 99))

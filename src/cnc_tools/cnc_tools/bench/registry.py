@@ -51,7 +51,7 @@ class _Benches(Mapping[str, Bench]):
 
     def __getitem__(self, name: str) -> Bench:
         module, _, function = TARGETS[name].partition(":")
-        return getattr(importlib.import_module(module), function)  # type: ignore[no-any-return]
+        return getattr(importlib.import_module(module), function)
 
     def __iter__(self) -> Iterator[str]:
         return iter(TARGETS)

@@ -206,7 +206,8 @@ def table_rows(diagnosis: BallbarDiagnosis, reversals: ReversalDiagnosis | None 
 def to_table(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
              reversals: ReversalDiagnosis | None = None, cyclic: CyclicFit | None = None) -> str:
     """The printed report: the traces used, the diagnosis table, the skipped diagnoses."""
-    lines = [f"trace {t.trace.direction}: {t.bag} ({t.n_samples} samples, feed {t.trace.feed_m_s * 60e3:.1f} mm/min)"
+    lines = [f"trace {t.trace.direction}: {t.bag} ({t.n_samples} samples, "
+             f"feed {t.trace.feed_m_s * 60e3:.1f} mm/min)"  # type: ignore[operator]  # a bag's trace has its feed
              for t in traces]
     lines += [f"samples: {SAMPLE_RULE}", f"{'quantity':<28} {'value':>12} {'unit':<5} how"]
     radius, radius_skipped = radius_rows(traces)

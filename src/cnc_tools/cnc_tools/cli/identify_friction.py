@@ -58,8 +58,9 @@ def trace_from_bag(recorded: RecordedRun, axis: str) -> fid.AxisTrace:
         raise FaultError(f"bag {recorded.source} lacks the reference or the servo/{axis}/command topic")
     stamps = np.intersect1d(np.intersect1d(joints.stamp_ns, reference.stamp_ns), commands.stamp_ns)
     rows = [np.searchsorted(series, stamps) for series in (joints.stamp_ns, reference.stamp_ns, commands.stamp_ns)]
-    return fid.AxisTrace(stamps * 1e-9, joints.position_m[rows[0], index], reference.position_m[rows[1], index],
-                         reference.velocity_m_s[rows[1], index], commands.command[rows[2]])
+    return fid.AxisTrace(stamps * np.float64(1e-9), joints.position_m[rows[0], index],
+                         reference.position_m[rows[1], index], reference.velocity_m_s[rows[1], index],
+                         commands.command[rows[2]])
 
 
 def graph_point(run: fid.SpeedRun, constants: fid.AxisConstants, config: fid.IdentificationConfig,

@@ -91,7 +91,9 @@ def publish_estop(node: Any, topic: str, value: bool, wait_s: float, min_readers
     from std_msgs.msg import Bool
 
     publisher = node.create_publisher(Bool, topic, 10)
-    readers = lambda: max(min_readers, node.count_subscribers(topic))
+    def readers() -> int:
+        return max(min_readers, int(node.count_subscribers(topic)))
+
     if not _spin_until(node, lambda: readers() > 0 and publisher.get_subscription_count() >= readers(), wait_s):
         raise ConfigError(f"no reader of {topic} within --wait-s {wait_s} s (is the graph running, in this domain?)")
     deadline = time.monotonic() + wait_s

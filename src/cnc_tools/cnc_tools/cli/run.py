@@ -3,7 +3,9 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 from cnc_contour_control.core.errors import CncError
 from cnc_tools.cli.common import parse_overrides
@@ -98,7 +100,7 @@ class Progress:
               flush=True)
 
 
-def print_summary(name: str, how: str, summary: dict[str, object]) -> None:
+def print_summary(name: str, how: str, summary: Mapping[str, Any]) -> None:
     """The run summary as an aligned table."""
     rows = [("scenario", name), ("ran on", how), ("ticks", summary["ticks"]),
             ("simulated time [s]", f"{summary['simulated_time_s']:.3f}"),

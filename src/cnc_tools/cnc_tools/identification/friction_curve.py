@@ -34,7 +34,7 @@ class SpeedSummary:
         """(mean, std, min, max) of the steady varied plants' ``friction_dac`` (NaN without any)."""
         values = self._steady()
         if values.size == 0:
-            return (math.nan,) * 4  # type: ignore[return-value]
+            return (math.nan,) * 4
         return float(values.mean()), float(values.std()), float(values.min()), float(values.max())
 
     @property
@@ -108,7 +108,8 @@ def fit_branch(velocity_mm_s: Sequence[float], force_dac: Sequence[float]) -> Br
 def _fit_quadratic(v: FloatArray, f: FloatArray, direction: int, limit: float, high: float | None,
                    v_high: FloatArray | None = None, f_high: FloatArray | None = None) -> BranchFit:
     coefficients = np.polyfit(v, f, 2)
-    residual = np.concatenate([np.polyval(coefficients, v) - f, [] if f_high is None else f_high - high])
+    tail = [] if f_high is None else f_high - high  # type: ignore[operator]  # high is given with f_high
+    residual = np.concatenate([np.polyval(coefficients, v) - f, tail])
     n_points = v.size + (0 if v_high is None else v_high.size)
     rms = float(np.sqrt(np.sum(residual ** 2) / n_points))
     return BranchFit(direction, tuple(float(c) for c in coefficients), limit, high, rms)  # type: ignore[arg-type]

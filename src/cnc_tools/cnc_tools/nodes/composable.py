@@ -39,4 +39,4 @@ def check_composable(package: str, executable: str) -> str:
 def node_class(package: str, executable: str) -> type[Any]:
     """The node class ``package/executable`` spins (imported now)."""
     module, _, name = check_composable(package, executable).partition(":")
-    return getattr(importlib.import_module(module), name)  # type: ignore[no-any-return]
+    return getattr(importlib.import_module(module), name)

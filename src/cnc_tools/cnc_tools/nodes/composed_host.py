@@ -86,8 +86,8 @@ class ComposedHost:
     def add(self, name: str, cls: type[SuiteNode], arguments: Sequence[str]) -> None:
         """Build one member with its own ROS arguments; a failure is that member's end, not the host's."""
         try:
-            # a member class's __init__ gives SuiteNode its name itself
-            node = cls(context=self.context, cli_args=list(arguments), use_global_arguments=False)  # type: ignore[call-arg]
+            node = cls(context=self.context, cli_args=list(arguments),  # type: ignore[call-arg]  # members name themselves
+                       use_global_arguments=False)
         except CncError as err:
             self._note(name, EXIT_FAULT, f"FAULT: {err}")
             return

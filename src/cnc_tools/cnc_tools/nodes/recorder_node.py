@@ -121,7 +121,7 @@ class RecorderNode(SuiteNode):
         :data:`GATE_WAIT_S`, then goes on with a warning: a plant that reports
         elsewhere).
         """
-        topic, type_name = self._gate_topic
+        topic, type_name = self._gate_topic  # type: ignore[misc]  # called only while a gate topic is set
         plants = _participants(self.get_publishers_info_by_topic(topic))
         if not plants:
             return

@@ -72,7 +72,7 @@ def tick_stamps_s(n_ticks: int, sample_ns: int) -> FloatArray:
     Converted as :func:`~cnc_contour_control.core.lockstep.ns_to_s` converts each
     integer-nanosecond stamp on the wire (the interpolator node samples there).
     """
-    return (np.arange(n_ticks, dtype=np.int64) * sample_ns) * 1e-9
+    return (np.arange(n_ticks, dtype=np.int64) * sample_ns) * np.float64(1e-9)
 
 
 def build_stages(scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) -> list[EngineStage]:

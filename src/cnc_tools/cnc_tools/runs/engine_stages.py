@@ -318,7 +318,7 @@ _PARTS = tuple(f.name for f in dataclasses.fields(ServoOutput))
 
 def _command_series(servo: ServoController, table: FloatArray, stamps_ns: IntArray) -> CommandSeries:
     """One axis's series from its rows of :meth:`ServoController.parts`, ``table`` (N, 7)."""
-    columns = {name: table[:, k].copy() for k, name in enumerate(_PARTS)}
+    columns: dict[str, np.ndarray] = {name: table[:, k].copy() for k, name in enumerate(_PARTS)}
     columns["saturated"] = columns["saturated"].astype(bool)
     return CommandSeries(axis_name=servo.config.axis_name, law=servo.config.law,
                          command_unit=servo.config.command_unit, stamp_ns=stamps_ns[:len(table)], **columns)

@@ -101,7 +101,8 @@ def graph_specs(scenario: Scenario, run_dir: Path, extra_subscribers: int = 0, i
         if make is None:
             raise ConfigError(f"stage {stage.name!r} has no node yet; stages with nodes: {sorted(STAGE_PARAMETERS)}")
         for axis, node in _nodes(stage, run.stages.axes):
-            gate = {_READER_COUNT.get(stage.name, "min_subscribers"): len(readers[node]) + extra_subscribers}
+            gate: dict[str, object] = {
+                _READER_COUNT.get(stage.name, "min_subscribers"): len(readers[node]) + extra_subscribers}
             # an optional output switched on (the plant's tool_position, cutting_force) is read by the extra
             # subscribers and the stages that take it (the force regulator), counted: the gate names no reader
             gate.update({f"{pattern}_subscribers": extra_subscribers + len(run.stages.readers(pattern))

@@ -46,7 +46,8 @@ ANALYTIC_PATHS: dict[str, tuple[str, ...]] = {
 }
 
 
-def model_at(raw: Mapping[str, Any], variables: Sequence[DesignVariable], x: Sequence[float]) -> p3.Paper003Model:
+def model_at(raw: Mapping[str, Any], variables: Sequence[DesignVariable],
+             x: Sequence[float] | np.ndarray) -> p3.Paper003Model:
     """The paper-003 model of a scenario mapping with the variables set to ``x`` (missing keys: model defaults).
 
     Only a ``paper003`` plant's keys are read from ``raw``; another plant's
@@ -103,7 +104,8 @@ def check_constraints(constraints: Sequence[Constraint], scenario: Scenario, obj
 class Objective(Protocol):
     """A picklable function of the design variables' values, with its unit."""
 
-    unit: str
+    @property
+    def unit(self) -> str: ...  # read-only: a frozen dataclass's field satisfies it
 
     def __call__(self, x: np.ndarray) -> float: ...
 
@@ -169,11 +171,11 @@ class CircularObjective:
             for bound in (variable.low, variable.high):
                 self.at((bound,), (variable,))
 
-    def at(self, x: Sequence[float], variables: Sequence[DesignVariable] | None = None) -> Scenario:
+    def at(self, x: Sequence[float] | np.ndarray, variables: Sequence[DesignVariable] | None = None) -> Scenario:
         """The scenario with the variables set to ``x``; ConfigError names the variable that no key takes."""
         chosen = tuple(variables or self.variables)
         try:
-            return self.scenario.variant(overrides_of(chosen, x, self.scenario.axes))
+            return self.scenario.variant(overrides_of(chosen, list(x), self.scenario.axes))
         except ConfigError as err:
             names = ", ".join(v.path for v in chosen)
             raise ConfigError(f"design variable {names}: the scenario does not take it: {err}") from err

@@ -171,15 +171,15 @@ class PidColumnObjective:
         targets = tuple((case, metric, value) for (case, metric), value in pid_targets(rows).items())
         return cls(tuple(variables), targets, tuple(fit_seeds))
 
-    def figures(self, x: Sequence[float]) -> Figures:
+    def figures(self, x: Sequence[float] | np.ndarray) -> Figures:
         """Our PID's figures [BLU] at ``x``, mean over the fit seeds."""
-        overrides = plant_overrides(self.variables, x)
+        overrides = plant_overrides(self.variables, list(x))
         cases = sorted({case for case, _, _ in self.targets})
         runs = {(c, s): run_case(CaseRun(c, "pid", s, overrides)) for c in cases for s in self.fit_seeds}
         return {(c, m): statistics.fmean(runs[(c, s)][k] for s in self.fit_seeds)
                 for c in cases for k, m in enumerate(("max", "rms"))}
 
-    def residuals(self, x: Sequence[float]) -> dict[tuple[str, str], float]:
+    def residuals(self, x: Sequence[float] | np.ndarray) -> dict[tuple[str, str], float]:
         """ln(ours / paper) per (case, metric)."""
         ours = self.figures(x)
         return {(c, m): math.log(ours[(c, m)] / paper) for c, m, paper in self.targets}
@@ -313,7 +313,7 @@ def _residual_table(objective: PidColumnObjective, shipped: Figures, calibrated:
 
 def _compare_rows(runs: Mapping[tuple[str, str], list[tuple[float, float]]], metric: str) -> list[list[object]]:
     k = 0 if metric == "max" else 1
-    rows = []
+    rows: list[list[object]] = []
     for row in TABLE5:
         pid, flc = ([v[k] for v in runs[(row.case, law)]] for law in ("pid", "flc"))
         paper_pid, paper_flc = row.paper_value("pid", metric), row.paper_value("flc", metric)

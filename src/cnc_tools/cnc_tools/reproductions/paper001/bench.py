@@ -258,7 +258,8 @@ def sensitivity_rows(sessions: Mapping[str, Session], plan: Plan) -> list[dict[s
     """Per variant (and the stated stacks first): changed parameters, circle ε_peak and ISE changes per checkpoint."""
     pid = sessions["circle/pid"].at(1)
     variants = VARIANTS[:2] if plan.quick else VARIANTS
-    listed = [(f"circle/{s}", STACKS[s].label + " (stated)", s, {}) for s in ("nn", "ilc", "ccc")]
+    listed: list[tuple[str, str, str, dict[str, Any]]] = [
+        (f"circle/{s}", STACKS[s].label + " (stated)", s, {}) for s in ("nn", "ilc", "ccc")]
     listed += [(f"sensitivity/{v.key}", v.label, v.stack, dict(v.params)) for v in variants]
     rows = []
     for key, label, stack, params in listed:

@@ -181,7 +181,7 @@ def print_sections(found: Found, plan: Plan) -> tuple[dict[str, Any], dict[str, 
     main = {c: tables.main_rows(c, results, design) for c in CONTOURS}
     for contour in CONTOURS:
         tables.print_main(contour, main[contour], plan, results[f"{contour}/p"].measure.window_s)
-    rows = {"shares": tables.share_rows(results), "inertia": tables.inertia_rows(results, design, plan),
+    rows: dict[str, Any] = {"shares": tables.share_rows(results), "inertia": tables.inertia_rows(results, design, plan),
             "spindle": tables.spindle_rows(results, plan), "sweep": tables.sweep_rows(results, predictions, plan),
             "steps": tables.step_rows(results, plan), "works": tables.works_summary(predictions),
             "spindle_online": online.held_rows(results, plan), "steps_online": online.step_rows(results, plan)}

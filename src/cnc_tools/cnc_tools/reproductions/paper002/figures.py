@@ -47,6 +47,7 @@ def plot_traces(results: Mapping[str, Result], keys: Sequence[str], title: str, 
     for row, key in zip(axes, keys):
         found = results[key]
         t, e = found.trace_t_s, found.trace_pulse
+        assert t is not None and e is not None, f"{key}: plot_traces takes runs kept with their trace"
         middle = 0.5 * sum(found.measure.window_s)
         zoom = (t > middle - ZOOM_S) & (t < middle + ZOOM_S)
         row[0].plot(t, e, linewidth=0.5)

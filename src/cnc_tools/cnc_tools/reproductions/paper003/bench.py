@@ -162,7 +162,7 @@ def grid_text(measures: dict[str, list[CircleMeasure]], settings: Sequence[Setti
 def _timed_grid(executor: Any, base: Scenario, settings: Sequence[Setting],
                 circles: Sequence[GridCircle]) -> tuple[dict[str, list[CircleMeasure]], float]:
     """The grid's measures and the wall time of the map (the executor warmed first: pool start not counted)."""
-    grid_measures(executor, base, settings[:1], circles[:1] * max(1, getattr(executor, "workers", 1) or 1))
+    grid_measures(executor, base, settings[:1], list(circles[:1]) * max(1, getattr(executor, "workers", 1) or 1))
     start = time.perf_counter()
     measures = grid_measures(executor, base, settings, circles)
     return measures, time.perf_counter() - start

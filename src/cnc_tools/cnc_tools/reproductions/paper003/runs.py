@@ -122,7 +122,7 @@ def column_setting(column: str, position_gain_1_s: float) -> Setting:
     return Setting(column, row.k1, row.k2, position_gain_1_s)
 
 
-def setting_at(name: str, x: Sequence[float]) -> Setting:
+def setting_at(name: str, x: Sequence[float] | np.ndarray) -> Setting:
     """The :class:`Setting` at a point of :data:`SETTING_VARIABLES`."""
     return Setting(name, *(float(v) for v in x))
 

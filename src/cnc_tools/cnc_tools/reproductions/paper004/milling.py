@@ -116,7 +116,7 @@ def measure(name: str, run: RunRecord, reference_n: float) -> Row:
 
 def run_rows(quick: bool) -> dict[str, Row]:
     """Every case in order, in the engine."""
-    base, rows = base_scenario(quick), {}
+    base, rows = base_scenario(quick), dict[str, Row]()
     assert base.force_regulator is not None, "the milling scenario regulates"
     for name, variant in CASES:
         print(f"  {name} ...", flush=True)

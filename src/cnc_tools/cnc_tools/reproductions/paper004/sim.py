@@ -87,5 +87,5 @@ def feed_stop_response(model: TurningModelConfig, depths_mm: Sequence[float], re
     force = np.empty(n)
     for k in range(n):
         force[k] = process.step(interpolator.step(dt_s, 0.0) / MM_MIN_PER_M_S, dt_s)
-    return dt_s * np.arange(1, n + 1), force
+    return dt_s * np.arange(1, n + 1, dtype=np.float64), force
 
