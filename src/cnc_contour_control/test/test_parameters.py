@@ -28,6 +28,7 @@ from cnc_contour_control.nodes.parameters import (
     ros_value,
 )
 from cnc_contour_control.testing import sibling_module
+from cnc_plant_sim.models.plant import MODEL_SECTIONS, PLANTS, PlantConfig
 
 _cases = sibling_module(__file__, "test_params")  # the same config classes and bounds as the ROS-free test
 CONFIGS, _outside, _with = _cases.CONFIGS, _cases._outside, _cases._with
@@ -58,14 +59,19 @@ def _by_hand(spec: Any) -> bool:
     return (spec.kind is dict and spec.nested is None) or pairs
 
 
-def _free(cls: type) -> tuple[str, ...]:
-    """Top-level fields holding a field no parameter can (a node fills them itself, not as parameters)."""
-    return tuple(dict.fromkeys(s.name.split(".")[0] for s in flat_specs(cls) if _by_hand(s)))
+def _free(cls: type, base: dict[str, Any]) -> tuple[str, ...]:
+    """Top-level fields holding a field no parameter can (a node fills them itself, not as parameters), and a
+    plant's other models' sections (the plant node declares its model's own only)."""
+    free = [s.name.split(".")[0] for s in flat_specs(cls) if _by_hand(s)]
+    if cls is PlantConfig:
+        own = PLANTS[base.get("model", PlantConfig.model)].section
+        free += [name for name in MODEL_SECTIONS if name != own]
+    return tuple(dict.fromkeys(free))
 
 
 def declare(node: Node, cls: type, base: dict[str, Any]) -> Any:
     """Declare ``cls`` on ``node`` starting from ``base`` (free mappings passed by hand) and build it."""
-    skip = _free(cls)
+    skip = _free(cls, base)
     kept = {k: v for k, v in base.items() if k not in skip}
     params: ConfigParameters[Any] = ConfigParameters(node, lambda m: build_config(
         cls, {**{k: v for k, v in base.items() if k in skip}, **m}))
@@ -91,7 +97,7 @@ def test_a_config_class_becomes_parameters_with_its_descriptors_and_builds_again
         assert config == build_config(cls, CONFIGS[cls])
         values = _flat(config_values(config))
         for spec in flat_specs(cls):
-            if spec.name.split(".")[0] in _free(cls):
+            if spec.name.split(".")[0] in _free(cls, CONFIGS[cls]):
                 assert not node.has_parameter(spec.name)
                 continue
             _check_descriptor(node.describe_parameter(spec.name), spec)
@@ -126,7 +132,7 @@ def _check_descriptor(desc: ParameterDescriptor, spec: ParamSpec) -> None:
 def _declared_bounds() -> list[Any]:
     """The bounds test's cases whose field is a parameter here (sections a node declares by hand are not)."""
     return [case for case in _cases._bounds()
-            if case.values[2].name.split(".")[0] not in _free(case.values[0])]
+            if case.values[2].name.split(".")[0] not in _free(case.values[0], case.values[1])]
 
 
 @pytest.mark.parametrize(("cls", "base", "spec", "bound", "direction"), _declared_bounds())
