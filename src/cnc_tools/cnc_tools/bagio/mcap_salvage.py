@@ -1,9 +1,17 @@
-"""Salvage scan of a damaged MCAP file: read record by record, keep every intact message of the readable prefix.
+"""Salvage scan of a damaged MCAP file: read record by record, keep every intact message, skip damaged chunks.
 
 Used when ``rosbags`` cannot read a file through its index (a truncated or
 corrupt file). The scan follows the MCAP record layout (opcode u8, length u64,
-body), enters uncompressed chunks (checking their size and CRC), and stops at
-the first record it cannot read, saying why. No rclpy, no message types.
+body) and enters uncompressed chunks, checking each one's lengths and CRC. A
+chunk that fails them (or any record that cannot be read) is skipped: the scan
+resynchronises on the next chunk whose lengths agree and whose CRC matches, so
+one flipped bit loses at most the chunk it lies in. Each damaged stretch is
+noted in words with the messages its chunk held per topic (from the Message
+Index records that follow a chunk). The channels and the per-topic counts come
+from the summary too when its CRC matches, so messages after a damaged first
+chunk (which holds the Schema and Channel records) are still named. A file
+that ends inside a chunk keeps that chunk's complete messages. No rclpy, no
+message types.
 """
 from __future__ import annotations
 
@@ -20,9 +28,15 @@ from cnc_contour_control.core.errors import BagError
 from cnc_tools.bagio.typestore import project_typestore
 
 MAGIC = b"\x89MCAP0\r\n"
-_OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_STATISTICS = 0x02, 0x03, 0x04, 0x05, 0x06, 0x0B
+_OP_FOOTER, _OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE, _OP_CHUNK, _OP_MESSAGE_INDEX = 0x02, 0x03, 0x04, 0x05, 0x06, 0x07
+_OP_CHUNK_INDEX, _OP_STATISTICS, _OP_LAST = 0x08, 0x0B, 0x0F
 #: Bytes of a Message record before its data: channel id u16, sequence u32, log time u64, publish time u64.
 _MESSAGE_HEADER = 22
+#: Bytes of a Chunk record's body besides its compression name and records: times, sizes, CRC, two lengths.
+_CHUNK_FIXED = 8 + 8 + 8 + 4 + 4 + 8
+#: Longest compression name a chunk may carry; a longer one marks noise, not a chunk.
+_MAX_COMPRESSION_BYTES = 16
+_U64 = struct.Struct("<Q")
 
 #: Receives each wanted message: topic, log time (ns), CDR bytes.
 MessageSink = Callable[[str, int, bytes], None]
@@ -50,6 +64,12 @@ class SalvageScan:
         Intact messages per topic (wanted or not).
     statistics
         ``{channel id: message count}`` from the file's Statistics record, if it was reached.
+    damage
+        One line per damaged stretch skipped: where, why, and the messages lost with it per topic.
+    summary_damaged
+        The summary fails its CRC: its statistics are not used.
+    chunk_indexes
+        ``{chunk offset: {channel id: message index offset}}`` from a summary whose CRC matches.
     """
 
     wanted: Callable[[str], bool]
@@ -58,6 +78,9 @@ class SalvageScan:
     channels: dict[int, tuple[str, int]] = field(default_factory=dict)
     counts: dict[str, int] = field(default_factory=dict)
     statistics: dict[int, int] | None = None
+    damage: list[str] = field(default_factory=list)
+    summary_damaged: bool = False
+    chunk_indexes: dict[int, dict[int, int]] = field(default_factory=dict)
 
     def topic_types(self) -> dict[str, str]:
         """``{topic: type name}`` of the wanted channels seen."""
@@ -69,6 +92,10 @@ class SalvageScan:
         if self.statistics is None:
             return None
         return {self.channels[c][0]: n for c, n in self.statistics.items() if c in self.channels}
+
+    def topic(self, channel_id: int) -> str:
+        """The topic of a channel, or ``channel N`` when its Channel record was lost."""
+        return self.channels[channel_id][0] if channel_id in self.channels else f"channel {channel_id}"
 
 
 def _string(view: memoryview, pos: int) -> tuple[str, int]:
@@ -105,27 +132,18 @@ def _on_message(scan: SalvageScan, body: memoryview) -> None:
 
 
 def _on_statistics(scan: SalvageScan, body: memoryview) -> None:
+    if scan.summary_damaged:
+        return
     (size,) = struct.unpack_from("<I", body, 42)
     entries = body[46:46 + size]
     scan.statistics = dict(struct.iter_unpack("<HQ", entries)) if size % 10 == 0 else None
 
 
-def _on_chunk(scan: SalvageScan, body: memoryview, *, truncated: bool) -> None:
-    _, _, raw_size, crc = struct.unpack_from("<QQQI", body, 0)
-    compression, pos = _string(body, 28)
-    (size,) = struct.unpack_from("<Q", body, pos)
-    records = body[pos + 8:pos + 8 + size]
-    if compression:
-        raise _Damaged(f"chunk compression {compression!r} is not supported by the salvage scan")
-    if truncated:
-        try:
-            _scan_records(scan, records, nested=True)
-        except _Damaged:
-            pass
-        raise _Damaged("the file ends inside a chunk; the complete messages of that chunk were kept")
-    if len(records) != raw_size or (crc and zlib.crc32(records) != crc):
-        raise _Damaged("a chunk fails its size or CRC check")
-    _scan_records(scan, records, nested=True)
+def _on_chunk_index(scan: SalvageScan, body: memoryview) -> None:
+    (chunk_offset,) = struct.unpack_from("<Q", body, 16)
+    (size,) = struct.unpack_from("<I", body, 32)
+    if size % 10 == 0 and 36 + size <= len(body):
+        scan.chunk_indexes[chunk_offset] = dict(struct.iter_unpack("<HQ", body[36:36 + size]))
 
 
 _HANDLERS: dict[int, Callable[[SalvageScan, memoryview], None]] = {
@@ -133,35 +151,176 @@ _HANDLERS: dict[int, Callable[[SalvageScan, memoryview], None]] = {
 }
 
 
-def _scan_records(scan: SalvageScan, view: memoryview, *, nested: bool) -> bool:
-    """Handle every record of ``view``; True when a footer and the closing magic end it.
-
-    Raise ``_Damaged`` at the first record that cannot be read.
-    """
+def _scan_records(scan: SalvageScan, view: memoryview, handlers: dict[int, Callable[[SalvageScan, memoryview], None]]
+                  = _HANDLERS) -> None:
+    """Handle every record of a chunk's records (or of the summary); ``_Damaged`` at the first unreadable one."""
     pos = 0
     while pos < len(view):
         if pos + 9 > len(view):
-            raise _Damaged(f"the file ends inside a record header at byte {pos}")
-        opcode, (length,) = view[pos], struct.unpack_from("<Q", view, pos + 1)
+            raise _Damaged(f"a record header is cut at byte {pos} of a chunk")
+        opcode, (length,) = view[pos], _U64.unpack_from(view, pos + 1)
         body, pos = view[pos + 9:pos + 9 + length], pos + 9 + length
+        if pos > len(view):
+            raise _Damaged(f"a record (opcode {opcode:#x}) runs past the end of its chunk")
+        handler = handlers.get(opcode)
         try:
-            if opcode == _OP_CHUNK and not nested:
-                _on_chunk(scan, body, truncated=pos > len(view))
-            elif pos > len(view):
-                raise _Damaged(f"the file ends inside a record (opcode {opcode:#x})")
-            elif opcode == _OP_FOOTER:
-                if bytes(view[pos:]) != MAGIC:
-                    raise _Damaged("the closing MCAP magic after the footer is cut or wrong")
-                return True
-            elif opcode in _HANDLERS:
-                _HANDLERS[opcode](scan, body)
+            if handler is not None:
+                handler(scan, body)
         except struct.error as err:
             raise _Damaged(f"malformed record (opcode {opcode:#x}): {err}") from err
+
+
+# =========================================================================== chunks and resynchronisation
+def _chunk_layout(view: memoryview, pos: int) -> tuple[int, int, int]:
+    """(records start, records end, CRC) of the chunk record at ``pos``, if its lengths agree; else ``_Damaged``."""
+    try:
+        (length,) = _U64.unpack_from(view, pos + 1)
+        _, _, raw_size, crc, name_size = struct.unpack_from("<QQQII", view, pos + 9)
+        if name_size > _MAX_COMPRESSION_BYTES:
+            raise _Damaged(f"chunk at byte {pos}: a compression name of {name_size} bytes")
+        compression = bytes(view[pos + 41:pos + 41 + name_size])
+        (size,) = _U64.unpack_from(view, pos + 41 + name_size)
+    except struct.error as err:
+        raise _Damaged(f"the file ends inside the chunk header at byte {pos}") from err
+    if length != _CHUNK_FIXED + name_size + size:
+        raise _Damaged(f"chunk at byte {pos}: record length {length} disagrees with its records' {size} bytes")
+    if compression:
+        raise _Damaged(f"chunk compression {compression!r} is not supported by the salvage scan")
+    if size != raw_size:
+        raise _Damaged(f"chunk at byte {pos}: records of {size} bytes, uncompressed size {raw_size}")
+    start = pos + 49 + name_size
+    return start, start + size, crc
+
+
+def _walks_exactly(records: memoryview) -> bool:
+    """Records of known opcodes that fill ``records`` exactly (how a chunk without a CRC is vouched for)."""
+    pos = 0
+    while pos + 9 <= len(records) and 0x01 <= records[pos] <= _OP_LAST:
+        pos += 9 + _U64.unpack_from(records, pos + 1)[0]
+    return pos == len(records)
+
+
+def _next_chunk(data: bytes, start: int) -> int | None:
+    """Offset of the first chunk at or after ``start`` whose lengths agree and whose CRC matches; None if none."""
+    view = memoryview(data)
+    pos = data.find(_OP_CHUNK, start)
+    while pos >= 0:
+        try:
+            begin, end, crc = _chunk_layout(view, pos)
+            records = view[begin:end]
+            if end <= len(data) and (zlib.crc32(records) == crc if crc else _walks_exactly(records)):
+                return pos
+        except _Damaged:
+            pass
+        pos = data.find(_OP_CHUNK, pos + 1)
+    return None
+
+
+def _on_chunk(scan: SalvageScan, view: memoryview, pos: int) -> int:
+    """Read the chunk at ``pos`` (its complete messages only, if the file ends inside it); its end offset."""
+    begin, end, crc = _chunk_layout(view, pos)
+    if end > len(view):
+        try:
+            _scan_records(scan, view[begin:])
+        except _Damaged:
+            pass
+        raise _Damaged("the file ends inside a chunk; the complete messages of that chunk were kept")
+    if crc and zlib.crc32(view[begin:end]) != crc:
+        raise _Damaged(f"chunk at byte {pos} fails its CRC")
+    _scan_records(scan, view[begin:end])
+    return end
+
+
+def _lost_in(scan: SalvageScan, data: bytes, start: int, stop: int) -> str:
+    """The messages per topic of the summary's chunks that begin in ``[start, stop)``, in words."""
+    if not scan.chunk_indexes:
+        return "which messages it held is unknown (no intact summary)"
+    lost: dict[str, int] = {}
+    for offset, indexes in scan.chunk_indexes.items():
+        if start <= offset < stop:
+            for channel_id, at in indexes.items():
+                size = struct.unpack_from("<I", data, at + 11)[0] if at + 15 <= len(data) else 0
+                lost[scan.topic(channel_id)] = lost.get(scan.topic(channel_id), 0) + size // 16
+    listed = ", ".join(f"{topic}: {n}" for topic, n in lost.items())
+    return f"{sum(lost.values())} messages lost with it ({listed})" if lost else "no messages lost with it"
+
+
+def _top_record(scan: SalvageScan, view: memoryview, pos: int) -> int | None:
+    """Handle the top-level record at ``pos``; the offset after it, or None at a footer followed by the magic."""
+    if pos + 9 > len(view):
+        raise _Damaged(f"the file ends inside a record header at byte {pos}")
+    opcode, (length,) = view[pos], _U64.unpack_from(view, pos + 1)
+    if not 0x01 <= opcode <= _OP_LAST:
+        raise _Damaged(f"no record at byte {pos} (opcode {opcode:#x})")
+    if opcode == _OP_CHUNK:
+        return _on_chunk(scan, view, pos)
+    end = pos + 9 + length
+    if end > len(view):
+        raise _Damaged(f"the file ends inside a record (opcode {opcode:#x}) at byte {pos}")
+    if opcode == _OP_FOOTER:
+        if bytes(view[end:]) != MAGIC:
+            raise _Damaged("the closing MCAP magic after the footer is cut or wrong")
+        return None
+    if opcode in _HANDLERS:
+        try:
+            _HANDLERS[opcode](scan, view[pos + 9:end])
+        except struct.error as err:
+            raise _Damaged(f"malformed record (opcode {opcode:#x}) at byte {pos}: {err}") from err
+    return end
+
+
+def _scan_file(scan: SalvageScan, data: bytes) -> bool:
+    """Handle every top-level record, skipping damage; True when a footer and the closing magic end the file.
+
+    After damage the scan goes on at the first vouched-for chunk after the last
+    chunk it read (a damaged length may have jumped past good chunks).
+    ``_Damaged`` when no intact chunk follows the damage.
+    """
+    view, pos = memoryview(data), len(MAGIC)
+    resume_from = pos                                     # the end of the last chunk read
+    searched_past = pos                                   # past the last chunk resumed at (no loop on it)
+    while pos < len(data):
+        try:
+            end = _top_record(scan, view, pos)
+        except _Damaged as err:
+            after = _next_chunk(data, max(resume_from, searched_past))
+            if after is None:
+                raise
+            scan.damage.append(f"bytes {resume_from}-{after} damaged ({err}): skipped to the next intact chunk; "
+                               + _lost_in(scan, data, resume_from, after))
+            pos, searched_past = after, after + 1
+            continue
+        if end is None:
+            return True
+        if view[pos] == _OP_CHUNK:
+            resume_from = end
+        pos = end
     return False
 
 
+#: Bytes of the Footer record (opcode, length, summary start u64, summary offset start u64, summary CRC u32).
+_FOOTER_BYTES = 1 + 8 + 20
+
+
+def _read_summary(scan: SalvageScan, data: bytes) -> None:
+    """Channels, schemas, statistics and chunk indexes of the summary, when its CRC matches (or is not set)."""
+    footer = len(data) - len(MAGIC) - _FOOTER_BYTES
+    if footer < len(MAGIC) or data[footer] != _OP_FOOTER or not data.endswith(MAGIC):
+        return
+    summary_start, _, summary_crc = struct.unpack_from("<QQI", data, footer + 9)
+    if not len(MAGIC) <= summary_start < footer:
+        return
+    if summary_crc and zlib.crc32(memoryview(data)[summary_start:footer + 9 + 16]) != summary_crc:
+        scan.summary_damaged = True
+        return
+    try:
+        _scan_records(scan, memoryview(data)[summary_start:footer], {**_HANDLERS, _OP_CHUNK_INDEX: _on_chunk_index})
+    except _Damaged:
+        scan.summary_damaged = True
+
+
 def scan_mcap(mcap_path: Path, wanted: Callable[[str], bool], sink: MessageSink) -> tuple[SalvageScan, str]:
-    """Scan an MCAP file record by record.
+    """Scan an MCAP file record by record, skipping damaged chunks.
 
     Parameters
     ----------
@@ -175,7 +334,8 @@ def scan_mcap(mcap_path: Path, wanted: Callable[[str], bool], sink: MessageSink)
     Returns
     -------
     tuple
-        What was found, and the problem met ('' when the file is intact to its closing magic).
+        What was found (``damage`` lists each damaged stretch skipped), and the
+        problem that ended the scan ('' when it reached the closing magic).
 
     Raises
     ------
@@ -187,18 +347,19 @@ def scan_mcap(mcap_path: Path, wanted: Callable[[str], bool], sink: MessageSink)
     except OSError as err:
         raise BagError(f"cannot read {mcap_path}: {err}") from err
     scan = SalvageScan(wanted, sink)
-    if not data.startswith(MAGIC):
+    if len(data) < len(MAGIC) or sum(a != b for a, b in zip(data, MAGIC, strict=False)) > 1:
         whole = MAGIC.startswith(data)
         return scan, "the file ends inside the MCAP magic" if whole else "not an MCAP file (bad magic)"
+    if not data.startswith(MAGIC):
+        scan.damage.append("the opening MCAP magic is damaged (one byte)")
+    _read_summary(scan, data)
     try:
-        ended = _scan_records(scan, memoryview(data)[len(MAGIC):], nested=False)
+        ended = _scan_file(scan, data)
     except _Damaged as err:
         return scan, str(err)
     return scan, "" if ended else "the file ends without an MCAP footer (truncated)"
 
 
-#: Bytes of the Footer record (opcode, length, summary start u64, summary offset start u64, summary CRC u32).
-_FOOTER_BYTES = 1 + 8 + 20
 #: Bytes of the DataEnd record (opcode, length, data section CRC u32).
 _DATA_END_BYTES = 1 + 8 + 4
 _OP_DATA_END = 0x0F

@@ -157,7 +157,7 @@ def _read_scanned(source: BagSource, wanted: TopicFilter, index_error: str) -> t
     expected, expected_source = source.metadata_counts, "metadata.yaml"
     if expected is None and scan.statistics_counts() is not None:
         expected, expected_source = scan.statistics_counts(), "mcap summary"
-    problems = (f"index unreadable ({index_error})", *((problem,) if problem else ()), *source.problems)
+    problems = (f"index unreadable ({index_error})", *scan.damage, *((problem,) if problem else ()), *source.problems)
     found = {topic: scan.counts.get(topic, 0) for topic in raw.msgtypes}
     found.update({t: scan.counts.get(t, 0) for t in (expected or {}) if wanted(t)})
     integrity = BagIntegrity(False, "scan", found, expected, expected_source if expected else "unknown", problems)
