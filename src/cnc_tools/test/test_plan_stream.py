@@ -20,12 +20,13 @@ from cnc_tools.bench.blending_corpus import CORPUS
 _BLENDING = sibling_module(Path(__file__).parents[2] / "cnc_contour_control" / "test" / "test_blending.py",
                            "test_blending")
 SAMPLE_S = 1e-3
-#: Programs longer than a chunk (so that the stream plans several), from the bench's corpus and random chains.
+#: Programs longer than a chunk (so that the stream plans several), from the bench's corpus and random chains
+#: (300 segments, about 600 planned with their blends: ten chunks of :func:`short_chunks`).
 PROGRAMS: dict[str, Callable[[], Program]] = {
     "circle-3600-gon": CORPUS["circle-3600-gon"][0], "pocket": CORPUS["pocket"][0],
     "raster-3axis": CORPUS["raster-3axis"][0],
-    "random-xy": lambda: _BLENDING.random_chain(np.random.default_rng(1), ("x", "y"), (0, 1), n=700),
-    "random-xz": lambda: _BLENDING.random_chain(np.random.default_rng(2), ("x", "y", "z"), (0, 2), n=700)}
+    "random-xy": lambda: _BLENDING.random_chain(np.random.default_rng(1), ("x", "y"), (0, 1), n=300),
+    "random-xz": lambda: _BLENDING.random_chain(np.random.default_rng(2), ("x", "y", "z"), (0, 2), n=300)}
 CONFIGS = {"bench": bench_config(), "split": InterpolatorConfig(path_tolerance_mm=0.01),
            "exact stop": InterpolatorConfig()}
 
@@ -52,9 +53,17 @@ def assert_same_samples(streamed: Interpolator, whole: Interpolator, times_s: np
     assert np.array_equal(a.done, b.done)
 
 
-@pytest.mark.parametrize("window", [1, 40])
-@pytest.mark.parametrize("config_name", ["bench", "split"])
-@pytest.mark.parametrize("program_name", list(PROGRAMS))
+#: Each program with both configurations and both windows, each (configuration, window) pair on three programs
+#: (the cheap raster with all four): 12 cases, not the 20 of the full product, which cost 28 % of the core tier.
+EQUALITY_CASES = [("circle-3600-gon", "bench", 1), ("circle-3600-gon", "split", 40),
+                  ("pocket", "bench", 40), ("pocket", "split", 1),
+                  ("raster-3axis", "bench", 1), ("raster-3axis", "bench", 40),
+                  ("raster-3axis", "split", 1), ("raster-3axis", "split", 40),
+                  ("random-xy", "bench", 40), ("random-xy", "split", 1),
+                  ("random-xz", "bench", 1), ("random-xz", "split", 40)]
+
+
+@pytest.mark.parametrize(("program_name", "config_name", "window"), EQUALITY_CASES)
 def test_streaming_equals_the_whole_plan_with_the_same_window(program_name: str, config_name: str, window: int,
                                                               monkeypatch: pytest.MonkeyPatch) -> None:
     program = PROGRAMS[program_name]()
@@ -78,7 +87,11 @@ def test_streaming_stays_within_the_limits_and_the_tolerance(program_name: str) 
     program = PROGRAMS[program_name]()
     streamed = Interpolator(program, limits_for(program), dataclasses.replace(bench_config(), look_ahead_segments=8))
     _BLENDING.check_limits(streamed, dt_s=SAMPLE_S)
-    assert _BLENDING.worst_deviation_m(streamed, dt_s=SAMPLE_S) <= bench_config().path_tolerance_mm * 1e-3 + 1e-12
+    trajectory = streamed.sample_array(np.arange(0.0, streamed.duration_s + SAMPLE_S, SAMPLE_S))
+    # the distance from the programmed segments each sample's planned segment comes from: an upper bound of the
+    # exact contour distance (test_blending), 1/10 of its cost on these programs
+    deviation_m = streamed.blended.local_deviation_m(trajectory.position_m, trajectory.segment_index)
+    assert np.max(deviation_m) <= bench_config().path_tolerance_mm * 1e-3 + 1e-12
 
 
 def test_the_constructor_plans_one_chunk_and_advance_extends_it(monkeypatch: pytest.MonkeyPatch) -> None:
