@@ -56,6 +56,7 @@ def test_a_case_sets_the_law_per_axis_the_inertia_and_the_spindle() -> None:
     assert x["loop"] == "pi"
     assert x["torque_per_inertia"] == pytest.approx(nominal["torque_per_inertia"] / 1.2)
     loop = scenario.plant.velocity_loop
+    assert loop is not None
     assert (loop.spindle_rpm, loop.spindle_schedule_rpm, loop.encoder_pulse_m) == (1575.0, (1650.0,), 0.0)
     assert tuple(scenario.program.end_m * 1e3) == pytest.approx(data.LINE_TO_MM)
     assert case.f_d_hz == pytest.approx(55.0)
