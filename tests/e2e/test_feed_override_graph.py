@@ -74,20 +74,20 @@ class _Rig:
         from cnc_contour_interfaces.msg import FeedOverride
 
         self.probe = probe
-        self.joint_states = probe.publisher(JointState, f"{NS}/joint_states")  # type: ignore[attr-defined]
-        self.overrides = probe.publisher(FeedOverride, f"{NS}/feed_override")  # type: ignore[attr-defined]
+        self.joint_states = probe.publisher(JointState, f"{NS}/joint_states")  # type: ignore[attr-defined]  # probe: a TopicProbe
+        self.overrides = probe.publisher(FeedOverride, f"{NS}/feed_override")  # type: ignore[attr-defined]  # probe: a TopicProbe
 
     def references(self) -> list:
-        return self.probe.received(f"{NS}/reference")  # type: ignore[attr-defined]
+        return self.probe.received(f"{NS}/reference")  # type: ignore[attr-defined]  # probe: a TopicProbe
 
     def wait_ready(self, with_override: bool = True) -> None:
-        self.probe.wait_for(lambda: self.joint_states.get_subscription_count() > 0 and (  # type: ignore[attr-defined]
+        self.probe.wait_for(lambda: self.joint_states.get_subscription_count() > 0 and (  # type: ignore[attr-defined]  # probe: a TopicProbe
             not with_override or self.overrides.get_subscription_count() > 0), 15.0, "the interpolator's readers")
 
     def tick(self, k: int) -> object:
         """Send joint_states(k) and wait for reference(k)."""
         self.joint_states.publish(_joint_state(k * 10_000_000))
-        self.probe.wait_for(lambda: len(self.references()) > k, 10.0, f"reference {k}")  # type: ignore[attr-defined]
+        self.probe.wait_for(lambda: len(self.references()) > k, 10.0, f"reference {k}")  # type: ignore[attr-defined]  # probe: a TopicProbe
         return self.references()[k]
 
 
@@ -110,14 +110,14 @@ def test_the_interpolator_node_follows_an_operators_feed_override_topic(tmp_path
             rig.tick(k)
         rig.overrides.publish(_override(90_000_000, 0.0))              # the operator holds the feed
         k = 10
-        while rig.tick(k).feed_override_ratio > 0.0:                    # type: ignore[attr-defined]
+        while rig.tick(k).feed_override_ratio > 0.0:                    # type: ignore[attr-defined]  # a Reference
             k += 1
             assert k < 200, "the hold never reached the reference"
         rig.overrides.publish(_override(k * 10_000_000, -1.0))         # refused: the hold stays
         held = [rig.tick(k + i) for i in range(1, 6)]
         rig.overrides.publish(_override((k + 5) * 10_000_000, 0.5))    # resume at half speed
         k += 6
-        while rig.tick(k).feed_override_ratio < 0.5:                    # type: ignore[attr-defined]
+        while rig.tick(k).feed_override_ratio < 0.5:                    # type: ignore[attr-defined]  # a Reference
             k += 1
             assert k < 400, "the resume never reached the reference"
     assert all(m.feed_override_ratio == 0.0 and list(m.position_m) == list(held[0].position_m) for m in held)

@@ -43,7 +43,7 @@ def _bag_messages(bag: Path) -> dict[str, list[tuple[int, object]]]:
 
 
 def _stamps(messages: list[tuple[int, object]]) -> list[int]:
-    return [m.header.stamp.sec * NS_PER_S + m.header.stamp.nanosec for _, m in messages]  # type: ignore[attr-defined]
+    return [m.header.stamp.sec * NS_PER_S + m.header.stamp.nanosec for _, m in messages]  # type: ignore[attr-defined]  # rosbags messages
 
 
 def _assert_bag_holds_only_its_run(scenario: Scenario, result) -> None:
@@ -52,9 +52,9 @@ def _assert_bag_holds_only_its_run(scenario: Scenario, result) -> None:
     assert all(topic.startswith(ns + "/") for topic in messages), (ns, sorted(messages))
     for name in ("joint_states", "reference", *(f"servo/{a}/command" for a in scenario.axes)):
         assert _stamps(messages[f"{ns}/{name}"]) == [k * t_ns for k in range(ticks)], f"{name}: one message a tick"
-    clock = [m.clock.sec * NS_PER_S + m.clock.nanosec for _, m in messages[f"{ns}/clock"]]  # type: ignore[attr-defined]
+    clock = [m.clock.sec * NS_PER_S + m.clock.nanosec for _, m in messages[f"{ns}/clock"]]  # type: ignore[attr-defined]  # rosbags messages
     assert clock and set(clock) <= {k * t_ns for k in range(ticks)} and len(messages[f"{ns}/path"]) == 1
-    statuses = [s for _, array in messages[f"{ns}/diagnostics"] for s in array.status]  # type: ignore[attr-defined]
+    statuses = [s for _, array in messages[f"{ns}/diagnostics"] for s in array.status]  # type: ignore[attr-defined]  # rosbags messages
     assert statuses and all(s.name.startswith(ns + "/") for s in statuses), "statuses of its own nodes only"
     recorded = read_bag(result.bag_path)  # finds the run's namespace by itself
     assert recorded.program.name == scenario.name and recorded.integrity.complete

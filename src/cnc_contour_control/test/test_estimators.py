@@ -95,11 +95,11 @@ def _feed(estimator: Any, refs: np.ndarray, positions: np.ndarray) -> list[Conto
 
 
 def _window(program: Program, **params: Any) -> WindowEstimator:
-    return make_estimator("window", params, program)  # type: ignore[return-value]
+    return make_estimator("window", params, program)  # type: ignore[return-value]  # the registry returns the base type
 
 
 def _path(program: Program, **params: Any) -> PathEstimator:
-    return make_estimator("path", params, program)  # type: ignore[return-value]
+    return make_estimator("path", params, program)  # type: ignore[return-value]  # the registry returns the base type
 
 
 LINE = Program("line", ("x", "y"), (LineSegment([0.0, 0.0], [0.05, 0.0], FEED_M_S),))
@@ -327,7 +327,7 @@ def test_path_estimator_refuses_an_empty_or_single_point_program() -> None:
         segments: tuple[()] = ()
         n_axes = 2
     with pytest.raises(ConfigError, match="empty"):
-        PathEstimator(PathEstimatorConfig(), Empty())  # type: ignore[arg-type]
+        PathEstimator(PathEstimatorConfig(), Empty())  # type: ignore[arg-type]  # a bare stand-in program on purpose
     point = Program("dot", ("x", "y"), (LineSegment([0.0, 0.0], [1e-9, 0.0], FEED_M_S),))
     with pytest.raises(ConfigError, match="single point"):
         make_estimator("path", {}, point)

@@ -56,7 +56,7 @@ def _draw(data: st.DataObject, slot_type: Any) -> Any:
 
 def _message(data: st.DataObject, cls: type) -> Any:
     msg = cls()
-    for name, slot_type in zip(cls.get_fields_and_field_types(), cls.SLOT_TYPES):  # type: ignore[attr-defined]
+    for name, slot_type in zip(cls.get_fields_and_field_types(), cls.SLOT_TYPES):  # type: ignore[attr-defined]  # a rosidl message class
         setattr(msg, name, _draw(data, slot_type))
     return msg
 
@@ -91,7 +91,7 @@ def test_codec_agrees_with_rclpy_both_ways(cls: type, data: st.DataObject) -> No
     assert codec.encode(read_by_rclpy) == ours  # rclpy reads our bytes as we meant them (NaN bit for bit)
     assert codec.encode(read_by_us) == ours
     reference = deserialize_message(theirs, cls)
-    for name in cls.get_fields_and_field_types():  # type: ignore[attr-defined]
+    for name in cls.get_fields_and_field_types():  # type: ignore[attr-defined]  # a rosidl message class
         assert type(getattr(read_by_us, name)) is type(getattr(reference, name)), name
     if not _has_nan(msg):
         assert read_by_us == reference

@@ -35,7 +35,7 @@ wide = st.one_of(st.floats(min_value=-30.0, max_value=30.0), huge)
 
 def pd_law(**params: object) -> FuzzyLaw:
     """A fuzzy law without the integral term."""
-    return FuzzyLaw(FuzzyConfig(ki=0.0, **params))  # type: ignore[arg-type]
+    return FuzzyLaw(FuzzyConfig(ki=0.0, **params))  # type: ignore[arg-type]  # FuzzyConfig's own keywords
 
 
 def step(law: FuzzyLaw, error: float, dt_s: float = 0.01) -> float:
@@ -255,7 +255,7 @@ def test_unknown_key_lists_valid_keys():
 
 def test_rule_base_from_yaml_lists_is_normalised():
     rows = [list(row) for row in RULE_BASES["paper000"]]
-    config = FuzzyConfig(rule_base=rows, e_centres=list(E_C))  # type: ignore[arg-type]
+    config = FuzzyConfig(rule_base=rows, e_centres=list(E_C))  # type: ignore[arg-type]  # lists on purpose (as from YAML)
     assert config.rule_base == RULE_BASES["paper000"]
     assert config.e_centres == E_C
     assert config == FuzzyConfig()
@@ -280,7 +280,7 @@ def test_unknown_set_name_names_the_entry_and_the_valid_names():
     rows = [list(row) for row in RULE_BASES["paper000"]]
     rows[1][3] = "XL"
     with pytest.raises(ConfigError) as info:
-        FuzzyConfig(rule_base=rows)  # type: ignore[arg-type]
+        FuzzyConfig(rule_base=rows)  # type: ignore[arg-type]  # lists on purpose (as from YAML)
     text = str(info.value)
     assert "rule_base[1][3] (e = NM, de = ZR)" in text
     assert "'XL'" in text

@@ -153,7 +153,7 @@ def test_work_offsets_come_from_the_program_section() -> None:
 ])
 def test_bad_work_offsets_are_refused(offsets: object, message: str) -> None:
     with pytest.raises(ConfigError, match=message):
-        parse_gcode("G1 X1 F100", axes=XY, work_offsets_mm=offsets)  # type: ignore[arg-type]
+        parse_gcode("G1 X1 F100", axes=XY, work_offsets_mm=offsets)  # type: ignore[arg-type]  # bad offsets on purpose
 
 
 # ----------------------------------------------------------------------------------------------- G61 / G64

@@ -60,7 +60,7 @@ def test_a_fault_trip_raises_and_leaves_the_latch_alone() -> None:
                                   lambda: FerrorActionParams(ferror_action="stop")])
 def test_an_unknown_ferror_action_is_refused_listing_the_valid_ones(make: object) -> None:
     with pytest.raises(ConfigError, match=r"ferror_action must be one of \['fault', 'latch'\], got 'stop'"):
-        make()  # type: ignore[operator]
+        make()  # type: ignore[operator]  # a parametrised callable
 
 
 def held_servo(action: str) -> tuple[HeldServo, EstopLatch]:

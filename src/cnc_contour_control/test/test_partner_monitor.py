@@ -34,7 +34,7 @@ class FakeGraph:
 
 
 def _monitor(graph: FakeGraph, losses: list[str]) -> PartnerMonitor:
-    return PartnerMonitor(graph, [TOPIC], lambda: True, losses.append, lambda: 2_000_000_000)  # type: ignore[arg-type]
+    return PartnerMonitor(graph, [TOPIC], lambda: True, losses.append, lambda: 2_000_000_000)  # type: ignore[arg-type]  # a stand-in graph
 
 
 def test_names_are_read_once_while_the_count_stays_and_a_loss_names_the_last_publisher() -> None:

@@ -105,7 +105,7 @@ def test_retune_swaps_gains_and_keeps_the_state() -> None:
     assert got == pytest.approx(same_gains)  # the kp change acts on e(k) - e(k-1) = 0 only
     assert run(law, [3.0]) == pytest.approx([got + 4.0 + 0.3 + 6.7])
     with pytest.raises(ConfigError, match="pid law needs a PidConfig to retune, got dict"):
-        law.retune({"kp": 1.0})  # type: ignore[arg-type]
+        law.retune({"kp": 1.0})  # type: ignore[arg-type]  # a dict on purpose: refused
 
 
 def test_p_law_is_proportional_and_stateless() -> None:

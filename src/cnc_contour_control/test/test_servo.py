@@ -112,7 +112,7 @@ def test_non_finite_input_is_a_fault_naming_it(index: int, bad: float) -> None:
 
 def test_old_call_without_velocity_and_compensation_fails_loudly() -> None:
     with pytest.raises(TypeError):
-        servo().step(0.01, 1e-4, 0.0, 0.0, 0.0, 3.0)  # type: ignore[call-arg]
+        servo().step(0.01, 1e-4, 0.0, 0.0, 0.0, 3.0)  # type: ignore[call-arg]  # the old signature on purpose
 
 
 def test_non_positive_period_is_a_fault() -> None:
@@ -147,7 +147,7 @@ class RecordingLaw:
 
 
 @pytest.fixture()
-def recording_law() -> None:  # type: ignore[misc]
+def recording_law() -> None:  # type: ignore[misc]  # a yield fixture
     LAWS["recording"] = LawEntry(PConfig, RecordingLaw)
     yield
     del LAWS["recording"]

@@ -165,7 +165,7 @@ def test_non_finite_command_is_a_fault_and_keeps_the_state(command: object) -> N
     axis.step(60.0, 0.01)
     before = (axis.position_m, axis.velocity_m_s, axis.friction_force)
     with pytest.raises(FaultError) as info:
-        axis.step(command, 0.01)  # type: ignore[arg-type]
+        axis.step(command, 0.01)  # type: ignore[arg-type]  # a bad command on purpose
     assert "axis x" in str(info.value)
     assert repr(command) in str(info.value)
     assert (axis.position_m, axis.velocity_m_s, axis.friction_force) == before

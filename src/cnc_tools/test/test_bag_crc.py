@@ -55,7 +55,7 @@ def test_an_intact_bag_passes_its_crcs(bag_bytes: tuple[bytes, str]) -> None:
 @pytest.mark.parametrize("where", [*FLIP_AT, "message index"])
 def test_a_flipped_byte_is_never_read_as_complete(tmp_path: Path, bag_bytes: tuple[bytes, str], where: object) -> None:
     data, metadata = bag_bytes
-    offset = _message_index_offset(data) if where == "message index" else int(float(where) * len(data))  # type: ignore[arg-type]
+    offset = _message_index_offset(data) if where == "message index" else int(float(where) * len(data))  # type: ignore[arg-type]  # a float or 'message index'
     damaged = bytearray(data)
     damaged[offset] ^= 0x01
     assert crc_problem(bytes(damaged)) != ""
@@ -92,7 +92,7 @@ def test_metadata_yaml_is_as_rosbag2_writes_it(circle_bag: Path) -> None:
         assert len(profiles) == 1 and profiles[0]["reliability"] == "reliable", entry["topic_metadata"]["name"]
     with Reader(circle_bag) as reader:
         assert reader.ros_distro == "jazzy"
-        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}  # type: ignore[union-attr]
+        qos = {c.topic: c.ext.offered_qos_profiles for c in reader.connections}  # type: ignore[union-attr]  # rosbag2 connections have it
     assert qos["/cnc/path"][0].durability == QosDurability.TRANSIENT_LOCAL
     assert qos["/cnc/joint_states"][0].durability == QosDurability.VOLATILE
     assert qos["/cnc/joint_states"][0].depth == 1000

@@ -76,7 +76,7 @@ def test_experiments_have_their_ratios_and_scenarios() -> None:
                                   lambda: get_controller("lqr")])
 def test_unknown_names_are_refused(call: object) -> None:
     with pytest.raises(ConfigError, match="must be one of|reports pid/flc"):
-        call()  # type: ignore[operator]
+        call()  # type: ignore[operator]  # a parametrised callable
 
 
 # ---------------------------------------------------------------- controllers and scenarios
@@ -105,9 +105,9 @@ def test_feedforward_is_the_inverse_of_the_nominal_plant() -> None:
 @pytest.mark.parametrize("variant", VARIANTS, ids=lambda v: v.name)
 def test_every_assumption_variant_builds_valid_scenarios(variant: object) -> None:
     for case in table5_cases(quick=False):
-        for controller in variant.controllers().values():  # type: ignore[attr-defined]
-            scenario_for(case.path, controller, 1, variant.overrides(case.name))  # type: ignore[attr-defined]
-    assert variant.view in VIEWS  # type: ignore[attr-defined]
+        for controller in variant.controllers().values():  # type: ignore[attr-defined]  # a parametrised variant
+            scenario_for(case.path, controller, 1, variant.overrides(case.name))  # type: ignore[attr-defined]  # a parametrised variant
+    assert variant.view in VIEWS  # type: ignore[attr-defined]  # a parametrised variant
 
 
 # ---------------------------------------------------------------- runs and views

@@ -42,7 +42,7 @@ def test_another_process_holds_its_claim_until_it_is_killed(tmp_path: Path) -> N
     holder = subprocess.Popen([sys.executable, "-c", HOLDER, str(tmp_path)], stdout=subprocess.PIPE, text=True,
                               env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
     try:
-        held = int(holder.stdout.readline())  # type: ignore[union-attr]
+        held = int(holder.stdout.readline())  # type: ignore[union-attr]  # stdout is a pipe here
         ours = [claim_free_domain_id(tmp_path) for _ in range(MAX_RANDOM_DOMAIN_ID - 1)]
         assert held not in {c.domain_id for c in ours}
         with pytest.raises(RuntimeError, match="are claimed"):

@@ -67,8 +67,8 @@ def test_the_involute_scenario_is_the_generators_program_and_tangent_continuous(
 
 def test_exact_error_is_the_scorers_distance_with_the_left_positive_sign(records: dict[str, object]) -> None:
     record = records["circle"]
-    exact = exact_of(record)  # type: ignore[arg-type]
-    series, _ = contour_error_series(record)  # type: ignore[arg-type]
+    exact = exact_of(record)  # type: ignore[arg-type]  # the fixture's records are RunRecords
+    series, _ = contour_error_series(record)  # type: ignore[arg-type]  # the fixture's records are RunRecords
     assert_allclose(np.abs(exact.error_m), series.error_m, rtol=0, atol=0)
     center = np.array([0.0, 0.01])  # ccw circle: inside is left of travel
     inside = np.linalg.norm(series.position_m - center, axis=1) < 0.01
@@ -91,7 +91,7 @@ def test_steady_state_is_a_constant_feed_held_for_the_window() -> None:
 @pytest.mark.parametrize("name", ["circle", "involute", "helix"])
 def test_window_estimator_meets_the_goals_on_smooth_contours(records: dict[str, object], name: str) -> None:
     names = ["window"] if name == "helix" else ["window", "path"]
-    rows = {row.estimator: row for row in measure(get_contour(name), records[name], names)}  # type: ignore[arg-type]
+    rows = {row.estimator: row for row in measure(get_contour(name), records[name], names)}  # type: ignore[arg-type]  # the fixture's records are RunRecords
     window = rows["window"]
     assert window.contour_max_um > 100.0  # real contour errors, far above the estimator's
     assert window.max_um <= GOAL_MAX_UM and window.rms_um <= GOAL_RMS_UM, window
@@ -101,7 +101,7 @@ def test_window_estimator_meets_the_goals_on_smooth_contours(records: dict[str, 
 
 
 def test_at_the_corner_the_window_errs_in_sign_at_the_vertex_only(records: dict[str, object]) -> None:
-    row, = measure(get_contour("corner"), records["corner"], ["window"])  # type: ignore[arg-type]
+    row, = measure(get_contour("corner"), records["corner"], ["window"])  # type: ignore[arg-type]  # the fixture's records are RunRecords
     assert row.goals_met is None
     assert row.magnitude_max_um < 1e-3  # magnitudes agree while following the reference
     assert row.max_um > 10.0 and row.worst.junction_mm < 1e-3  # the signed worst case sits on the vertex

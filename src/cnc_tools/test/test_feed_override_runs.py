@@ -80,7 +80,7 @@ def test_the_feed_hold_stops_on_the_path_and_the_run_resumes_and_finishes(record
                                                                           scenario: Scenario) -> None:
     assert record.reference is not None
     ref, t_s = record.reference, record.reference.stamp_ns * 1e-9
-    held = ref.feed_override_ratio == 0.0  # type: ignore[comparison-overlap]
+    held = ref.feed_override_ratio == 0.0  # type: ignore[comparison-overlap]  # an array, compared elementwise
     assert held.sum() * scenario.sample_time_s > 0.5                # most of the 0.8 s hold
     assert np.ptp(ref.position_m[held], axis=0).max() == 0.0         # standing still
     assert np.all(ref.feed_m_s[held] == 0.0) and not ref.done[held].any()

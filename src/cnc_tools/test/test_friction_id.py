@@ -19,7 +19,7 @@ QUANTISATION_DAC = 0.3
 
 
 def _config(**overrides: object) -> fid.IdentificationConfig:
-    return fid.IdentificationConfig(**{"speeds_mm_s": (1.0, 6.0, 16.0), "seeds": (), **overrides})  # type: ignore[arg-type]
+    return fid.IdentificationConfig(**{"speeds_mm_s": (1.0, 6.0, 16.0), "seeds": (), **overrides})  # type: ignore[arg-type]  # the config's own keywords
 
 
 def _template(**plant: object) -> dict:

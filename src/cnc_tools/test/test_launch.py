@@ -47,8 +47,8 @@ NODE_CLASSES = {"plant": PlantNode, "interpolator": InterpolatorNode, "servo": S
 
 def load_launch_file() -> Any:
     spec = importlib.util.spec_from_file_location("contour_graph_launch", LAUNCH_FILE)
-    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]
-    spec.loader.exec_module(module)  # type: ignore[union-attr]
+    module = importlib.util.module_from_spec(spec)  # type: ignore[arg-type]  # the file exists: a spec
+    spec.loader.exec_module(module)  # type: ignore[union-attr]  # a source file's spec has a loader
     return module
 
 

@@ -70,7 +70,7 @@ def build_config(cls: type[T], mapping: Mapping[str, Any] | None, context: str =
     The dataclass validates its own values in ``__post_init__``.
     """
     mapping = dict(mapping or {})
-    fields = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    fields = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]  # cls is a dataclass by contract
     unknown = sorted(set(mapping) - fields)
     if unknown:
         raise ConfigError(

@@ -35,7 +35,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Protocol
+from typing import Any, Protocol
 
 from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.core.slots import SlotsRecord
@@ -98,11 +98,11 @@ class ContourEstimator(Protocol):
         """
 
 
-def check_plane(plane: object, axis_count: int | None = None, context: str = "estimator") -> tuple[int, int]:
+def check_plane(plane: Any, axis_count: int | None = None, context: str = "estimator") -> tuple[int, int]:
     """``plane`` as two distinct axis indices (within ``axis_count`` when given); ConfigError otherwise."""
     try:
-        a, b = (int(i) for i in plane)  # type: ignore[attr-defined]
-        valid = all(float(i) == int(i) and not isinstance(i, bool) for i in plane)  # type: ignore[attr-defined]
+        a, b = (int(i) for i in plane)
+        valid = all(float(i) == int(i) and not isinstance(i, bool) for i in plane)
     except (TypeError, ValueError) as err:
         raise ConfigError(f"{context}.plane must be two axis indices, got {plane!r}") from err
     high = (axis_count - 1) if axis_count is not None else None

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import NoReturn
+from typing import Any, NoReturn
 
 from sensor_msgs.msg import JointState
 
@@ -11,7 +11,7 @@ from cnc_contour_control.axis.servo import ServoOutput
 from cnc_contour_control.core.errors import FaultError
 from cnc_contour_control.core.lockstep import require_finite_values, require_same_axes
 from cnc_contour_control.estimators import ContourEstimate
-from cnc_contour_control.motion.geometry import ArcSegment, Program
+from cnc_contour_control.motion.geometry import ArcSegment, Program, Segment
 from cnc_contour_control.motion.interpolation import ReferenceSample
 from cnc_contour_control.nodes.common import ns_to_stamp
 from cnc_contour_interfaces.msg import AxisCommand, Compensation, ContourError, Path, PathSegment, Reference
@@ -124,12 +124,12 @@ def program_to_path(program: Program, stamp_ns: int, frame_id: str, duration_s: 
     return msg
 
 
-def _segment_msg(segment: object) -> PathSegment:
+def _segment_msg(segment: Segment) -> PathSegment:
     msg = PathSegment()
-    msg.start_m = [float(v) for v in segment.start_m]  # type: ignore[attr-defined]
-    msg.end_m = [float(v) for v in segment.end_m]  # type: ignore[attr-defined]
-    msg.feed_m_s = float(segment.feed_m_s)  # type: ignore[attr-defined]
-    msg.length_m = float(segment.length_m)  # type: ignore[attr-defined]
+    msg.start_m = [float(v) for v in segment.start_m]
+    msg.end_m = [float(v) for v in segment.end_m]
+    msg.feed_m_s = float(segment.feed_m_s)
+    msg.length_m = float(segment.length_m)
     if isinstance(segment, ArcSegment):
         msg.kind = PathSegment.ARC_CW if segment.clockwise else PathSegment.ARC_CCW
         msg.center_m = [float(v) for v in segment.center_m]
@@ -140,13 +140,13 @@ def _segment_msg(segment: object) -> PathSegment:
     return msg
 
 
-def compensation_for(msg: object, axis: str) -> float:
+def compensation_for(msg: Any, axis: str) -> float:
     """The correction of one axis from a Compensation message; faults on bad data."""
-    names = list(msg.axis_names)  # type: ignore[attr-defined]
+    names = list(msg.axis_names)
     if axis not in names:
         raise_missing_axis("compensation", axis, names)
-    require_length(msg.correction, len(names), "compensation.correction", "axis_names")  # type: ignore[attr-defined]
-    value = float(msg.correction[names.index(axis)])  # type: ignore[attr-defined]
+    require_length(msg.correction, len(names), "compensation.correction", "axis_names")
+    value = float(msg.correction[names.index(axis)])
     require_finite_values((value,), f"compensation.correction[{axis}]")
     return value
 

@@ -138,7 +138,7 @@ class _Generator:
         return base
 
     def _generate(self, cls: type, base: str) -> None:
-        fields = list(zip(cls.__slots__, cls.SLOT_TYPES))  # type: ignore[attr-defined]
+        fields = list(zip(cls.__slots__, cls.SLOT_TYPES))  # type: ignore[attr-defined]  # a rosidl message class
         enc, dec = _Source(self.consts), _Source(self.consts)
         dec.add(f"o = _cls_{base}.__new__(_cls_{base})")
         dec.add("o._check_fields = False")

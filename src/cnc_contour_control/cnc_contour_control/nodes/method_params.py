@@ -19,7 +19,7 @@ def method_parameters(node: Node, settings: type, config_class_of: Callable[[str
     config class (``config_class_of(method)``) gives the nested parameters.
     """
     parameters: ConfigParameters[Any] = ConfigParameters(
-        node, lambda mapping: settings.from_mapping(mapping, context=node.get_name()))  # type: ignore[attr-defined]
+        node, lambda mapping: settings.from_mapping(mapping, context=node.get_name()))  # type: ignore[attr-defined]  # a settings class
     method = parameters.add(Section(settings, skip=(METHOD_PARAMS,)))["method"]
     parameters.add(Section(config_class_of(method), METHOD_PARAMS))
     return parameters

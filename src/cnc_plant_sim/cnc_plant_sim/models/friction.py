@@ -104,7 +104,7 @@ class FrictionModel(abc.ABC):
     def scaled(self, factor: float) -> FrictionModel:
         """A copy with ``scale`` multiplied by ``factor`` (>= 0)."""
         factor = require_non_negative("friction scale factor", factor)
-        return dataclasses.replace(self, scale=self.scale * factor)  # type: ignore[type-var]
+        return dataclasses.replace(self, scale=self.scale * factor)  # type: ignore[type-var]  # every model is a frozen dataclass
 
 
 def _check_scale(scale: float) -> float:
@@ -224,7 +224,7 @@ class CoulombViscousFriction(FrictionModel):
         _check_scale(self.scale)
         if self.static_dac is None:
             object.__setattr__(self, "static_dac", float(self.coulomb_dac))
-        require_non_negative("static_dac", self.static_dac)  # type: ignore[arg-type]
+        require_non_negative("static_dac", self.static_dac)  # type: ignore[arg-type]  # a float from here on
 
     def linearise(self, velocity_mm_s: float, direction: int) -> tuple[float, float]:
         """Force and slope of the chosen branch (see :meth:`FrictionModel.linearise`)."""
@@ -238,9 +238,9 @@ class CoulombViscousFriction(FrictionModel):
     def _level(self, v: float) -> tuple[float, float]:
         """Unsigned Coulomb/Stribeck level and its derivative at ``v``."""
         vs = self.stribeck_velocity_mm_s
-        excess = self.static_dac - self.coulomb_dac  # type: ignore[operator]
+        excess = self.static_dac - self.coulomb_dac  # type: ignore[operator]  # static_dac: set in __post_init__
         if vs == 0.0:
-            return (self.static_dac if v == 0.0 else self.coulomb_dac), 0.0  # type: ignore[return-value]
+            return (self.static_dac if v == 0.0 else self.coulomb_dac), 0.0  # type: ignore[return-value]  # static_dac is set
         bump = excess * math.exp(-((v / vs) ** 2))
         return self.coulomb_dac + bump, bump * (-2.0 * v / (vs * vs))
 
@@ -359,11 +359,13 @@ class TableFriction(FrictionModel):
         if direction > 0:
             if velocity_mm_s == 0.0 and self.breakaway_positive_dac is not None:
                 return self.scale * self.breakaway_positive_dac, 0.0
-            force, slope = _interp(self._pos_v, self._pos_f, velocity_mm_s)  # type: ignore[attr-defined]
+            force, slope = _interp(self._pos_v, self._pos_f,  # type: ignore[attr-defined]  # set by __post_init__
+                                   velocity_mm_s)
         else:
             if velocity_mm_s == 0.0 and self.breakaway_negative_dac is not None:
                 return self.scale * self.breakaway_negative_dac, 0.0
-            force, slope = _interp(self._neg_v, self._neg_f, velocity_mm_s)  # type: ignore[attr-defined]
+            force, slope = _interp(self._neg_v, self._neg_f,  # type: ignore[attr-defined]  # set by __post_init__
+                                   velocity_mm_s)
         return self.scale * force, self.scale * slope
 
 

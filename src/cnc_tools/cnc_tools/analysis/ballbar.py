@@ -268,7 +268,7 @@ def _flipping(traces: Sequence[CircleTrace], diags: Sequence[TraceDiagnosis]) ->
     feeds = [t.feed_m_s for t in traces]
     if any(f is None for f in feeds):
         return mismatch_um, None, squareness_urad, ("gain_difference_s: needs feed_m_s of both traces",)
-    mean_feed = 0.5 * (feeds[0] + feeds[1])  # type: ignore[operator]
+    mean_feed = 0.5 * (feeds[0] + feeds[1])  # type: ignore[operator]  # both known: checked above
     return mismatch_um, 2.0 * mismatch_um / UM_PER_M / mean_feed, squareness_urad, ()
 
 

@@ -334,7 +334,7 @@ def _csv_groups(data: Mapping[str, object]) -> list[tuple[str, list[dict[str, ob
         groups.append(("reversal", [
             {"item": f"{r['axis']} at {r['angle_deg']:.1f} deg", "n_samples": 1,
              **{k: v for k, v in r.items() if k.startswith(("peak_", "spike_"))}} for r in circular["reversals"]]))
-    return groups  # type: ignore[return-value]
+    return groups  # type: ignore[return-value]  # data holds the score's plain dicts
 
 
 def _csv_rows(score: Score) -> Iterator[tuple[object, ...]]:

@@ -75,7 +75,7 @@ def find_msg_dir(candidates: Sequence[Path] | None = None) -> Path:
     )
 
 
-def custom_type_definitions(msg_dir: Path) -> dict[str, object]:
+def custom_type_definitions(msg_dir: Path) -> dict[str, Any]:
     """Parse every ``.msg`` file of ``msg_dir`` into rosbags field definitions.
 
     Returns
@@ -93,7 +93,7 @@ def custom_type_definitions(msg_dir: Path) -> dict[str, object]:
 def build_typestore(msg_dir: Path | None = None) -> Typestore:
     """Build a fresh Jazzy typestore with the project's types registered (uncached)."""
     store = get_typestore(Stores.ROS2_JAZZY)
-    store.register(custom_type_definitions(msg_dir or find_msg_dir()))  # type: ignore[arg-type]
+    store.register(custom_type_definitions(msg_dir or find_msg_dir()))
     return store
 
 

@@ -51,7 +51,7 @@ def _best_pass_us(run_pass: Callable[[], None], ticks: int) -> float:
 
 def step_costs_us(record: RunRecord, servo: ServoController, names: Sequence[str], repeats: int) -> dict[str, float]:
     """µs per step of each estimator and of the servo (key ``"servo"``) over ``record``'s ticks, best of ``repeats``."""
-    reference, position = record.reference.position_m.tolist(), record.joint_states.position_m.tolist()  # type: ignore[union-attr]
+    reference, position = record.reference.position_m.tolist(), record.joint_states.position_m.tolist()  # type: ignore[union-attr]  # engine runs have both
     passes: dict[str, Callable[[], None]] = {name: _estimator_pass(make_estimator(name, {}, record.program),
                                                                    reference, position) for name in names}
     passes["servo"] = _servo_pass(servo, record)

@@ -27,7 +27,7 @@ _BEFORE_M = 1.0e-9
 _FREE_ACCELERATION_M_S2 = 1.0e9
 
 
-class ProgramPath(AbstractGeometricPath):  # type: ignore[misc]
+class ProgramPath(AbstractGeometricPath):  # type: ignore[misc]  # toppra ships no types (Any base)
     """``toppra``'s view of ``program`` by arc length: the axes plus one coordinate equal to ``s`` (the feed)."""
 
     def __init__(self, program: Program) -> None:

@@ -112,7 +112,7 @@ def _fit_quadratic(v: FloatArray, f: FloatArray, direction: int, limit: float, h
     residual = np.concatenate([np.polyval(coefficients, v) - f, tail])
     n_points = v.size + (0 if v_high is None else v_high.size)
     rms = float(np.sqrt(np.sum(residual ** 2) / n_points))
-    return BranchFit(direction, tuple(float(c) for c in coefficients), limit, high, rms)  # type: ignore[arg-type]
+    return BranchFit(direction, tuple(float(c) for c in coefficients), limit, high, rms)  # type: ignore[arg-type]  # degree 2: 3 values
 
 
 def fit_curve(points: Sequence[FrictionPoint]) -> tuple[BranchFit, BranchFit]:

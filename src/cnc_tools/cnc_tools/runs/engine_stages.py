@@ -115,7 +115,7 @@ class PlantStage:
         self._cutting = cutting_plant(self.plant)  # the cutting force (``cutting_force``) only when it cuts
         self._force: list[float] = []
         if self._tool is not None or self._cutting is not None:
-            self.advance = self._advance_with_extras  # type: ignore[method-assign]
+            self.advance = self._advance_with_extras  # type: ignore[method-assign]  # chosen once, per run
 
     def observe(self, board: Board) -> None:
         """The state at the tick's stamp (what ``joint_states(k)`` carries, and ``tool_position`` if faulted)."""

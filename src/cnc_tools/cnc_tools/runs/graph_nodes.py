@@ -196,7 +196,7 @@ def _servo_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
 
 def _timeouts(run: _Run, cls: type) -> dict[str, float]:
     return {"input_timeout_s": run.input_timeout_s,
-            "startup_timeout_s": max(cls.startup_timeout_s, run.input_timeout_s)}  # type: ignore[attr-defined]
+            "startup_timeout_s": max(cls.startup_timeout_s, run.input_timeout_s)}  # type: ignore[attr-defined]  # every node class has it
 
 
 def _estimator_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:

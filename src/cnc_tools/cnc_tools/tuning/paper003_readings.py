@@ -31,7 +31,7 @@ K1_PATH, K2_PATH = "plant.axis_overrides.*.ki", "plant.axis_overrides.*.kp"
 
 
 def _columns(base: p3.Paper003Model, readings: p3.Readings) -> tuple[float, float]:
-    return tuple(p3.objective_um(p3.model_of_column(c, base), readings) for c in ("standard", "optimal"))  # type: ignore[return-value]
+    return tuple(p3.objective_um(p3.model_of_column(c, base), readings) for c in ("standard", "optimal"))  # type: ignore[return-value]  # two columns
 
 
 def _fit_t_ip(base: p3.Paper003Model, readings: p3.Readings) -> float | None:

@@ -266,7 +266,7 @@ def measure(contour: Contour, record: RunRecord, names: Sequence[str],
             params: Mapping[str, Mapping[str, Any]] | None = None) -> list[FidelityRow]:
     """One row per estimator ``names`` on ``record`` (params per estimator name, default the config defaults)."""
     exact = exact_of(record)
-    reference, position = record.reference.position_m, record.joint_states.position_m  # type: ignore[union-attr]
+    reference, position = record.reference.position_m, record.joint_states.position_m  # type: ignore[union-attr]  # engine runs have both
     rows = []
     for name in names:
         estimator = make_estimator(name, (params or {}).get(name, {}), record.program)
