@@ -29,6 +29,10 @@ from cnc_contour_control.motion.points import (
     as_points,
     require_feed,
 )
+from cnc_contour_control.motion.segment_boxes import SegmentBoxes
+
+#: Programs with at least this many segments find a point's nearest segment through :class:`SegmentBoxes`.
+PREFILTER_MIN_SEGMENTS = 256
 
 __all__ = ["ArcSegment", "Dwell", "FloatArray", "IntArray", "LineSegment", "MIN_LENGTH_M", "POSITION_TOLERANCE_M",
            "Program", "Segment", "as_point", "as_points", "segment_label"]
@@ -226,11 +230,21 @@ class Program:
         """End point of the program, m, shape ``(n_axes,)``."""
         return self.segments[-1].end_m
 
+    def segment_boxes(self) -> SegmentBoxes:
+        """Every segment's bounding box and end as arrays (built once, on first use; thread-safe to build early)."""
+        boxes = self.__dict__.get("_segment_boxes")
+        if boxes is None:
+            boxes = SegmentBoxes.of(self.segments)
+            object.__setattr__(self, "_segment_boxes", boxes)
+        return boxes
+
     def contour_distance(self, points: ArrayLike) -> tuple[FloatArray, IntArray]:
         """Exact distance from each point to the whole contour.
 
         Segments whose bounding box is farther than the best distance found so
-        far are skipped for that point.
+        far are skipped for that point; from :data:`PREFILTER_MIN_SEGMENTS` on,
+        only the segments :meth:`SegmentBoxes.candidates` keeps are visited
+        (the same result, without a Python loop over every segment).
 
         Parameters
         ----------
@@ -247,7 +261,10 @@ class Program:
         p = as_points(points, self.n_axes)
         best = np.full(p.shape[0], np.inf)
         index = np.zeros(p.shape[0], dtype=np.intp)
-        for i, segment in enumerate(self.segments):
+        visit = range(len(self.segments)) if len(self.segments) < PREFILTER_MIN_SEGMENTS \
+            else self.segment_boxes().candidates(p).tolist()
+        for i in visit:
+            segment = self.segments[i]
             low, high = segment.bounding_box_m()
             gap = np.maximum(np.maximum(low - p, p - high), 0.0)
             candidates = np.flatnonzero(np.einsum("ij,ij->i", gap, gap) < best * best)

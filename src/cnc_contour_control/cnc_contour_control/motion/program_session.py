@@ -44,7 +44,7 @@ from cnc_contour_control.core.lockstep import NS_PER_S, ns_to_s
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.core.units import mm_to_m
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
-from cnc_contour_control.motion.geometry import FloatArray, Program
+from cnc_contour_control.motion.geometry import PREFILTER_MIN_SEGMENTS, FloatArray, Program
 from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig, ReferenceSample
 from cnc_contour_control.motion.program_goal import ProgramGoal, goal_program
 
@@ -261,6 +261,8 @@ class ProgramSession:
     def plan(self, goal: ProgramGoal, hold_m: FloatArray) -> tuple[Program, LiveReference]:
         """The goal's program from ``hold_m`` [m] and its planned reference (reads only frozen configuration)."""
         program = goal_program(goal, self.axes, hold_m, mm_to_m(self.params.start_tolerance_mm))
+        if len(program.segments) >= PREFILTER_MIN_SEGMENTS:
+            program.segment_boxes()  # built here, not at the first live score (a tick)
         config = self.interpolator_config
         if goal.path_tolerance_mm > 0.0:
             config = dataclasses.replace(config, path_tolerance_mm=goal.path_tolerance_mm)
