@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import re
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, TypeVar
@@ -22,7 +23,9 @@ def _where(name: str, context: str) -> str:
 
 
 def require_finite(name: str, value: float, context: str = "") -> float:
-    """Return ``value`` as float, or raise naming ``name`` if it is not a finite number."""
+    """Return ``value`` as float, or raise naming ``name`` if it is not a finite number (a bool is no number)."""
+    if _is_bool(value):  # float(True) is 1.0: `radius_mm: true` would be a 1 mm circle
+        raise ConfigError(f"{_where(name, context)} must be a number, got {value!r}")
     try:
         number = float(value)
     except (TypeError, ValueError) as err:
@@ -30,6 +33,11 @@ def require_finite(name: str, value: float, context: str = "") -> float:
     if not math.isfinite(number):
         raise ConfigError(f"{_where(name, context)} must be finite, got {value!r}")
     return number
+
+
+def _is_bool(value: Any) -> bool:
+    """True for a Python or numpy boolean."""
+    return isinstance(value, bool) or (type(value).__module__ == "numpy" and type(value).__name__ in ("bool", "bool_"))
 
 
 def require_positive(name: str, value: float, context: str = "") -> float:
@@ -121,7 +129,7 @@ def read_yaml_mapping(path: str | Path, what: str, error: type[CncError] = Confi
     file = Path(path)
     text = read_text_file(file, what, error)
     try:
-        content = yaml.load(text, Loader=_SAFE_LOADER)
+        content = load_yaml(text)
     except yaml.YAMLError as err:
         raise error(f"{what} {str(file)!r} is not valid YAML: {_one_line(err)}") from err
     if not isinstance(content, dict):
@@ -131,6 +139,37 @@ def read_yaml_mapping(path: str | Path, what: str, error: type[CncError] = Confi
 
 #: PyYAML's safe loader, libyaml's C implementation when installed (same results, several times faster).
 _SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+_FLOAT_TAG = "tag:yaml.org,2002:float"
+#: A float as YAML 1.2 writes it (``1e-3``, ``24e-1``, ``+1.5E+2``, ``1.0e6``), and YAML 1.1's other forms
+#: (``1.5``, ``.5``, ``.inf``, ``.nan``, sexagesimal ``1:30.5``). PyYAML's YAML 1.1 resolver needs a dot and a
+#: signed exponent, so it reads ``1e-3`` as the string "1e-3".
+_FLOAT = re.compile(r"""^(?:[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+
+    |[-+]?(?:[0-9][0-9_]*)?\.[0-9][0-9_]*(?:[eE][-+]?[0-9]+)?
+    |[-+]?[0-9][0-9_]*\.
+    |[-+]?[0-9][0-9_]*(?::[0-5]?[0-9])+\.[0-9_]*
+    |[-+]?\.(?:inf|Inf|INF)
+    |\.(?:nan|NaN|NAN))$""", re.X)
+
+
+class YamlLoader(_SAFE_LOADER):  # type: ignore[valid-type,misc]  # the base is chosen at import (C or Python)
+    """The safe loader whose floats are YAML 1.2's: ``1e-3`` is the number 0.001, not a string.
+
+    Everything else is PyYAML's safe loading (no Python objects; YAML 1.1
+    booleans). Every YAML a user writes (scenarios, ``--set`` values) is read
+    with it.
+    """
+
+
+YamlLoader.yaml_implicit_resolvers = {
+    first: [(tag, regexp) for tag, regexp in resolvers if tag != _FLOAT_TAG]
+    for first, resolvers in _SAFE_LOADER.yaml_implicit_resolvers.items()}
+YamlLoader.add_implicit_resolver(_FLOAT_TAG, _FLOAT, list("-+0123456789."))
+
+
+def load_yaml(text: str) -> Any:
+    """The YAML document ``text``, read by :class:`YamlLoader` (``yaml.YAMLError`` if it is not YAML)."""
+    return yaml.load(text, Loader=YamlLoader)
 
 
 def _one_line(err: Exception) -> str:

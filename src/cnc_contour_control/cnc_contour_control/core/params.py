@@ -153,6 +153,10 @@ def _plain(value: Any) -> Any:
     return value
 
 
+#: Annotations of the numeric fields (``from __future__ import annotations`` makes them strings).
+_NUMBER_TYPES = (float, int, "float", "int", "float | None", "int | None")
+
+
 def check_ranges(config: Any, context: str = "") -> None:
     """Validate every numeric field of ``config`` against its declared range (call from ``__post_init__``).
 
@@ -164,10 +168,14 @@ def check_ranges(config: Any, context: str = "") -> None:
     """
     for f in dataclasses.fields(config):
         info = f.metadata.get(_KEY)
-        if info is None or (info.low is None and info.high is None):
+        if info is None:
             continue
         value, where = getattr(config, f.name), f"{context}.{f.name}" if context else f.name
-        if isinstance(value, (bool, str)):  # YAML 1.1 reads 1.0e6 as a string: the nodes would refuse it too
+        if isinstance(value, bool) and f.type in _NUMBER_TYPES:  # a bool is no number, bounded or not
+            raise ConfigError(f"{where} must be a number, got {value!r}")
+        if info.low is None and info.high is None:
+            continue
+        if isinstance(value, (bool, str)):  # a string "1e-3" is not the number: the nodes would refuse it too
             raise ConfigError(f"{where} must be a number, got {value!r}")
         number = require_finite(f.name, value, context)
         if info.low is not None and info.high is not None:
