@@ -9,6 +9,7 @@ from typing import Any
 
 import yaml
 
+from cnc_contour_control.core.config import load_yaml
 from cnc_contour_control.core.errors import CncError
 
 #: A subcommand's handler: parsed arguments in, exit code out.
@@ -33,7 +34,7 @@ class Subcommand:
 
 
 def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
-    """``a.b=value`` strings to a nested mapping (values parsed as YAML)."""
+    """``a.b=value`` strings to a nested mapping (values parsed as YAML, floats as YAML 1.2 writes them: ``8e-4``)."""
     result: dict[str, Any] = {}
     for item in items:
         key, sep, value = item.partition("=")
@@ -43,5 +44,8 @@ def parse_overrides(items: Sequence[str]) -> dict[str, Any]:
         *parents, leaf = key.split(".")
         for part in parents:
             node = node.setdefault(part, {})
-        node[leaf] = yaml.safe_load(value)
+        try:
+            node[leaf] = load_yaml(value)
+        except yaml.YAMLError as err:
+            raise CncError(f"--set {key}: {value!r} is not a YAML value ({' '.join(str(err).split())})") from err
     return result
