@@ -116,6 +116,27 @@ def test_registries_list_the_forms() -> None:
     ({"segments": [], "feed_mm_min": 100}, "program.segments must be a non-empty list"),
     ({"gcode_file": "/nonexistent/part.ngc"}, "program.gcode_file '/nonexistent/part.ngc' does not exist"),
     ({"gcode": "G1 X1 F100", "rapid_feed_mm_min": 0}, "rapid_feed_mm_min must be > 0, got 0"),
+    # a boolean is no number (float(True) is 1.0: a 1 mm circle)
+    ({"shape": "circle", "radius_mm": True, "feed_mm_min": 400}, "program.radius_mm must be a number, got True"),
+    ({"shape": "circle", "radius_mm": 20, "feed_mm_min": False}, "program.feed_mm_min must be a number, got False"),
+    ({"shape": "line", "length_mm": 5, "feed_mm_min": 400, "angle_deg": True},
+     "program.angle_deg must be a number, got True"),
+    ({"shape": "line", "length_mm": 5, "feed_mm_min": 400, "start_mm": [True, 0]},
+     r"program.start_mm\[0\] must be a number, got True"),
+    # the user's own quantity is refused by its name and bound, not a point or a duration computed from it
+    ({"shape": "circle", "radius_mm": 1e300, "feed_mm_min": 400},
+     r"program.radius_mm must be <= 100000 mm, got 1e\+300"),
+    ({"shape": "line", "length_mm": 2e5, "feed_mm_min": 400}, "program.length_mm must be <= 100000 mm, got 200000.0"),
+    ({"shape": "corner", "leg_mm": 1e6, "feed_mm_min": 400}, "program.leg_mm must be <= 100000 mm, got 1000000.0"),
+    ({"shape": "circle", "radius_mm": 20, "feed_mm_min": 400, "start_mm": [0, -1e300]},
+     r"program.start_mm\[1\] must be in \[-100000, 100000\] mm, got -1e\+300"),
+    ({"shape": "line", "length_mm": 10, "feed_mm_min": 0.0000001},
+     "program.feed_mm_min must be >= 0.01 mm/min, got 1e-07"),
+    ({"segments": [{"line": {"to_mm": [1, 0], "feed_mm_min": 0.001}}]},
+     r"program.segments\[0\].line.feed_mm_min must be >= 0.01 mm/min, got 0.001"),
+    ({"segments": [{"arc": {"to_mm": [0, 0], "center_mm": [0, 1e9], "direction": "cw"}}], "feed_mm_min": 100},
+     r"program.segments\[0\].arc.center_mm\[1\] must be in \[-100000, 100000\] mm, got 1000000000.0"),
+    ({"gcode": "G1 X1 F100", "rapid_feed_mm_min": 1e-9}, "program.rapid_feed_mm_min must be >= 0.01 mm/min"),
 ])
 def test_bad_program_sections_are_refused(mapping: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message):

@@ -6,7 +6,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from cnc_contour_control.core.config import require_positive
+from cnc_contour_control.core.config import require_finite, require_positive
 from cnc_contour_control.core.errors import ConfigError, ProgramError
 
 FloatArray = NDArray[np.float64]
@@ -18,6 +18,11 @@ POSITION_TOLERANCE_M = 1.0e-6
 RADIUS_TOLERANCE_M = 2.0e-6
 #: Shortest segment (and smallest radius) accepted, m.
 MIN_LENGTH_M = 1.0e-9
+#: Largest coordinate, length or radius a program may give, mm (100 m: beyond the largest machine tool), so a
+#: wrong value is refused by its own name, not by a point computed from it.
+MAX_EXTENT_MM = 1.0e5
+#: Slowest programmed feed, mm/min (0.6 mm an hour): slower, a program takes longer than a run may last.
+MIN_FEED_MM_MIN = 1.0e-2
 TWO_PI = 2.0 * math.pi
 GOLDEN = (math.sqrt(5.0) - 1.0) / 2.0
 
@@ -43,6 +48,27 @@ def as_points(points: ArrayLike, n_axes: int) -> FloatArray:
     if array.ndim != 2 or array.shape[1] != n_axes:
         raise ProgramError(f"points must have shape (N, {n_axes}), got {array.shape}")
     return array
+
+
+def require_extent_mm(name: str, value: float, context: str = "", positive: bool = False) -> float:
+    """``value`` (mm) if it is finite, within +-:data:`MAX_EXTENT_MM` (and > 0 if ``positive``); a
+    ConfigError naming ``name``, the bound and the value otherwise."""
+    number = require_positive(name, value, context) if positive else require_finite(name, value, context)
+    if abs(number) > MAX_EXTENT_MM:
+        where = f"{context}.{name}" if context else name
+        bound = f"<= {MAX_EXTENT_MM:g}" if positive else f"in [{-MAX_EXTENT_MM:g}, {MAX_EXTENT_MM:g}]"
+        raise ConfigError(f"{where} must be {bound} mm, got {value!r}")
+    return number
+
+
+def require_feed_mm_min(name: str, value: float, context: str = "") -> float:
+    """A programmed feed (mm/min) if it is finite and >= :data:`MIN_FEED_MM_MIN`; a ConfigError naming ``name``,
+    the bound and the value otherwise."""
+    number = require_positive(name, value, context)
+    if number < MIN_FEED_MM_MIN:
+        where = f"{context}.{name}" if context else name
+        raise ConfigError(f"{where} must be >= {MIN_FEED_MM_MIN:g} mm/min, got {value!r}")
+    return number
 
 
 def require_feed(feed_m_s: float) -> float:

@@ -34,7 +34,6 @@ from cnc_contour_control.core.config import (
     build_config,
     require_choice,
     require_finite,
-    require_positive,
     require_range,
 )
 from cnc_contour_control.core.errors import ConfigError, ProgramError
@@ -42,6 +41,7 @@ from cnc_contour_control.core.units import mm_min_to_m_s, mm_to_m
 from cnc_contour_control.motion.gcode import parse_gcode
 from cnc_contour_control.motion.gcode_file import read_gcode_file
 from cnc_contour_control.motion.geometry import ArcSegment, FloatArray, LineSegment, Program, Segment
+from cnc_contour_control.motion.points import require_extent_mm, require_feed_mm_min
 
 #: Arc direction name -> clockwise.
 DIRECTIONS: dict[str, bool] = {"cw": True, "ccw": False}
@@ -61,7 +61,7 @@ def _point_mm(name: str, value: Any, n_axes: int, context: str) -> FloatArray:
     values: list[Any] = [value] if np.isscalar(value) else list(value)
     if len(values) != n_axes:
         raise ConfigError(f"{context}.{name} must have {n_axes} entries (one per axis), got {value!r}")
-    return np.array([require_finite(f"{name}[{j}]", v, context) for j, v in enumerate(values)])
+    return np.array([require_extent_mm(f"{name}[{j}]", v, context) for j, v in enumerate(values)])
 
 
 def _planar_offset_mm(n_axes: int, distance_mm: float, angle_deg: float) -> FloatArray:
@@ -83,8 +83,8 @@ class LineShape:
     axes: Any = ("x", "y")
 
     def __post_init__(self) -> None:
-        require_positive("length_mm", self.length_mm, "program")
-        require_positive("feed_mm_min", self.feed_mm_min, "program")
+        require_extent_mm("length_mm", self.length_mm, "program", positive=True)
+        require_feed_mm_min("feed_mm_min", self.feed_mm_min, "program")
         require_finite("angle_deg", self.angle_deg, "program")
 
     def segments(self, start_mm: FloatArray) -> list[Segment]:
@@ -108,8 +108,8 @@ class CircleShape:
     axes: Any = ("x", "y")
 
     def __post_init__(self) -> None:
-        require_positive("radius_mm", self.radius_mm, "program")
-        require_positive("feed_mm_min", self.feed_mm_min, "program")
+        require_extent_mm("radius_mm", self.radius_mm, "program", positive=True)
+        require_feed_mm_min("feed_mm_min", self.feed_mm_min, "program")
         require_choice("direction", self.direction, DIRECTIONS, "program")
         require_finite("start_angle_deg", self.start_angle_deg, "program")
 
@@ -132,8 +132,8 @@ class CornerShape:
     axes: Any = ("x", "y")
 
     def __post_init__(self) -> None:
-        require_positive("leg_mm", self.leg_mm, "program")
-        require_positive("feed_mm_min", self.feed_mm_min, "program")
+        require_extent_mm("leg_mm", self.leg_mm, "program", positive=True)
+        require_feed_mm_min("feed_mm_min", self.feed_mm_min, "program")
         require_range("angle_deg", self.angle_deg, -180.0, 180.0, "program")
         require_finite("heading_deg", self.heading_deg, "program")
 
@@ -184,7 +184,7 @@ class ExplicitProgram:
 
     def __post_init__(self) -> None:
         if self.feed_mm_min is not None:
-            require_positive("feed_mm_min", self.feed_mm_min, "program")
+            require_feed_mm_min("feed_mm_min", self.feed_mm_min, "program")
         if isinstance(self.segments, (str, Mapping)) or not isinstance(self.segments, Sequence) or not self.segments:
             raise ConfigError(f"program.segments must be a non-empty list, got {self.segments!r}")
 
@@ -228,7 +228,7 @@ def _segment_feed_m_s(spec: LineSpec | ArcSpec, default_mm_min: float | None, co
     feed = spec.feed_mm_min if spec.feed_mm_min is not None else default_mm_min
     if feed is None:
         raise ConfigError(f"{context}.feed_mm_min is required (the program has no feed_mm_min)")
-    return mm_min_to_m_s(require_positive("feed_mm_min", feed, context))
+    return mm_min_to_m_s(require_feed_mm_min("feed_mm_min", feed, context))
 
 
 def _explicit_segment(item: Any, start_mm: FloatArray, options: ExplicitProgram,
@@ -278,6 +278,7 @@ def _from_shape(body: dict[str, Any], name: str, base_dir: Path | None) -> Progr
 
 def _gcode(text: str, body: dict[str, Any], name: str) -> Program:
     options = build_config(GcodeOptions, body, "program")
+    require_feed_mm_min("rapid_feed_mm_min", options.rapid_feed_mm_min, "program")
     return parse_gcode(text, _axes(options.axes, "program"), rapid_feed_mm_min=options.rapid_feed_mm_min,
                        start_mm=options.start_mm, name=name, work_offsets_mm=options.work_offsets_mm)
 
