@@ -32,7 +32,7 @@ from cnc_contour_control.core.errors import CncError
 SUCCESS, FAILURE = TransitionCallbackReturn.SUCCESS, TransitionCallbackReturn.FAILURE
 
 
-class ManagedNode(LifecycleNode):
+class ManagedNode(LifecycleNode):  # type: ignore[misc]  # rclpy is skipped (mypy.ini): LifecycleNode is Any
     """A lifecycle node whose subclasses build themselves in :meth:`configure` (see the module docstring)."""
 
     def __init__(self, name: str, **kwargs: Any) -> None:
