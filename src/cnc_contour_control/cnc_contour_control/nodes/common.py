@@ -177,6 +177,7 @@ class SuiteNode(ManagedNode):
         super().__init__(name, **kwargs)
         self.fault_message: str | None = None
         self.finished = False
+        self.tick_stamp_ns = 0  # the run's time: the stamp of the last tick this node took in, ns (0 before any)
         self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 100)
         self.created_s = wall_time_s()
         self._waits: dict[str, str] = {}  # what this node waits for, by who noticed it
@@ -276,6 +277,8 @@ class SuiteNode(ManagedNode):
                 result = accept(msg)
             except FaultError as err:
                 raise FaultError(f"{resolved}: {err}") from err
+            if result is not None:  # taken in (a whole tick, or a message of one): the run has reached its stamp
+                self.note_tick(stamp_to_ns(msg.header.stamp))
             if then is not None and result is not None:
                 then(result)
 
@@ -290,9 +293,21 @@ class SuiteNode(ManagedNode):
         """Declare a parameter and return its value."""
         return self.declare_parameter(name, default, descriptor).value
 
+    def note_tick(self, stamp_ns: int) -> None:
+        """The run has reached ``stamp_ns`` (a tick this node took in); its statuses are stamped so from now."""
+        self.tick_stamp_ns = max(self.tick_stamp_ns, stamp_ns)
+
+    def run_stamp_ns(self) -> int:
+        """The stamp of a status given without one: the run's time (the last tick's stamp, 0 before the first)."""
+        return self.tick_stamp_ns
+
     def report(self, level: bytes, message: str, values: dict[str, str] | None = None,
                stamp_ns: int | None = None) -> None:
-        """Publish one status of this node on /diagnostics (stamped ``stamp_ns`` of the run, else the node's clock)."""
+        """Publish one status of this node on /diagnostics, stamped ``stamp_ns``, else :meth:`run_stamp_ns`.
+
+        Every status of a run is in the run's (simulation) time, never the wall clock: a waiting or fault
+        status sorts with the run's messages.
+        """
         status = DiagnosticStatus(
             level=level,
             name=self.get_fully_qualified_name(),
@@ -301,7 +316,7 @@ class SuiteNode(ManagedNode):
             values=[KeyValue(key=k, value=v) for k, v in {RUN_ID_KEY: self.get_namespace(), **(values or {})}.items()],
         )
         array = DiagnosticArray(status=[status])
-        array.header.stamp = self.get_clock().now().to_msg() if stamp_ns is None else ns_to_stamp(stamp_ns)
+        array.header.stamp = ns_to_stamp(self.run_stamp_ns() if stamp_ns is None else stamp_ns)
         self._diagnostics.publish(array)
 
     def fault(self, message: str) -> None:

@@ -292,6 +292,11 @@ class PlantNode(SuiteNode):
         else:
             self._publish_tick()
 
+    def run_stamp_ns(self) -> int:
+        """The run's time for a status: the stamp of the plant's tick (0 before its clock exists)."""
+        clock = getattr(self, "clock", None)  # built in configure: a refused configure reports before it
+        return 0 if clock is None else int(clock.stamp_ns)
+
     def fault(self, message: str) -> None:
         """Fault as every node does, and keep the run's summary."""
         super().fault(message)

@@ -85,6 +85,10 @@ class RecorderNode(SuiteNode):
         self.create_timer(0.05, self.guarded(self._check_done))
         self.create_timer(FLUSH_PERIOD_S, self.guarded(self.writer.flush))  # a killed recorder loses <= 1 s
 
+    def run_stamp_ns(self) -> int:
+        """The run's time for a status: the latest simulation stamp recorded (0 before any)."""
+        return int(getattr(self, "latest_sim_ns", 0))  # set once the bag is open: a refusal before reports 0
+
     def _subscribe(self, topic: str, type_name: str, qos: Any) -> None:
         self.create_subscription(message_class(type_name, topic), topic, self._writer_for(topic, type_name), qos,
                                  raw=True)
