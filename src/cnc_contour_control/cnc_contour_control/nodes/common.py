@@ -28,6 +28,7 @@ from cnc_contour_control.core.stop_signals import StopSignals
 from cnc_contour_control.core.topics import RUN_ID_KEY, qualify
 from cnc_contour_control.nodes import fast_cdr, local_bus
 from cnc_contour_control.nodes.lifecycle import ManagedNode
+from cnc_contour_control.nodes.parameters import command_line_rules
 
 #: Lockstep data: reliable and deep, so nothing is dropped while a stage is busy.
 LOCKSTEP_QOS = QoSProfile(
@@ -170,11 +171,29 @@ class GatedPublisher:
             self._held.clear()
 
 
+def command_line_first(kwargs: dict[str, Any], argv: Sequence[str] | None = None) -> dict[str, Any]:
+    """A node's constructor arguments with the process's ``-p NAME:=VALUE`` (``argv``, default ``sys.argv``) given
+    again as the node's own arguments, so they win over any ``--params-file``.
+
+    rclpy applies a parameters file's ``/<ns>/<node>`` section after its ``/**`` entries, where rcl puts a
+    command line's ``-p``: ``--params-file F -p summary_file:=S`` kept F's plant ``summary_file``. A node's own
+    arguments come after the process's, so there the rule wins, as a ROS user expects. A node that ignores the
+    process's arguments (``use_global_arguments=False``, a composed host's member) is left as it is.
+    """
+    if not kwargs.get("use_global_arguments", True):
+        return kwargs
+    rules = command_line_rules(sys.argv if argv is None else argv)
+    if not rules:
+        return kwargs
+    own = list(kwargs.get("cli_args") or [])
+    return {**kwargs, "cli_args": [*own, "--ros-args", *(word for rule in rules for word in ("-p", rule))]}
+
+
 class SuiteNode(ManagedNode):
     """A node that reports faults on ``/diagnostics`` and stops on them; managed if it builds in ``configure``."""
 
     def __init__(self, name: str, **kwargs: Any) -> None:
-        super().__init__(name, **kwargs)
+        super().__init__(name, **command_line_first(kwargs))
         self.fault_message: str | None = None
         self.finished = False
         self.tick_stamp_ns = 0  # the run's time: the stamp of the last tick this node took in, ns (0 before any)

@@ -160,6 +160,18 @@ def command_line_words(argv: Sequence[str], node_name: str) -> dict[str, str]:
     return words
 
 
+def command_line_rules(argv: Sequence[str]) -> list[str]:
+    """Every ``-p RULE`` (``--param``) in the ROS arguments of ``argv``, as written (``NAME:=VALUE``)."""
+    rules: list[str] = []
+    ros = False
+    for index, arg in enumerate(argv):
+        if arg in ("--ros-args", "--"):
+            ros = arg == "--ros-args"
+        elif ros and arg in ("-p", "--param") and index + 1 < len(argv) and ":=" in argv[index + 1]:
+            rules.append(argv[index + 1])
+    return rules
+
+
 def given_value(name: str, kind: Type, value: Any, word: str | None = None) -> Any:
     """A value given for parameter ``name`` as type ``kind`` where that loses nothing; else unchanged.
 
