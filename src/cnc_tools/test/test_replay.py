@@ -318,3 +318,60 @@ def test_replaying_into_the_recorder_records_the_same_bag(tmp_path: Path, synth)
         wait_until(holds_everything, 30.0, f"the recorder to hold {expected}")
     rerecorded = _recorded(copy)  # the recorder closed its bag when its node was destroyed
     assert {t: rerecorded[t] for t in recorded} == recorded
+
+
+# --------------------------------------------------------------------------- waiting for readers (issue 22)
+def test_the_command_awaits_the_chosen_topics_else_all_but_the_clock_and_diagnostics(tmp_path: Path, synth) -> None:
+    from cnc_tools.cli.replay import awaited_topics
+
+    recording = load_recording(_small_run(tmp_path, synth))
+    assert "/clock" in recording.topics
+    assert awaited_topics(recording, ()) == sorted(t for t in recording.topics if t != "/clock")
+    assert awaited_topics(recording, ("/clock", "/cnc/path")) == ["/clock", "/cnc/path"]
+
+
+def _replay_command(bag: Path, *options: str) -> list[str]:
+    return [sys.executable, "-m", "cnc_tools.cli.main", "replay", str(bag), "--rate", "20", *options]
+
+
+@pytest.mark.nodes
+def test_waiting_for_readers_that_never_come_says_for_whom_and_gives_up_at_the_timeout(tmp_path: Path, synth) -> None:
+    """Before, without --topics it waited silently and for ever (for readers of /clock too)."""
+    from cnc_contour_control.nodes.common import EXIT_FAULT
+    from cnc_tools.runs.dds import claim_free_domain_id, loopback_env
+
+    bag = _small_run(tmp_path, synth, n=10)
+    domain = claim_free_domain_id()  # a domain of its own: no reader of /cnc/... from anyone else's test
+    try:
+        result = subprocess.run(_replay_command(bag, "--wait-for-subscribers", "1", "--wait-timeout", "1.5"),
+                                capture_output=True, text=True, timeout=60,
+                                env=loopback_env(domain_id=domain.domain_id))
+    finally:
+        domain.release()
+    output = result.stdout + result.stderr
+    assert result.returncode == EXIT_FAULT, output
+    awaited = ", ".join(sorted(t for t in load_recording(bag).topics if t != "/clock"))
+    assert f"waiting up to 1.5 s for 1 reader(s) of each of {awaited}\n" in result.stdout, output
+    assert "no 1 reader(s) within wait_timeout_s = 1.5 s on /cnc/joint_states (0 of 1)" in output, output
+
+
+@pytest.mark.nodes
+def test_without_topics_it_starts_once_the_graphs_topics_have_readers_and_no_one_reads_the_clock(
+        tmp_path: Path, synth) -> None:
+    bag = _small_run(tmp_path, synth, n=10)
+    recorded = _recorded(bag)
+    read = {t: ty for t, ty in load_recording(bag).topics.items() if t != "/clock"}
+    with _raw_probe(read) as probe:
+        process = subprocess.Popen(_replay_command(bag, "--wait-for-subscribers", "1"), stdout=subprocess.PIPE,
+                                   stderr=subprocess.STDOUT, start_new_session=True)
+        try:
+            _wait_for_all(probe, {t: len(recorded[t]) for t in read})
+            output, _ = process.communicate(timeout=30)
+        finally:
+            if process.poll() is None:
+                process.kill()
+                process.wait(timeout=10)
+        received = {topic: len(probe.received(topic)) for topic in read}
+    assert process.returncode == 0, output.decode()
+    assert received == {t: len(recorded[t]) for t in read}
+    assert b"waiting up to 30 s for 1 reader(s) of each of /cnc/joint_states" in output

@@ -5,7 +5,14 @@ import argparse
 from pathlib import Path
 
 from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.topics import CLOCK, DIAGNOSTICS
 from cnc_tools.bagio.replay import Recording, ReplayConfig, ReplaySchedule, load_recording
+
+#: Types of the topics a replay does not wait for readers of unless named by --topics: the run's clock and
+#: statuses, which no stage of a graph reads (nothing may ever read them).
+UNAWAITED_TYPES = frozenset({CLOCK.type_name, DIAGNOSTICS.type_name})
+#: Default of --wait-timeout, s.
+WAIT_TIMEOUT_S = 30.0
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -19,25 +26,45 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="skip stretches of log time longer than S seconds with no message (default 10; 0: never)")
     parser.add_argument("--topics", nargs="+", default=[], metavar="TOPIC", help="replay only these topics")
     parser.add_argument("--wait-for-subscribers", type=int, default=0, metavar="N",
-                        help="start once every replayed topic has N readers (default 0: at once)")
+                        help="start once each replayed topic has N readers: those of --topics, else every one but "
+                             "the clock and /diagnostics (default 0: at once)")
+    parser.add_argument("--wait-timeout", type=float, default=WAIT_TIMEOUT_S, metavar="S",
+                        help=f"give up (exit 3) when the readers are not there within S seconds "
+                             f"(default {WAIT_TIMEOUT_S:g})")
 
 
 def replay(args: argparse.Namespace) -> int:
     """Replay a bag; exit 0 when done, 1 if the bag was damaged (its prefix was replayed), 3 on a fault."""
     if not 0 <= args.wait_for_subscribers <= 1000:
         raise ConfigError(f"--wait-for-subscribers must be in [0, 1000], got {args.wait_for_subscribers}")
+    if not 0.01 <= args.wait_timeout <= 1e6:
+        raise ConfigError(f"--wait-timeout must be in [0.01, 1000000] s, got {args.wait_timeout}")
     config = ReplayConfig(rate=args.rate, start_offset_s=args.start_offset, loop=args.loop, topics=tuple(args.topics),
                           skip_empty_s=args.skip_empty)
     recording = load_recording(args.bag, config.topics)
     schedule = ReplaySchedule(recording, config)  # refuses a start offset past the end before any DDS starts
     print(f"replaying {recording.describe()}\n  {schedule.describe()}", flush=True)
-    code = _spin(recording, config, args.wait_for_subscribers)
+    awaited = awaited_topics(recording, config.topics)
+    if args.wait_for_subscribers:
+        print(f"waiting up to {args.wait_timeout:g} s for {args.wait_for_subscribers} reader(s) of each of "
+              f"{', '.join(awaited)}", flush=True)
+    code = _spin(recording, config, args.wait_for_subscribers, awaited, args.wait_timeout)
     if code == 0 and not recording.integrity.complete:
         return 1
     return code
 
 
-def _spin(recording: Recording, config: ReplayConfig, min_subscribers: int) -> int:
+def awaited_topics(recording: Recording, chosen: tuple[str, ...]) -> list[str]:
+    """The topics whose readers a replay waits for: the ``chosen`` ones (--topics), else every replayed topic but
+    those of :data:`UNAWAITED_TYPES` (all of them if that leaves none)."""
+    if chosen:
+        return sorted(chosen)
+    awaited = sorted(t for t, type_name in recording.topics.items() if type_name not in UNAWAITED_TYPES)
+    return awaited or sorted(recording.topics)
+
+
+def _spin(recording: Recording, config: ReplayConfig, min_subscribers: int, awaited: list[str],
+          wait_timeout_s: float) -> int:
     """Run the replay node in this process until the replay ends (rclpy is imported only here)."""
     from rclpy.parameter import Parameter
 
@@ -48,5 +75,7 @@ def _spin(recording: Recording, config: ReplayConfig, min_subscribers: int) -> i
                  Parameter("start_offset_s", value=float(config.start_offset_s)), Parameter("loop", value=config.loop),
                  Parameter("topics", value=list(config.topics) or [""]),
                  Parameter("skip_empty_s", value=float(config.skip_empty_s)),
-                 Parameter("min_subscribers", value=int(min_subscribers))]
+                 Parameter("min_subscribers", value=int(min_subscribers)),
+                 Parameter("wait_topics", value=list(awaited)),
+                 Parameter("wait_timeout_s", value=float(wait_timeout_s))]
     return spin_node(lambda: ReplayNode(recording, namespace="/cnc", parameter_overrides=overrides), [])

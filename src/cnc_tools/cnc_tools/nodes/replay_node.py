@@ -5,7 +5,7 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus
 
-from cnc_contour_control.core.errors import BagError
+from cnc_contour_control.core.errors import BagError, ConfigError, FaultError
 from cnc_contour_control.nodes.common import (
     LATCHED_QOS,
     LOCKSTEP_QOS,
@@ -31,6 +31,8 @@ from cnc_tools.bagio.replay import (
 _WAIT_PERIOD_S = 0.01
 #: Shortest timer period, ns (a zero period would spin).
 _MIN_PERIOD_NS = 1_000
+#: Default of ``wait_timeout_s``: wall seconds playback waits for its readers before it is a fault.
+WAIT_TIMEOUT_S = 30.0
 
 
 class ReplayNode(SuiteNode):
@@ -46,13 +48,19 @@ class ReplayNode(SuiteNode):
                            describe("bag folder (or .mcap file) to replay", read_only=True))
         config = self._declare_config()
         self.min_subscribers = self.declare("min_subscribers", 0, describe(
-            "readers every replayed topic must have before playback starts", 0, 1000, True, True))
+            "readers each topic of wait_topics must have before playback starts", 0, 1000, True, True))
+        wait_topics = topics_of(self.declare("wait_topics", [""], describe(
+            "replayed topics whose readers playback waits for (empty: every replayed topic)", read_only=True)))
+        self.wait_timeout_s = self.declare("wait_timeout_s", WAIT_TIMEOUT_S, describe(
+            "wall time playback waits for the readers before it is a fault, s", 0.01, SECONDS_MAX, True))
         if recording is None and not bag:
             raise BagError("replay: parameter bag (the bag folder to replay) is required")
         self.recording = recording if recording is not None else load_recording(bag, config.topics)
         self.schedule = ReplaySchedule(self.recording, config)
         self.outputs = {topic: self._publisher(topic, type_name) for topic, type_name in self.recording.topics.items()}
+        self.awaited = self._awaited(wait_topics)
         self.started_at_s: float | None = None
+        self.waiting_since_s = wall_time_s()
         self.get_logger().info(f"replaying {self.recording.describe()}: {self.schedule.describe()}")
         self._timer = self.create_timer(_WAIT_PERIOD_S, self.guarded(self._tick))
 
@@ -87,8 +95,23 @@ class ReplayNode(SuiteNode):
         self._timer.timer_period_ns = max(int(wait_s * 1e9), _MIN_PERIOD_NS)
         self._timer.reset()
 
+    def _awaited(self, wait_topics: tuple[str, ...]) -> dict[str, Any]:
+        """The publishers whose readers playback waits for: those of ``wait_topics``, else every one."""
+        unknown = sorted(set(wait_topics) - set(self.outputs))
+        if unknown:
+            raise ConfigError(f"replay: wait_topics {unknown} are not replayed; replayed: {sorted(self.outputs)}")
+        return {t: p for t, p in self.outputs.items() if not wait_topics or t in wait_topics}
+
     def _readers_ready(self) -> bool:
-        return all(p.get_subscription_count() >= self.min_subscribers for p in self.outputs.values())
+        """True once every awaited topic has ``min_subscribers`` readers; a fault naming them after
+        ``wait_timeout_s``."""
+        short = {t: n for t, p in self.awaited.items() if (n := p.get_subscription_count()) < self.min_subscribers}
+        what = ", ".join(f"{t} ({n} of {self.min_subscribers})" for t, n in short.items())
+        self.waiting_for("readers", f"readers of {what}" if short else None)
+        if short and wall_time_s() - self.waiting_since_s > self.wait_timeout_s:
+            raise FaultError(f"replay: no {self.min_subscribers} reader(s) within wait_timeout_s = "
+                             f"{self.wait_timeout_s:g} s on {what}")
+        return not short
 
     def _start(self) -> float:
         """Note the wall time playback starts at; warn on /diagnostics if the bag is damaged."""
