@@ -11,7 +11,8 @@ from scipy import signal
 from cnc_contour_control.core.config import build_config
 from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.core.force_model import FirstOrderLag
-from cnc_plant_sim.process.turning import MM_MIN_PER_M_S, TurningConfig, TurningProcess
+from cnc_contour_control.core.units import MM_MIN_PER_M_S
+from cnc_plant_sim.process.turning import TurningConfig, TurningProcess
 
 
 def _velocity_m_s(feed_mm_rev: float, rpm: float = 600.0) -> float:

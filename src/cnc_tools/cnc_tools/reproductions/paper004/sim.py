@@ -16,8 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
+from cnc_contour_control.core.units import MM_MIN_PER_M_S
 from cnc_contour_control.force import FirstOrderLag, ForceRegulator, TurningModelConfig
-from cnc_plant_sim.process.turning import MM_MIN_PER_M_S, TurningConfig, TurningProcess
+from cnc_plant_sim.process.turning import TurningConfig, TurningProcess
 
 
 @dataclass(frozen=True)
