@@ -141,3 +141,19 @@ def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_
     assert max(machine.tick_s) < TICK_BOUND_S, f"longest tick {max(machine.tick_s):.3f} s"
     assert deactivated.outcome == RunProgram.Result.ABORTED and "deactivated" in deactivated.reason
     assert 0.0 < deactivated.path_length_m < deactivated.total_length_m and deactivated.ticks > 10
+
+
+def test_a_serialized_path_gets_its_stamp_at_the_first_tick() -> None:
+    from rclpy.serialization import deserialize_message, serialize_message
+
+    from cnc_contour_control.nodes import fast_cdr
+    from cnc_contour_control.nodes.program_action import stamped_cdr
+    from cnc_contour_interfaces.msg import Path as PathMsg
+
+    msg = PathMsg(program_name="part", axis_names=["x", "y"], total_length_m=0.25)
+    msg.header.frame_id = "machine"
+    codec = fast_cdr.codec_for(PathMsg)
+    for encode in (serialize_message, *([] if codec is None else [codec.encode])):
+        back = deserialize_message(stamped_cdr(encode(msg), 12_345_678_901), PathMsg)
+        assert (back.header.stamp.sec, back.header.stamp.nanosec) == (12, 345_678_901)
+        assert (back.program_name, back.header.frame_id, back.total_length_m) == ("part", "machine", 0.25)

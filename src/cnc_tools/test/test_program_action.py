@@ -8,6 +8,7 @@ position in between, the plant ticks in lockstep for as long as the test runs.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterator
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
@@ -15,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.action import ActionClient
 
 from cnc_contour_control.nodes.common import LATCHED_QOS, stamp_to_ns
@@ -72,10 +73,11 @@ def action_graph(tmp_path: Path) -> Iterator[None]:
         yield
 
 
-def send(probe: TopicProbe, client: ActionClient, gcode: str, feedback: list[Any] | None = None) -> Any:
+def send(probe: TopicProbe, client: ActionClient, gcode: str, feedback: list[Any] | None = None,
+         program_file: str = "") -> Any:
     """Send a goal, wait for the answer; its goal handle (``accepted`` tells)."""
     callback = None if feedback is None else (lambda msg: feedback.append(msg.feedback))
-    future = client.send_goal_async(RunProgram.Goal(gcode=gcode), feedback_callback=callback)
+    future = client.send_goal_async(RunProgram.Goal(gcode=gcode, program_file=program_file), feedback_callback=callback)
     probe.wait_for(future.done, 20.0, "the goal's answer")
     return future.result()
 
@@ -184,3 +186,29 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
     accelerations = np.abs(np.diff(cancelled, 2, axis=0)) / (T_NS * 1e-9) ** 2
     assert np.max(accelerations) <= 0.25 * (1 + 1e-9), "within max_acceleration_m_s2 (250 mm/s^2)"
     assert np.all(cancelled[-3:] == cancelled[-1]), "at rest before the next program"
+
+
+def test_a_huge_program_file_is_planned_while_the_machine_ticks(tmp_path: Path) -> None:
+    """200 000 lines, 3.7 MB (the file that once blocked the interpolator beyond the servos' 5 s input timeout)."""
+    part = tmp_path / "huge.ngc"
+    moves = (f"X{20 * math.cos(i * 1e-4) - 20:.4f} Y{20 * math.sin(i * 1e-4):.4f}" for i in range(200_000))
+    part.write_text("(huge)\nG1 F1200\n" + "\n".join(moves) + "\n")
+    arrivals: list[float] = []
+    probed = {"/cnc/reference": Reference, "/diagnostics": DiagnosticArray}
+    with TopicProbe(probed) as probe, action_graph(tmp_path):
+        probe.watch("/cnc/reference", lambda msg: arrivals.append(time.monotonic()))
+        client = ActionClient(probe.node, RunProgram, "/cnc/run_program")
+        probe.wait_for(client.server_is_ready, 30.0, "the RunProgram server")
+        probe.wait_for(lambda: len(arrivals) > 10, 60.0, "hold references while idle")
+        feedback: list[Any] = []
+        handle = send(probe, client, "", feedback, program_file=str(part))
+        sent_s = time.monotonic()
+        probe.wait_for(lambda: bool(feedback), 120.0, "the huge program started")
+        started_s = time.monotonic()
+        probe.wait_for(handle.cancel_goal_async().done, 10.0, "the cancel's answer")
+        result = result_of(probe, handle)
+    errors = [s.message for a in probe.received("/diagnostics") for s in a.status if s.level == DiagnosticStatus.ERROR]
+    gaps_s = np.diff([t for t in arrivals if sent_s <= t <= started_s])
+    assert part.stat().st_size > 3.5e6 and not errors, errors
+    assert result.outcome == RunProgram.Result.CANCELED and result.ticks > 0, result.reason
+    assert len(gaps_s) > 50 and max(gaps_s) < 1.0, f"{len(gaps_s)} ticks while planning, longest {max(gaps_s):.3f} s"

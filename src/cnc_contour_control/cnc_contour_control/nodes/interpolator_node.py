@@ -17,6 +17,7 @@ import math
 from collections import deque
 from typing import Any
 
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.core.errors import ConfigError
@@ -39,6 +40,7 @@ from cnc_contour_control.motion.interpolation import (
 )
 from cnc_contour_control.motion.program_file import read_program_file
 from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
+from cnc_contour_control.nodes import fast_cdr
 from cnc_contour_control.nodes.common import (
     LATCHED_QOS,
     SuiteNode,
@@ -48,7 +50,7 @@ from cnc_contour_control.nodes.common import (
 )
 from cnc_contour_control.nodes.conversions import joint_positions, program_to_path, reference_to_msg
 from cnc_contour_control.nodes.parameters import declare_config
-from cnc_contour_control.nodes.program_action import ProgramActionServer
+from cnc_contour_control.nodes.program_action import ProgramActionServer, stamped_cdr
 from cnc_contour_control.nodes.refusals import RefusalCounter
 from cnc_contour_interfaces.msg import FeedOverride, Path, Reference
 
@@ -84,7 +86,7 @@ class InterpolatorNode(SuiteNode):
             self._publish_path(self.interpolator.programmed_program, self.interpolator, 0)
         else:
             self.action = ProgramActionServer(self, self.session, session_params.bag_path,
-                                              session_params.feedback_period_s, self._publish_started)
+                                              session_params.feedback_period_s, self._path_cdr, self._publish_started)
         # A joint state is answered at once (previous_tick: once feed_override(k-1) is in, watched by a timer);
         # the matcher checks stamps (from t = 0).
         self.matcher = StampMatcher(("joint_states",), math.inf, max_ahead_ns=stamp_horizon_ns())
@@ -198,19 +200,33 @@ class InterpolatorNode(SuiteNode):
         if self.action is not None:
             self.action.after_tick()
 
-    def _publish_started(self, program: Program, live: LiveReference, stamp_ns: int) -> None:
+    def _path_cdr(self, program: Program, live: LiveReference) -> bytes:
+        """An action-mode program's ``path`` message, serialized (the planning thread calls this; stamp 0).
+
+        By the suite's Python codec where there is one: rclpy's ``serialize_message`` is one C call that holds the
+        interpreter lock throughout (1.3 s for 200 000 segments), stalling the tick's thread meanwhile.
+        """
+        msg = self._path_msg(program, live.interpolator, 0)
+        codec = fast_cdr.codec_for(Path)
+        return codec.encode(msg) if codec is not None else serialize_message(msg)
+
+    def _publish_started(self, data: bytes, stamp_ns: int) -> None:
         """Each program of the action mode on the latched ``path``, stamped at its first tick."""
-        self._publish_path(program, live.interpolator, stamp_ns)
+        self.path_pub.publish(stamped_cdr(data, stamp_ns))
 
     def _publish_path(self, program: Program, interpolator: Interpolator, stamp_ns: int) -> None:
-        """``program`` as written on the latched ``path``, with the tolerance it is planned with (as the engine's).
+        """``program`` as written on the latched ``path`` (see :meth:`_path_msg`)."""
+        self.path_pub.publish(self._path_msg(program, interpolator, stamp_ns))
+
+    def _path_msg(self, program: Program, interpolator: Interpolator, stamp_ns: int) -> Path:
+        """``program`` as written, with the tolerance it is planned with (as the engine's), as a ``path`` message.
 
         Its ``planned_duration_s`` is NaN while a streaming plan (``look_ahead_segments`` below the program's
         length) has not reached the end: finishing it here would plan the whole program before the first tick.
         """
         duration_s = interpolator.planned_end_s(0.0)
-        self.path_pub.publish(program_to_path(with_planning_tolerance(program, interpolator.config), stamp_ns,
-                                              self.frame_id, duration_s if math.isfinite(duration_s) else math.nan))
+        return program_to_path(with_planning_tolerance(program, interpolator.config), stamp_ns, self.frame_id,
+                               duration_s if math.isfinite(duration_s) else math.nan)
 
     def fault(self, message: str) -> None:
         """Fault as every node does; a running goal ends as faulted with the reason."""

@@ -6,9 +6,15 @@ reason (ROS 2 gives a rejected goal no text; ros2_control's trajectory
 controller accepts and aborts likewise): one that cannot run now (inactive,
 busy, machine stopped) ends REJECTED at once, the reason logged and reported
 WARN on ``/diagnostics``. An accepted goal is read and planned in a worker
-thread, never on the tick's path (a 200 000-line file takes seconds): the axes
-hold meanwhile, and a program that cannot be read or planned ends REJECTED
-with the reason. The execute callback is a coroutine awaiting the outcome,
+thread, never on the tick's path (a 200 000-line file takes seconds), and its
+``path`` message serialized there too (16 MB, over a second, for that file;
+:func:`stamped_cdr` sets its stamp at the first tick): the axes hold
+meanwhile, and a program that cannot be read or planned ends REJECTED with
+the reason. Python's cyclic garbage collector stops every thread while it
+scans the heap, 0.25 s for such a program's millions of objects and more in
+a process of several nodes: it is off while the worker plans, and the plan's
+objects are frozen out of its scans until the goal ends
+(:func:`planning_heap`). The execute callback is a coroutine awaiting the outcome,
 which the tick callback (or the feedback timer) resolves: it works on the
 node's single-threaded executor (events or single).
 
@@ -21,11 +27,14 @@ every node is reset and enabled.
 """
 from __future__ import annotations
 
+import gc
 import math
+import struct
 import traceback
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from concurrent.futures import Future as PlanFuture
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from typing import Any
 
 from action_msgs.msg import GoalStatus
@@ -68,6 +77,33 @@ def feedback_to_msg(feedback: ProgramFeedback) -> Any:
     return msg
 
 
+def stamped_cdr(data: bytes, stamp_ns: int) -> bytes:
+    """A serialized message whose first field is a ``std_msgs/Header``, its stamp set to ``stamp_ns`` [ns].
+
+    The CDR stream opens with a 4-byte encapsulation header (byte 1: 1 little, 0 big endian), then the
+    stamp's ``int32 sec`` and ``uint32 nanosec``.
+    """
+    out = bytearray(data)
+    struct.pack_into("<iI" if out[1] & 1 else ">iI", out, 4, *divmod(int(stamp_ns), 1_000_000_000))
+    return bytes(out)
+
+
+@contextmanager
+def planning_heap() -> Iterator[None]:
+    """No cyclic garbage collection while a plan is built; its objects frozen out of later scans (``gc.freeze``).
+
+    Refcounting still frees them when the goal drops them; :meth:`ProgramActionServer._end` unfreezes.
+    """
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        gc.freeze()
+        if enabled:
+            gc.enable()
+
+
 def goal_name(msg: Any) -> str:
     """The name a goal's result carries before its program is read (its ``program_name``, else its source)."""
     if msg.program_name:
@@ -90,14 +126,21 @@ def outcome_to_result(outcome: ProgramOutcome, bag_path: str) -> Any:
 
 
 class ProgramActionServer:
-    """RunProgram on ``node``: one goal at a time, run by ``session``; ``publish_path`` gets each started program."""
+    """RunProgram on ``node``: one goal at a time, run by ``session``.
+
+    ``path_of(program, live)`` serializes a planned program's ``path`` message (in the worker thread);
+    ``publish_path(data, stamp_ns)`` publishes it at the program's first tick.
+    """
 
     def __init__(self, node: Any, session: ProgramSession, bag_path: str, feedback_period_s: float,
-                 publish_path: Callable[[Program, LiveReference, int], None]) -> None:
-        self.node, self.session, self.bag_path, self.publish_path = node, session, bag_path, publish_path
+                 path_of: Callable[[Program, LiveReference], bytes],
+                 publish_path: Callable[[bytes, int], None]) -> None:
+        self.node, self.session, self.bag_path = node, session, bag_path
+        self.path_of, self.publish_path = path_of, publish_path
         self._handle: ServerGoalHandle | None = None
         self._outcome: Future | None = None
-        self._planning: PlanFuture[tuple[Program, LiveReference]] | None = None
+        self._planning: PlanFuture[tuple[Program, LiveReference, bytes]] | None = None
+        self._path: tuple[Program, bytes] | None = None  # the started program's serialized path
         self._planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="run_program_plan")
         self.server = ActionServer(node, RunProgram, ACTION_NAME, self._execute, cancel_callback=self._cancel)
         node.create_timer(feedback_period_s, self._publish_feedback)
@@ -159,6 +202,8 @@ class ProgramActionServer:
 
     def _end(self, goal_handle: ServerGoalHandle, outcome: ProgramOutcome) -> Any:
         """The goal's terminal state (succeeded, canceled if asked, else aborted) and its result."""
+        if not self.session.busy and self._planning is None:
+            gc.unfreeze()  # the ended plan's objects scanned (and their cycles collected) again
         if outcome.outcome == "completed":
             goal_handle.succeed()
         elif outcome.outcome == "canceled" and goal_handle.status == GoalStatus.STATUS_CANCELING:
@@ -168,9 +213,12 @@ class ProgramActionServer:
         self.node.get_logger().info(f"RunProgram: {outcome.program_name!r} {outcome.outcome}: {outcome.reason}")
         return outcome_to_result(outcome, self.bag_path)
 
-    def _plan(self, request: Any, hold_m: Any) -> tuple[Program, LiveReference]:
-        """In the worker thread: the goal message read and planned from the hold position ``hold_m`` [m]."""
-        return self.session.plan(goal_from_msg(request), hold_m)
+    def _plan(self, request: Any, hold_m: Any) -> tuple[Program, LiveReference, bytes]:
+        """In the worker thread: the goal message read and planned from the hold position ``hold_m`` [m], and
+        its serialized ``path``."""
+        with planning_heap():
+            program, live = self.session.plan(goal_from_msg(request), hold_m)
+            return program, live, self.path_of(program, live)
 
     def _collect_plan(self) -> None:
         """A plan the worker finished: start it at the next tick, or refuse the goal with the reason."""
@@ -181,7 +229,7 @@ class ProgramActionServer:
         if self.session.pending is None:  # the goal ended while it was planned (cancelled, machine stopped)
             return
         try:
-            program, live = future.result()
+            program, live, path = future.result()
         except CncError as err:
             self.session.refuse(str(err))
         except Exception as err:  # a planner bug ends this goal with its reason, never the node
@@ -189,6 +237,7 @@ class ProgramActionServer:
             self.session.refuse(f"internal error while planning: {type(err).__name__}: {err}")
         else:
             self.session.start(program, live)
+            self._path = (program, path)
             self.node.get_logger().info(f"RunProgram: {program.name!r}, {len(program.segments)} segments, "
                                         f"{live.interpolator.duration_s:.3f} s planned")
 
@@ -196,8 +245,9 @@ class ProgramActionServer:
         """After each tick: take a finished plan, publish a program that started, hand over an outcome."""
         self._collect_plan()
         started = self.session.take_started()
-        if started is not None:
-            self.publish_path(*started)
+        if started is not None and self._path is not None and self._path[0] is started[0]:
+            self.publish_path(self._path[1], started[2])
+            self._path = None
         outcome = self.session.take_outcome()
         if outcome is not None and self._outcome is not None and not self._outcome.done():
             self._outcome.set_result(outcome)
