@@ -125,9 +125,15 @@ def test_registries_list_the_forms() -> None:
      r"program.start_mm\[0\] must be a number, got True"),
     # the user's own quantity is refused by its name and bound, not a point or a duration computed from it
     ({"shape": "circle", "radius_mm": 1e300, "feed_mm_min": 400},
-     r"program.radius_mm must be <= 100000 mm, got 1e\+300"),
-    ({"shape": "line", "length_mm": 2e5, "feed_mm_min": 400}, "program.length_mm must be <= 100000 mm, got 200000.0"),
-    ({"shape": "corner", "leg_mm": 1e6, "feed_mm_min": 400}, "program.leg_mm must be <= 100000 mm, got 1000000.0"),
+     r"program.radius_mm must be in \[0.001, 100000\] mm, got 1e\+300"),
+    ({"shape": "circle", "radius_mm": 1e-300, "feed_mm_min": 400},
+     r"program.radius_mm must be in \[0.001, 100000\] mm, got 1e-300"),
+    ({"shape": "line", "length_mm": 2e5, "feed_mm_min": 400},
+     r"program.length_mm must be in \[0.001, 100000\] mm, got 200000.0"),
+    ({"shape": "corner", "leg_mm": 1e6, "feed_mm_min": 400},
+     r"program.leg_mm must be in \[0.001, 100000\] mm, got 1000000.0"),
+    ({"shape": "line", "length_mm": 10, "feed_mm_min": 400, "angle_deg": 1e300},
+     r"program.angle_deg must be in \[-360.0, 360.0\], got 1e\+300"),
     ({"shape": "circle", "radius_mm": 20, "feed_mm_min": 400, "start_mm": [0, -1e300]},
      r"program.start_mm\[1\] must be in \[-100000, 100000\] mm, got -1e\+300"),
     ({"shape": "line", "length_mm": 10, "feed_mm_min": 0.0000001},
@@ -137,6 +143,10 @@ def test_registries_list_the_forms() -> None:
     ({"segments": [{"arc": {"to_mm": [0, 0], "center_mm": [0, 1e9], "direction": "cw"}}], "feed_mm_min": 100},
      r"program.segments\[0\].arc.center_mm\[1\] must be in \[-100000, 100000\] mm, got 1000000000.0"),
     ({"gcode": "G1 X1 F100", "rapid_feed_mm_min": 1e-9}, "program.rapid_feed_mm_min must be >= 0.01 mm/min"),
+    ({"gcode": "G55 G1 X1 F100", "axes": ["x", "y"], "work_offsets_mm": {"G55": [True, 0]}},
+     r"program.work_offsets_mm.G55\[0\] must be a number, got True"),
+    ({"gcode": "G1 X1 F100", "axes": ["x", "y"], "start_mm": [0, 1e300]},
+     r"program.start_mm\[1\] must be in \[-100000, 100000\] mm, got 1e\+300"),
 ])
 def test_bad_program_sections_are_refused(mapping: dict, message: str) -> None:
     with pytest.raises(ConfigError, match=message):

@@ -50,6 +50,14 @@ def _scenario(tmp_path: Path, **changes: Any) -> Path:
     ({"interpolator": [1]}, "scenario.interpolator must be a mapping"),
     ({"sample_time_s": 5}, "scenario.sample_time_s must be in [1e-05, 1.0], got 5"),
     ({"duration_s": 2e6}, "scenario.duration_s must be in [0.001, 1000000.0]"),
+    # the key the user wrote, not the duration computed from it (issue 22)
+    ({"settle_s": 1e300}, "scenario.settle_s must be in [0.0, 1000000.0], got 1e+300"),
+    ({"limits__max_velocity_mm_min": 1e-7}, "scenario.limits.max_velocity_mm_min must be >= 0.01 mm/min, got 1e-07"),
+    ({"limits__max_acceleration_mm_s2": 1e-300},
+     "scenario.limits.max_acceleration_mm_s2 must be >= 0.001 mm/s^2, got 1e-300"),
+    ({"program__radius_mm": 1e300}, "program.radius_mm must be in [0.001, 100000] mm, got 1e+300"),
+    ({"program__feed_mm_min": 1e-7}, "program.feed_mm_min must be >= 0.01 mm/min, got 1e-07"),
+    ({"program__radius_mm": True}, "program.radius_mm must be a number, got True"),
 ])
 def test_bad_values_give_one_line(tmp_path: Path, capsys: pytest.CaptureFixture, changes: dict, message: str) -> None:
     assert message in _check(_scenario(tmp_path, **changes), capsys)

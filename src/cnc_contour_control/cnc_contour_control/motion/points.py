@@ -21,6 +21,8 @@ MIN_LENGTH_M = 1.0e-9
 #: Largest coordinate, length or radius a program may give, mm (100 m: beyond the largest machine tool), so a
 #: wrong value is refused by its own name, not by a point computed from it.
 MAX_EXTENT_MM = 1.0e5
+#: Smallest radius, length or leg a program may give, mm (1 µm, the position tolerance: below, no contour).
+MIN_EXTENT_MM = 1.0e-3
 #: Slowest programmed feed, mm/min (0.6 mm an hour): slower, a program takes longer than a run may last.
 MIN_FEED_MM_MIN = 1.0e-2
 TWO_PI = 2.0 * math.pi
@@ -51,13 +53,14 @@ def as_points(points: ArrayLike, n_axes: int) -> FloatArray:
 
 
 def require_extent_mm(name: str, value: float, context: str = "", positive: bool = False) -> float:
-    """``value`` (mm) if it is finite, within +-:data:`MAX_EXTENT_MM` (and > 0 if ``positive``); a
-    ConfigError naming ``name``, the bound and the value otherwise."""
+    """``value`` (mm) if it is a coordinate within +-:data:`MAX_EXTENT_MM`, or with ``positive`` a size (> 0) in
+    [:data:`MIN_EXTENT_MM`, :data:`MAX_EXTENT_MM`]; a ConfigError naming ``name``, the bound and the value
+    otherwise."""
     number = require_positive(name, value, context) if positive else require_finite(name, value, context)
-    if abs(number) > MAX_EXTENT_MM:
+    low = MIN_EXTENT_MM if positive else -MAX_EXTENT_MM
+    if not low <= number <= MAX_EXTENT_MM:
         where = f"{context}.{name}" if context else name
-        bound = f"<= {MAX_EXTENT_MM:g}" if positive else f"in [{-MAX_EXTENT_MM:g}, {MAX_EXTENT_MM:g}]"
-        raise ConfigError(f"{where} must be {bound} mm, got {value!r}")
+        raise ConfigError(f"{where} must be in [{low:g}, {MAX_EXTENT_MM:g}] mm, got {value!r}")
     return number
 
 

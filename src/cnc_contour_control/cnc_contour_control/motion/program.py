@@ -33,7 +33,6 @@ import numpy as np
 from cnc_contour_control.core.config import (
     build_config,
     require_choice,
-    require_finite,
     require_range,
 )
 from cnc_contour_control.core.errors import ConfigError, ProgramError
@@ -85,7 +84,7 @@ class LineShape:
     def __post_init__(self) -> None:
         require_extent_mm("length_mm", self.length_mm, "program", positive=True)
         require_feed_mm_min("feed_mm_min", self.feed_mm_min, "program")
-        require_finite("angle_deg", self.angle_deg, "program")
+        require_range("angle_deg", self.angle_deg, -360.0, 360.0, "program")
 
     def segments(self, start_mm: FloatArray) -> list[Segment]:
         end_mm = start_mm + _planar_offset_mm(start_mm.size, self.length_mm, self.angle_deg)
@@ -111,7 +110,7 @@ class CircleShape:
         require_extent_mm("radius_mm", self.radius_mm, "program", positive=True)
         require_feed_mm_min("feed_mm_min", self.feed_mm_min, "program")
         require_choice("direction", self.direction, DIRECTIONS, "program")
-        require_finite("start_angle_deg", self.start_angle_deg, "program")
+        require_range("start_angle_deg", self.start_angle_deg, -360.0, 360.0, "program")
 
     def segments(self, start_mm: FloatArray) -> list[Segment]:
         center_mm = start_mm - _planar_offset_mm(start_mm.size, self.radius_mm, self.start_angle_deg)
@@ -135,7 +134,7 @@ class CornerShape:
         require_extent_mm("leg_mm", self.leg_mm, "program", positive=True)
         require_feed_mm_min("feed_mm_min", self.feed_mm_min, "program")
         require_range("angle_deg", self.angle_deg, -180.0, 180.0, "program")
-        require_finite("heading_deg", self.heading_deg, "program")
+        require_range("heading_deg", self.heading_deg, -360.0, 360.0, "program")
 
     def segments(self, start_mm: FloatArray) -> list[Segment]:
         corner_mm = start_mm + _planar_offset_mm(start_mm.size, self.leg_mm, self.heading_deg)
@@ -276,9 +275,21 @@ def _from_shape(body: dict[str, Any], name: str, base_dir: Path | None) -> Progr
     return Program(name, axes, tuple(options.segments(start_mm)))
 
 
+def _check_gcode_options(options: GcodeOptions) -> None:
+    """The numbers of a G-code program's options, each by its name and bound (their shapes are the reader's)."""
+    require_feed_mm_min("rapid_feed_mm_min", options.rapid_feed_mm_min, "program")
+    if isinstance(options.start_mm, (list, tuple)):
+        for j, value in enumerate(options.start_mm):
+            require_extent_mm(f"start_mm[{j}]", value, "program")
+    if isinstance(options.work_offsets_mm, Mapping):
+        for key, offset in options.work_offsets_mm.items():
+            for j, value in enumerate(offset if isinstance(offset, (list, tuple)) else ()):
+                require_extent_mm(f"work_offsets_mm.{key}[{j}]", value, "program")
+
+
 def _gcode(text: str, body: dict[str, Any], name: str) -> Program:
     options = build_config(GcodeOptions, body, "program")
-    require_feed_mm_min("rapid_feed_mm_min", options.rapid_feed_mm_min, "program")
+    _check_gcode_options(options)
     return parse_gcode(text, _axes(options.axes, "program"), rapid_feed_mm_min=options.rapid_feed_mm_min,
                        start_mm=options.start_mm, name=name, work_offsets_mm=options.work_offsets_mm)
 

@@ -16,11 +16,12 @@ from cnc_contour_control.core.config import (
     build_config,
     read_yaml_mapping,
     require_choice,
-    require_non_negative,
     require_positive,
+    require_range,
 )
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.lockstep import seconds_to_ns
+from cnc_contour_control.core.params import param_specs
 from cnc_contour_control.core.stages import Pipeline, pipeline
 from cnc_contour_control.core.units import mm_min_to_m_s, mm_s2_to_m_s2
 from cnc_contour_control.force.settings import ForceRegulatorSettings
@@ -28,6 +29,7 @@ from cnc_contour_control.graph.cross_axis import CompensatorSettings, EstimatorS
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig, planning_limits
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.points import require_feed_mm_min
 from cnc_contour_control.motion.program import load_program
 from cnc_plant_sim.models.plant import PlantConfig
 from cnc_plant_sim.models.velocity_loop import VelocityLoopOptions
@@ -245,10 +247,14 @@ def _refuse_unknown(mapping: Mapping[str, Any], valid: tuple[str, ...], context:
         raise ConfigError(f"{context}.{unknown[0]}: unknown key; valid keys are {sorted(valid)}")
 
 
+#: Longest run the plant takes, s (its declared ``duration_s`` bound): a longer ``settle_s`` is refused by its name.
+_MAX_DURATION_S = float(next(s.info.high for s in param_specs(PlantRunParams) if s.name == "duration_s") or 0.0)
+
+
 def _duration(raw: Mapping[str, Any], planned_s: float) -> float:
     if raw.get("duration_s") is not None:
         return require_positive("duration_s", raw["duration_s"], "scenario")
-    return planned_s + require_non_negative("settle_s", raw.get("settle_s", 0.5), "scenario")
+    return planned_s + require_range("settle_s", raw.get("settle_s", 0.5), 0.0, _MAX_DURATION_S, "scenario")
 
 
 def _limits(section: Any, n_axes: int) -> AxisLimits:
@@ -258,11 +264,23 @@ def _limits(section: Any, n_axes: int) -> AxisLimits:
     velocity = _per_axis(section.get("max_velocity_mm_min", 6000.0), n_axes, "scenario.limits.max_velocity_mm_min")
     accel = _per_axis(section.get("max_acceleration_mm_s2", 1000.0), n_axes, "scenario.limits.max_acceleration_mm_s2")
     return AxisLimits(
-        max_velocity_m_s=tuple(mm_min_to_m_s(require_positive("max_velocity_mm_min", v, "scenario.limits"))
+        max_velocity_m_s=tuple(mm_min_to_m_s(require_feed_mm_min("max_velocity_mm_min", v, "scenario.limits"))
                                for v in velocity),
-        max_acceleration_m_s2=tuple(mm_s2_to_m_s2(require_positive("max_acceleration_mm_s2", a, "scenario.limits"))
-                                    for a in accel),
+        max_acceleration_m_s2=tuple(mm_s2_to_m_s2(_acceleration_mm_s2(a)) for a in accel),
     )
+
+
+#: Smallest acceleration limit, mm/s² (0.1 mm in 14 s from rest): lower, no program ends within a run.
+MIN_ACCELERATION_MM_S2 = 1.0e-3
+
+
+def _acceleration_mm_s2(value: Any) -> float:
+    """An axis's acceleration limit, refused by its name below :data:`MIN_ACCELERATION_MM_S2`."""
+    number = require_positive("max_acceleration_mm_s2", value, "scenario.limits")
+    if number < MIN_ACCELERATION_MM_S2:
+        raise ConfigError(f"scenario.limits.max_acceleration_mm_s2 must be >= {MIN_ACCELERATION_MM_S2:g} mm/s^2, "
+                          f"got {value!r}")
+    return number
 
 
 def _per_axis(value: Any, n_axes: int, context: str) -> list[float]:
