@@ -169,7 +169,7 @@ RADIUS_HOW = {
 
 def radius_rows(traces: Sequence[BagTrace]) -> tuple[list[tuple[str, float | None, str, str]], list[str]]:
     """Measured and predicted radius reduction per trace (Eqs. 12-13), from the ``scenario.yaml`` beside each bag."""
-    import yaml
+    from cnc_contour_control.core.config import load_yaml  # a user's scenario: YAML 1.2 floats (1e-3) are numbers
 
     rows: list[tuple[str, float | None, str, str]] = []
     skipped: list[str] = []
@@ -181,7 +181,7 @@ def radius_rows(traces: Sequence[BagTrace]) -> tuple[list[tuple[str, float | Non
         if not scenario_file.is_file() or t.trace.feed_m_s is None:
             skipped.append(f"{d}.radius_loss_predicted_um: no scenario.yaml beside {t.bag}")
             continue
-        model = model_from_scenario(yaml.safe_load(scenario_file.read_text()) or {})
+        model = model_from_scenario(load_yaml(scenario_file.read_text()) or {})
         loss = predict_radius_loss(model, t.trace.feed_m_s, t.trace.radius_m)
         for name in ("radius_loss_predicted_um", "servo_lag_um", "accel_decel_um", "accel_decel_eq13_um"):
             value = getattr(loss, "total_um" if name == "radius_loss_predicted_um" else name)
