@@ -41,7 +41,9 @@ def is_latched(type_name: str) -> bool:
 
 
 def is_wall_stamped(type_name: str) -> bool:
-    """True for the types stamped in wall time (``/diagnostics``), not in simulation time."""
+    """True for the types a recorder logs at the run's latest time, not at their own stamp (``/diagnostics``: a
+    status is stamped at its node's last tick, which may lag the run; bags from before issue 22 hold wall
+    stamps)."""
     return type_name == t.DIAGNOSTICS.type_name
 
 
