@@ -42,8 +42,7 @@ def is_latched(type_name: str) -> bool:
 
 def is_wall_stamped(type_name: str) -> bool:
     """True for the types a recorder logs at the run's latest time, not at their own stamp (``/diagnostics``: a
-    status is stamped at its node's last tick, which may lag the run; bags from before issue 22 hold wall
-    stamps)."""
+    status is stamped at its node's last tick, which may lag the run)."""
     return type_name == t.DIAGNOSTICS.type_name
 
 

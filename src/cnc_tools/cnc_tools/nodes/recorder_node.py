@@ -39,8 +39,8 @@ class RecorderNode(SuiteNode):
     """Subscribes raw to every topic of the run (its namespace, remaps applied) and appends each message to the bag.
 
     Statuses (``/diagnostics``, stamped at their node's last tick, which may lag
-    the run; in wall time before issue 22) are logged at the simulation time of
-    the latest message recorded before them. The run's end is the plant's
+    the run) are logged at the simulation time of the latest message recorded
+    before them. The run's end is the plant's
     "run finished" status from this run (its run id, or its node's namespace).
     """
 
