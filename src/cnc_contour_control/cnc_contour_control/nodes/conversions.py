@@ -37,9 +37,7 @@ def reference_to_msg(sample: ReferenceSample, axes: Sequence[str], stamp_ns: int
 
 def reference_axis(msg: Reference, axis: str) -> tuple[float, float, float]:
     """Position, velocity, acceleration of one axis from a Reference; faults on bad data."""
-    if axis not in msg.axis_names:
-        raise_missing_axis("reference", axis, msg.axis_names)
-    index = list(msg.axis_names).index(axis)
+    index = axis_index(msg.axis_names, axis, "reference")
     for name in ("position_m", "velocity_m_s", "acceleration_m_s2"):
         require_length(getattr(msg, name), len(msg.axis_names), f"reference.{name}", "axis_names")
     values = (msg.position_m[index], msg.velocity_m_s[index], msg.acceleration_m_s2[index])
@@ -61,22 +59,20 @@ def joint_positions(msg: JointState, axes: Sequence[str]) -> tuple[list[float], 
 
 def joint_position(msg: JointState, axis: str) -> float:
     """Position [m] of one axis from a JointState; faults on bad data."""
-    if axis not in msg.name:
-        raise_missing_axis("joint_states", axis, msg.name)
+    index = axis_index(msg.name, axis, "joint_states")
     require_length(msg.position, len(msg.name), "joint_states.position", "name")
-    value = msg.position[list(msg.name).index(axis)]
+    value = msg.position[index]
     require_finite_values((value,), f"joint_states.position[{axis}]")
     return float(value)
 
 
 def joint_velocity(msg: JointState, axis: str) -> float:
     """Velocity [m/s] of one axis from a JointState (0 when the message carries no velocities); faults on bad data."""
-    if axis not in msg.name:
-        raise_missing_axis("joint_states", axis, msg.name)
+    index = axis_index(msg.name, axis, "joint_states")
     if not len(msg.velocity):
         return 0.0
     require_length(msg.velocity, len(msg.name), "joint_states.velocity", "name")
-    value = msg.velocity[list(msg.name).index(axis)]
+    value = msg.velocity[index]
     require_finite_values((value,), f"joint_states.velocity[{axis}]")
     return float(value)
 
@@ -85,6 +81,17 @@ def require_length(values: Sequence[float], count: int, field: str, names_field:
     """Fault: a per-axis array field does not hold one value per axis name."""
     if len(values) != count:
         raise FaultError(f"{field} has {len(values)} values for {count} {names_field}")
+
+
+def axis_index(names: Sequence[str], axis: str, what: str) -> int:
+    """Index of ``axis`` among a message's axis names; faults when it is missing or named twice."""
+    present = list(names)
+    if axis not in present:
+        raise_missing_axis(what, axis, present)
+    if present.count(axis) > 1:
+        raise FaultError(f"{what} names axis {axis!r} {present.count(axis)} times (axes present: {present}): "
+                         "which value is meant is unknown")
+    return present.index(axis)
 
 
 def raise_missing_axis(what: str, axis: str, present: Sequence[str]) -> NoReturn:
@@ -143,10 +150,9 @@ def _segment_msg(segment: Segment) -> PathSegment:
 def compensation_for(msg: Any, axis: str) -> float:
     """The correction of one axis from a Compensation message; faults on bad data."""
     names = list(msg.axis_names)
-    if axis not in names:
-        raise_missing_axis("compensation", axis, names)
+    index = axis_index(names, axis, "compensation")
     require_length(msg.correction, len(names), "compensation.correction", "axis_names")
-    value = float(msg.correction[names.index(axis)])
+    value = float(msg.correction[index])
     require_finite_values((value,), f"compensation.correction[{axis}]")
     return value
 
