@@ -15,6 +15,7 @@ message types.
 """
 from __future__ import annotations
 
+import functools
 import struct
 import zlib
 from collections.abc import Callable
@@ -70,6 +71,8 @@ class SalvageScan:
         The summary fails its CRC: its statistics are not used.
     chunk_indexes
         ``{chunk offset: {channel id: message index offset}}`` from a summary whose CRC matches.
+    wanted_topics
+        ``wanted`` of each topic met so far.
     """
 
     wanted: Callable[[str], bool]
@@ -81,6 +84,7 @@ class SalvageScan:
     damage: list[str] = field(default_factory=list)
     summary_damaged: bool = False
     chunk_indexes: dict[int, dict[int, int]] = field(default_factory=dict)
+    wanted_topics: dict[str, bool] = field(default_factory=dict)
 
     def topic_types(self) -> dict[str, str]:
         """``{topic: type name}`` of the wanted channels seen."""
@@ -126,7 +130,10 @@ def _on_message(scan: SalvageScan, body: memoryview) -> None:
         raise _Damaged(f"message record of {len(body)} bytes on unknown channel {channel_id}")
     topic = scan.channels[channel_id][0]
     scan.counts[topic] = scan.counts.get(topic, 0) + 1
-    if scan.wanted(topic):
+    wanted = scan.wanted_topics.get(topic)
+    if wanted is None:                                   # ``wanted`` once per topic, not per message
+        wanted = scan.wanted_topics[topic] = scan.wanted(topic)
+    if wanted:
         (log_time_ns,) = struct.unpack_from("<Q", body, 6)
         scan.sink(topic, log_time_ns, bytes(body[_MESSAGE_HEADER:]))
 
@@ -390,10 +397,16 @@ def crc_problem(data: bytes) -> str:
 
 
 def scan_typestore(scan: SalvageScan) -> Typestore:
-    """Typestore from the file's own ``ros2msg`` schemas, else the project's."""
+    """Typestore from the file's own ``ros2msg`` schemas, else the project's (one per set of schemas)."""
+    return _schemas_typestore(tuple(sorted(scan.schemas.values())))
+
+
+@functools.lru_cache(maxsize=8)
+def _schemas_typestore(schemas: tuple[tuple[str, str, str], ...]) -> Typestore:
+    """A typestore of these (name, encoding, text) schemas; built once (60 ms a time for a run's six types)."""
     try:
         store = get_typestore(Stores.EMPTY)
-        for name, encoding, text in scan.schemas.values():
+        for name, encoding, text in schemas:
             if encoding != "ros2msg":
                 return project_typestore()
             store.register(get_types_from_msg(text, name))
