@@ -11,6 +11,7 @@ from cnc_tools.bench.registry import TARGETS, get_bench
 def configure(parser: argparse.ArgumentParser) -> None:
     """The options every bench shares, plus ``--against`` (engine and graph benches) and ``--record`` (graph bench)."""
     from cnc_tools.bench.engine import add_options as add_engine_options  # the bench command only
+    from cnc_tools.bench.fuzz import add_options as add_fuzz_options
     from cnc_tools.bench.graph import add_options as add_graph_options
     from cnc_tools.bench.hops import add_options as add_hops_options
 
@@ -27,6 +28,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_engine_options(parser)
     add_graph_options(parser)
     add_hops_options(parser)
+    add_fuzz_options(parser)
 
 
 def bench(args: argparse.Namespace) -> int:
