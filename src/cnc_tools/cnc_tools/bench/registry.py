@@ -24,6 +24,7 @@ TARGETS: dict[str, str] = {
     "cross-axis": "cnc_tools.bench.cross_axis:cross_axis_bench",
     "compose": "cnc_tools.bench.compose:compose_bench",
     "bag-write": "cnc_tools.bench.bag_write:bag_write_bench",
+    "fuzz": "cnc_tools.bench.fuzz:fuzz_bench",
     "scoring": "cnc_tools.bench.scoring:scoring",
     "sweep": "cnc_tools.bench.sweep:sweep_bench",
     "tune": "cnc_tools.bench.tune:tune_bench",
