@@ -30,10 +30,9 @@ from __future__ import annotations
 import gc
 import math
 import struct
+import threading
 import traceback
 from collections.abc import Callable, Iterator
-from concurrent.futures import Future as PlanFuture
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from typing import Any
 
@@ -104,6 +103,43 @@ def planning_heap() -> Iterator[None]:
             gc.enable()
 
 
+class PlanJob:
+    """``work(*args)`` in a daemon thread (a stopping node does not wait for a plan); one job at a time runs.
+
+    :meth:`done` and :meth:`result` are for the node's thread; the work's exception comes back from
+    :meth:`result`. Jobs run one after another (a lock), so :func:`planning_heap` never nests.
+    """
+
+    _one_at_a_time = threading.Lock()
+
+    def __init__(self, work: Callable[..., tuple[Program, LiveReference, bytes]], *args: Any) -> None:
+        self._work, self._args = work, args
+        self._result: tuple[Program, LiveReference, bytes] | None = None
+        self._error: Exception | None = None
+        self._done = threading.Event()
+        threading.Thread(target=self._run, name="run_program_plan", daemon=True).start()
+
+    def _run(self) -> None:
+        try:
+            with self._one_at_a_time:
+                self._result = self._work(*self._args)
+        except Exception as err:  # handed to the node's thread by result()
+            self._error = err
+        finally:
+            self._done.set()
+
+    def done(self) -> bool:
+        """True once the work returned or raised."""
+        return self._done.is_set()
+
+    def result(self) -> tuple[Program, LiveReference, bytes]:
+        """The work's result; its exception raised here."""
+        if self._error is not None:
+            raise self._error
+        assert self._result is not None, "result() after done()"
+        return self._result
+
+
 def goal_name(msg: Any) -> str:
     """The name a goal's result carries before its program is read (its ``program_name``, else its source)."""
     if msg.program_name:
@@ -139,9 +175,8 @@ class ProgramActionServer:
         self.path_of, self.publish_path = path_of, publish_path
         self._handle: ServerGoalHandle | None = None
         self._outcome: Future | None = None
-        self._planning: PlanFuture[tuple[Program, LiveReference, bytes]] | None = None
+        self._planning: PlanJob | None = None
         self._path: tuple[Program, bytes] | None = None  # the started program's serialized path
-        self._planner = ThreadPoolExecutor(max_workers=1, thread_name_prefix="run_program_plan")
         self.server = ActionServer(node, RunProgram, ACTION_NAME, self._execute, cancel_callback=self._cancel)
         node.create_timer(feedback_period_s, self._publish_feedback)
         self.machine = MachineWatch()
@@ -181,7 +216,7 @@ class ProgramActionServer:
         except CncError as err:
             return self._refused(goal_handle, name, str(err))
         self._handle, self._outcome = goal_handle, Future()
-        self._planning = self._planner.submit(self._plan, goal_handle.request, hold_m)
+        self._planning = PlanJob(self._plan, goal_handle.request, hold_m)
         outcome: ProgramOutcome = await self._outcome
         if self._handle is goal_handle:
             self._handle = self._outcome = None
@@ -264,7 +299,7 @@ class ProgramActionServer:
             self._handle.publish_feedback(feedback_to_msg(feedback))
 
     def destroy(self) -> None:
-        """Destroy the action server (with the node); a plan under way is dropped."""
-        self._planner.shutdown(wait=False, cancel_futures=True)
+        """Destroy the action server (with the node); a plan under way is dropped (its thread is a daemon)."""
+        self._planning = None
         self.server.destroy()
 
