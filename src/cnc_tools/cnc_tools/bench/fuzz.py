@@ -26,8 +26,8 @@ from cnc_tools.bench import fuzz_inputs as inputs
 
 #: An input running longer than this is a hang [s].
 HANG_BOUND_S = 2.0
-#: Inputs per kind by default (about a minute on one core for the four kinds).
-DEFAULT_COUNT = 2000
+#: Inputs per kind by default (a quarter for the slow kinds): about a minute for the four kinds.
+DEFAULT_COUNT = 5000
 #: Findings of each sort printed per kind.
 SHOWN = 3
 

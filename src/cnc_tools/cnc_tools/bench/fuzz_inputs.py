@@ -261,7 +261,15 @@ def message_input(rng: random.Random) -> MessageCase:
     from cnc_plant_sim.nodes import conversions as plant
 
     names, axis = _names(rng), rng.choice(("x", "y"))
-    kind = rng.randrange(8)
+    kind = rng.randrange(9)
+    if kind == 8:
+        field = rng.choice(("effort", "velocity"))
+        cmd_msg = JointState(name=names, **{field: _values(rng, len(names))})
+        values = list(getattr(cmd_msg, field))
+        sensible = (set(names) <= set(_AXES) and len(set(names)) == len(names) and len(values) == len(names)
+                    and all(math.isfinite(v) for v in values))
+        return MessageCase("joint_command_values", lambda: [plant.joint_command_values(cmd_msg, _AXES, field)],
+                           [dict(zip(names, values, strict=True))] if sensible else None, f"{field} of {cmd_msg}")
     if kind < 3:
         msg = JointState(name=names, position=_values(rng, len(names)), velocity=_values(rng, len(names)))
         if kind == 0:
