@@ -100,14 +100,12 @@ def test_random_bytes_raise_nothing_but_the_suites_errors(data: bytes) -> None:
 
 
 @FUZZ
-@given(st.lists(st.lists(TOKEN, max_size=6).map(" ".join), min_size=1, max_size=6))
-def test_token_soup_raises_only_suite_errors_and_never_passes_an_unknown_word(lines: list[str]) -> None:
-    text = "\n".join(lines)
-    try:
-        parse_gcode(text, XY, feed_mm_min=100.0)
+@given(st.lists(TOKEN, min_size=1, max_size=6).map(" ".join))
+def test_token_soup_raises_only_suite_errors_and_never_passes_an_unknown_word(line: str) -> None:
+    try:  # after a move, so a line that reads is never hidden behind "no motion"
+        parse_gcode(f"G1 X0.5 F100\n{line}", XY)
     except CncError:
         return
-    for line in lines:
-        code = re.sub(r"\([^()]*\)", " ", line).split(";", 1)[0]
-        letters = {m.group(1).upper() for m in re.finditer(r"([A-Za-z])\s*[-+]?[0-9.]", code)}
-        assert letters <= KNOWN_LETTERS, f"accepted a line with an unknown word: {line!r}"
+    code = re.sub(r"\([^()]*\)", " ", line).split(";", 1)[0]
+    letters = {m.group(1).upper() for m in re.finditer(r"([A-Za-z])\s*[-+]?[0-9.]", code)}
+    assert letters <= KNOWN_LETTERS, f"accepted a line with an unknown word: {line!r}"
