@@ -16,7 +16,7 @@ from cnc_contour_interfaces.msg import AxisCommand, Reference
 from cnc_tools.analysis.verdict import judge
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.diagnostics import read_statuses
-from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.engine import EngineFault, run_engine
 from cnc_tools.runs.graph import NodeDied, run_graph
 from cnc_tools.runs.outputs import judge_bag
 from cnc_tools.runs.scenario import load_scenario
@@ -32,7 +32,9 @@ pytestmark = pytest.mark.e2e
 
 def test_following_error_trip_faults_naming_the_axis_on_the_engines_tick(tmp_path: Path) -> None:
     scenario = load_scenario(CIRCLE, {"duration_s": 1.0, "servo": TRIP})
-    record = run_engine(scenario)  # the engine ends the run at the fault and keeps every tick before it
+    with pytest.raises(EngineFault) as engine_fault:  # the run ends at the fault, keeping every tick before it
+        run_engine(scenario)
+    record = engine_fault.value.record
     assert record.summary["status"] == "faulted" and judge(record).status == "faulted"
     with pytest.raises(NodeDied) as graph_fault:
         run_graph(scenario, tmp_path, record=False)

@@ -8,7 +8,7 @@ import yaml
 
 from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.analysis.verdict import judge
-from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.engine import EngineFault, run_engine
 from cnc_tools.runs.scenario import load_scenario
 from cnc_tools.runs.scenario_format import FORMAT_VERSION
 
@@ -54,7 +54,9 @@ def test_another_version_is_refused_naming_the_one_read(version: object) -> None
 def test_per_sample_gains_run_as_time_units_trip_the_default_following_error_bound() -> None:
     """The old finding: per-sample gains read as time units ran unstable to 90 mm of error and ended COMPLETE.
     With the trip on by default the run faults within its first second, naming the axis."""
-    record = run_engine(load_scenario(CIRCLE, PER_SAMPLE))
+    with pytest.raises(EngineFault) as fault:
+        run_engine(load_scenario(CIRCLE, PER_SAMPLE))
+    record = fault.value.record
     verdict = judge(record)
     assert verdict.status == "faulted" and "following error" in verdict.describe(), verdict.describe()
     assert record.summary["simulated_time_s"] < 2.0, "tripped early, before the error grew to centimetres"

@@ -48,6 +48,9 @@ MAX_FEEDFORWARD = 1.0e6
 DEFAULT_MIN_FERROR_M = 2.0e-3
 #: Added at ``ferror_velocity_m_s`` = 1 m/s, i.e. 0.5 s · |v_ref| (see :data:`DEFAULT_MIN_FERROR_M`).
 DEFAULT_FERROR_M = 0.5
+#: Servo keys that switch the trip off: for studies of a loop's own behaviour (a reading whose loop diverges, a
+#: learning rate that makes it ring), never for a machine run.
+NO_FERROR_TRIP = {"min_ferror_m": 0.0, "ferror_m": 0.0}
 
 
 @dataclass(frozen=True)

@@ -1,9 +1,9 @@
 """The ``cnc-contour`` command: a parser per subcommand of :data:`cnc_tools.cli.registry.COMMANDS`.
 
 Exit codes (docs/design.md, "Verdicts"): 0 the command did what it was asked and every verdict it gives is
-complete; 1 a run or a recording faulted or is partial (a fault during the run, a dead node, a bag that cannot be
-read whole); 2 a usage or configuration error (a bad option, scenario, program or parameter: nothing ran);
-128 + N a signal N stopped it (130 for Ctrl-C).
+complete; 1 a run faulted or is partial (a fault during the run, a dead node; a salvaged recording is judged
+partial); 2 a usage or input error (a bad option, scenario, program or parameter, a bag that cannot be read at
+all: nothing was judged); 128 + N a signal N stopped it (130 for Ctrl-C).
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import argparse
 import sys
 from collections.abc import Sequence
 
-from cnc_contour_control.core.errors import BagError, CncError, FaultError
+from cnc_contour_control.core.errors import CncError, FaultError
 from cnc_tools.cli.registry import COMMANDS
 
 
@@ -44,15 +44,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(getattr(err, "exit_code", 130))
 
 
-#: Exit code of a run or a recording that faulted or is partial.
+#: Exit code of a run that faulted or is partial.
 EXIT_FAULTED = 1
-#: Exit code of a usage or configuration error (nothing ran).
+#: Exit code of a usage or input error (nothing ran or nothing could be judged).
 EXIT_USAGE = 2
 
 
 def exit_code(err: CncError) -> int:
-    """1 for what went wrong while running or reading a run (a fault, a bad bag), 2 for bad input (nothing ran)."""
-    return EXIT_FAULTED if isinstance(err, (FaultError, BagError)) else EXIT_USAGE
+    """1 for a fault while running (the run faulted), 2 for bad input (a bad option or file: nothing ran)."""
+    return EXIT_FAULTED if isinstance(err, FaultError) else EXIT_USAGE
 
 
 if __name__ == "__main__":

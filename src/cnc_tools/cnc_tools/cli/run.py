@@ -11,6 +11,7 @@ from cnc_contour_control.core.errors import CncError
 from cnc_tools.cli.common import parse_overrides
 from cnc_tools.runs.backends import run_on_engine
 from cnc_tools.runs.compose import COMPOSE_MODES
+from cnc_tools.runs.engine import EngineFault
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph
 from cnc_tools.runs.namespaces import run_namespace
@@ -45,7 +46,10 @@ def run(args: argparse.Namespace) -> int:
     if args.engine:
         print(f"running {scenario.name} in-process (engine, T = {scenario.sample_time_s} s, "
               f"{scenario.duration_s:.2f} s simulated) into {run_dir}", flush=True)
-        record = run_on_engine(scenario, run_dir)
+        try:
+            record = run_on_engine(scenario, run_dir)
+        except EngineFault as fault:  # the folder holds every tick before the fault: scored, verdict faulted
+            record = fault.record
         print_summary(scenario.name, "engine", record.summary)
         return _outputs(score_record(record, run_dir, force_reference_n=_force_reference_n(scenario)), run_dir,
                         run_dir / "bag")

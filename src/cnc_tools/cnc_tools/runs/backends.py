@@ -18,7 +18,7 @@ import yaml
 from cnc_contour_control.core.config import require_choice
 from cnc_contour_control.core.errors import FaultError
 from cnc_tools.run_record import RunRecord
-from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.engine import EngineFault, run_engine
 from cnc_tools.runs.scenario import Scenario
 
 #: A back end: (scenario, run folder or None, options) -> run record.
@@ -41,14 +41,25 @@ def run_on_graph(scenario: Scenario, run_dir: Path | None = None, **options: Any
 
 
 def run_on_engine(scenario: Scenario, run_dir: Path | None = None, **options: Any) -> RunRecord:
-    """Run in-process; with ``run_dir``, write the run folder a graph run leaves: bag, summary, scenario."""
-    record = run_engine(scenario, run_dir=run_dir, **options)
+    """Run in-process; with ``run_dir``, write the run folder a graph run leaves: bag, summary, scenario.
+
+    A run that faults raises :class:`EngineFault` after its folder (every tick before the fault) is written.
+    """
+    try:
+        record = run_engine(scenario, run_dir=run_dir, **options)
+    except EngineFault as fault:
+        _write_folder(run_dir, scenario, fault.record)
+        raise
+    _write_folder(run_dir, scenario, record)
+    return record
+
+
+def _write_folder(run_dir: Path | None, scenario: Scenario, record: RunRecord) -> None:
     if run_dir is not None:
         from cnc_tools.bagio.record_bag import write_record_bag  # rosbags: loaded only when writing
 
         write_run_folder(run_dir, scenario, record.summary)
         write_record_bag(record, run_dir / "bag")
-    return record
 
 
 #: Back ends by name.

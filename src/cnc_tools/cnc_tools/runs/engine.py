@@ -25,8 +25,8 @@ the request on ``Board.feed_override_request``). The node graph gives the same t
 (``test_lockstep_graph_matches_engine_to_1e9``).
 
 A fault during the run (a following-error trip, non-finite data) ends it at that tick, as it ends a graph run:
-the record holds every tick up to the fault, its summary says ``faulted`` with the fault's message, and the
-stages' ``finish`` (a learner's state file) is skipped.
+:class:`EngineFault` carries the record of every tick up to the fault, its summary ``faulted`` with the fault's
+message, and the stages' ``finish`` (a learner's state file) is skipped.
 """
 from __future__ import annotations
 
@@ -48,11 +48,23 @@ from cnc_tools.runs.engine_force import ForceRegulatorStage
 from cnc_tools.runs.engine_stages import CORE_STAGES, Board, EngineStage, PlantStage, StageFactory
 from cnc_tools.runs.scenario import Scenario
 
-__all__ = ["Board", "EngineStage", "ENGINE_STAGES", "run_engine", "tick_count", "tick_stamps_s"]
+__all__ = ["Board", "EngineFault", "EngineStage", "ENGINE_STAGES", "run_engine", "tick_count", "tick_stamps_s"]
 
 #: Engine implementations of the pipeline's stages, by stage name.
 ENGINE_STAGES: dict[str, StageFactory] = {**CORE_STAGES, "estimator": EstimatorStage, "compensator": CompensatorStage,
                                           "force_regulator": ForceRegulatorStage}
+
+
+class EngineFault(FaultError):
+    """A fault ended an engine run at its tick; ``record`` holds every tick before it (its summary ``faulted``).
+
+    A :class:`FaultError`, so a caller that runs many scenarios (a sweep, a tuning, a bench) sees the fault as
+    before; the run folder's writer (:func:`cnc_tools.runs.backends.run_on_engine`) keeps the record.
+    """
+
+    def __init__(self, message: str, record: RunRecord) -> None:
+        super().__init__(message)
+        self.record = record
 
 
 class Clock(Protocol):
@@ -109,7 +121,10 @@ def run_engine(scenario: Scenario, clock: Callable[[], float] | None = None,
     if fault is None:
         for stage in stages:
             stage.finish()
-    return _record(scenario, stages, stamps_ns, wall_time_s, run_dir, fault)
+    record = _record(scenario, stages, stamps_ns, wall_time_s, run_dir, fault)
+    if fault is not None:
+        raise EngineFault(str(fault), record) from fault
+    return record
 
 
 def _tick_loop(stages: list[EngineStage], stamps_ns: IntArray, sample_ns: int) -> None:

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 from scipy import signal
 
+from cnc_contour_control.axis.servo import NO_FERROR_TRIP
 from cnc_contour_control.core.errors import FaultError
 from cnc_contour_control.core.units import M_PER_MM, M_PER_UM
 from cnc_contour_control.laws.pid import pid_gains_from_per_sample
@@ -83,10 +84,12 @@ class Reading:
         return COUNTS_PER_M[self.gain_unit] * LENGTH_UNITS[self.length_unit]
 
     def apply(self, scenario: Scenario) -> Scenario:
-        """``scenario`` under this reading (plant length unit, counts per metre, gains)."""
+        """``scenario`` under this reading (plant length unit, counts per metre, gains), without the following-error
+        trip: the study watches each reading's loop as it is (a stuck axis, a diverging loop), which the machine's
+        default trip (2 mm + 0.5 s·|v|) would end at its first millimetres."""
         return scenario.variant({"plant": {"mass_friction": {"length_unit": self.length_unit}},
                                  "servo": {"counts_per_m": COUNTS_PER_M[self.gain_unit],
-                                           "law_params": dict(self.gains)}},
+                                           "law_params": dict(self.gains), **NO_FERROR_TRIP}},
                                 name=f"{scenario.name}_{self.name}")
 
 

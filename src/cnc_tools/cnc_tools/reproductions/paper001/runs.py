@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from cnc_contour_control.axis.servo import NO_FERROR_TRIP
 from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.core.units import M_PER_MM
 from cnc_tools.analysis.scoring import contour_error_series
@@ -245,7 +246,8 @@ class Session:
 def run_session(spec: SessionSpec) -> Session:
     """Run ``spec``'s session on the engine; a faulted run ends it (recorded as diverged)."""
     stack = STACKS[spec.stack]
-    base = load_scenario(project_root() / SCENARIO_FILES[spec.scenario])
+    # the paper's runs have no trip: a session watches what learning does to the loop, ringing included
+    base = load_scenario(project_root() / SCENARIO_FILES[spec.scenario], {"servo": NO_FERROR_TRIP})
     scenario = stack_scenario(base, stack, spec.params, spec.state_in, freeze=spec.freeze)
     measures: list[RunMeasure] = []
     runs = learning_runs(scenario, spec.runs, Path(spec.folder))
