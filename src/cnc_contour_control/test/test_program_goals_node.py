@@ -3,9 +3,10 @@
 A managed action-mode interpolator is ticked by the test (a perfect machine:
 each joint state is the previous reference). Every goal gets a result with a
 code and a reason: refused ones (inactive, a directory, a huge malformed file)
-come back REJECTED; an 8-bit comment runs; a 100 000-line file is read and
-planned off the tick's path while the ticks go on; deactivation ends a goal
-ABORTED. The result codes start at 1: a default result (0) is UNKNOWN.
+come back REJECTED; an 8-bit comment runs; a 50 000-line file is read and
+planned off the tick's path while the ticks go on, and one cancelled while it
+is planned ends CANCELED before it started; deactivation ends a goal ABORTED.
+The result codes start at 1: a default result (0) is UNKNOWN.
 """
 from __future__ import annotations
 
@@ -106,7 +107,7 @@ def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_
     latin1.write_bytes("(Fräser Ø 6 mm)\nG1 X1 F1200 (Zustellung ½ mm)\n".encode("latin-1"))
     folder = tmp_path / "folder.ngc"
     folder.mkdir()
-    big = big_program(tmp_path / "big.ngc", 100_000)
+    big = big_program(tmp_path / "big.ngc", 50_000)
     assert RunProgram.Result().outcome == RunProgram.Result.UNKNOWN != RunProgram.Result.COMPLETED
     with TopicProbe({f"{ns}/reference": Reference}) as probe, \
             host(InterpolatorNode, PARAMS, namespace=ns) as interpolator:
@@ -122,7 +123,18 @@ def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_
         machine.tick_s.clear()
         huge = run_goal(machine, client, RunProgram.Goal(program_file=str(big)), max_ticks=20_000)
         planning_ticks, planning_s = len(machine.tick_s), sum(machine.tick_s)
-        handle = machine.until(client.send_goal_async(RunProgram.Goal(gcode="G1 X20 F1200")))
+        valid = big.with_name("valid.ngc")
+        valid.write_text(big.read_text().replace("G1 X0 Q3", "G1 X0"))
+        planned = machine.until(client.send_goal_async(RunProgram.Goal(program_file=str(valid))))
+        machine.until(planned.cancel_goal_async())
+        cancelled = machine.until(planned.get_result_async()).result
+        feedback: list[Any] = []
+        handle = machine.until(client.send_goal_async(RunProgram.Goal(gcode="G1 X20 F1200"),
+                                                      feedback_callback=feedback.append))
+        for _ in range(20_000):  # it plans once the cancelled plan before it is done (one plan at a time)
+            if feedback:
+                break
+            machine.tick()
         for _ in range(10):
             machine.tick()
         assert change(probe, ns, Transition.TRANSITION_DEACTIVATE)
@@ -135,10 +147,11 @@ def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_
     assert fraeser.program_name == "fraeser" and fraeser.path_length_m == pytest.approx(1e-3)
     assert directory.outcome == RunProgram.Result.REJECTED and "is a directory" in directory.reason
     assert huge.outcome == RunProgram.Result.REJECTED, huge.reason
-    assert huge.reason.startswith("line 100002: unsupported word Q3"), huge.reason
+    assert huge.reason.startswith("line 50002: unsupported word Q3"), huge.reason
     assert huge.ticks == 0 and math.isnan(huge.max_contour_error_m)
     assert planning_ticks > 10, f"the ticks went on while the file was read ({planning_ticks} in {planning_s:.1f} s)"
     assert max(machine.tick_s) < TICK_BOUND_S, f"longest tick {max(machine.tick_s):.3f} s"
+    assert (cancelled.outcome, cancelled.reason) == (RunProgram.Result.CANCELED, "cancelled before it started")
     assert deactivated.outcome == RunProgram.Result.ABORTED and "deactivated" in deactivated.reason
     assert 0.0 < deactivated.path_length_m < deactivated.total_length_m and deactivated.ticks > 10
 

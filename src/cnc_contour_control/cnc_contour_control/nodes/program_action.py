@@ -262,6 +262,8 @@ class ProgramActionServer:
             return
         self._planning = None
         if self.session.pending is None:  # the goal ended while it was planned (cancelled, machine stopped)
+            if not self.session.busy:
+                gc.unfreeze()
             return
         try:
             program, live, path = future.result()
