@@ -2,6 +2,9 @@
 
 The servo feeds back on the motor-side position (``positions_m()``, semi-closed
 loop); the faults act only on the *tool* position (``tool_positions_m()``).
+A drive gain error ``g_i`` scales the command the axis receives, ``(1 + g_i)·u_i``
+(the position loop's gain on that axis becomes ``(1 + g_i)·k``: a servo
+mismatch made by the machine, not by the servo's settings).
 Per axis ``i``, from the motor position ``m_i`` [m], in this order::
 
     table_i = play(m_i)                       backlash b_i: the table follows the motor through a
@@ -57,6 +60,8 @@ class AxisFaults:
         Amplitude of the lead-screw pitch error ``A sin(2π x / P)`` [um], in [0, 1e3].
     cyclic_pitch_mm : float
         Its period ``P`` along the axis (the screw's pitch) [mm], in [1e-3, 1e4].
+    drive_gain_pct : float
+        Gain error of the drive [%]: the axis receives ``(1 + g)·u`` for the command ``u``, in [-50, 100].
     """
 
     backlash_um: float = param(0.0, unit="um", low=0.0, high=1.0e4, read_only=True,
@@ -67,6 +72,8 @@ class AxisFaults:
                                        description="amplitude of the cyclic (lead-screw pitch) error")
     cyclic_pitch_mm: float = param(5.0, unit="mm", low=1.0e-3, high=1.0e4, read_only=True,
                                    description="period of the cyclic error along the axis (screw pitch)")
+    drive_gain_pct: float = param(0.0, unit="%", low=-50.0, high=100.0, read_only=True,
+                                  description="drive gain error: the axis receives (1 + g) times the command")
 
     def __post_init__(self) -> None:
         check_ranges(self)
@@ -74,7 +81,7 @@ class AxisFaults:
     @property
     def active(self) -> bool:
         """True when the axis has any fault."""
-        return bool(self.backlash_um or self.scale_ppm or self.cyclic_amplitude_um)
+        return bool(self.backlash_um or self.scale_ppm or self.cyclic_amplitude_um or self.drive_gain_pct)
 
 
 @dataclass(frozen=True)
@@ -182,6 +189,8 @@ class FaultedPlant:
         self._backlash_m = [faults.axes[n].backlash_um * M_PER_UM if n in faults.axes else 0.0
                             for n in self.axis_names]
         self._table_m = list(inner.positions_m())
+        self._gain = [1.0 + 0.01 * faults.axes[n].drive_gain_pct if n in faults.axes else 1.0
+                      for n in self.axis_names]
         self.positions_m, self.velocities_m_s, self.state = inner.positions_m, inner.velocities_m_s, inner.state
         self.forces_n = inner.forces_n
 
@@ -191,8 +200,9 @@ class FaultedPlant:
         self._table_m = list(self.inner.positions_m())
 
     def step(self, commands: Sequence[float], dt_s: float) -> None:
-        """The inner plant's step, then each table dragged through its dead band."""
-        self.inner.step(commands, dt_s)
+        """The inner plant's step on the commands times the drive gains, then each table dragged through its
+        dead band."""
+        self.inner.step([c * g for c, g in zip(commands, self._gain)], dt_s)
         motor = self.inner.positions_m()
         self._table_m = [play(m, t, b) for m, t, b in zip(motor, self._table_m, self._backlash_m)]
 
