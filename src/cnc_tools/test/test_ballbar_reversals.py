@@ -31,9 +31,21 @@ def _gaussian(height_m: float, at_deg: float, sigma_deg: float = 2.0) -> Fault:
     return lambda deg: height_m * np.exp(-0.5 * (((deg - at_deg + 180.0) % 360.0 - 180.0) / sigma_deg) ** 2)
 
 
-def _sawtooth(step_m: float) -> Fault:
-    """Jumps up by ``step_m`` at 0° and 180° (ccw time order) and falls back linearly over the half turn."""
-    return lambda deg: step_m * (1.0 - (deg % 180.0) / 180.0)
+def _lost_motion(direction: str, lost_m: float, axis: str = "x", fault: Fault | None = None) -> CircleTrace:
+    """The ``axis`` table following its motor (the exact circle) through a play of ``lost_m``, plus ``fault``.
+
+    Settled against the motion at the first point; the table stands still after a reversal until the motor has
+    turned back by ``lost_m`` (as the plant's backlash), then lags by ``lost_m/2`` against the motion.
+    """
+    exact = _trace(direction, fault)
+    points = exact.points_m.copy()
+    k = 0 if axis == "x" else 1
+    motor = points[:, k].copy()
+    table = motor[0] - np.sign(motor[1] - motor[0]) * lost_m / 2.0
+    for i, m in enumerate(motor):
+        table = min(max(table, m - lost_m / 2.0), m + lost_m / 2.0)
+        points[i, k] = table
+    return CircleTrace(points, CENTRE_M, R_M, direction)
 
 
 def _within(measured: float, injected: float) -> None:
@@ -66,16 +78,19 @@ def test_gaussian_spike_at_one_y_reversal(direction: str, height_um: float) -> N
 
 
 @pytest.mark.parametrize("step_um", [8.0, 30.0])
-def test_step_at_the_x_reversals_is_the_backlash(step_um: float) -> None:
-    fault = _sawtooth(step_um * 1e-6)
-    d = diagnose_reversals([_trace("ccw", fault), _trace("cw", fault)])
-    for angle in (0.0, 180.0):
-        _within(_one(d.reversals, "ccw", angle).step_um, step_um)
-        _within(_one(d.reversals, "cw", angle).step_um, -step_um)  # time runs the other way round
+def test_lost_motion_is_a_step_at_every_x_reversal_in_both_directions(step_um: float) -> None:
+    """A step persists over the half-circle after the reversal: +b at each x reversal, whichever the direction."""
+    d = diagnose_reversals([_lost_motion("ccw", step_um * 1e-6), _lost_motion("cw", step_um * 1e-6)])
+    for direction in ("ccw", "cw"):
+        for angle in (0.0, 180.0):
+            _within(_one(d.reversals, direction, angle).step_um, step_um)
     for r in d.reversals:
+        assert abs(r.spike_um) < 0.5, r
         if r.axis == "y":
-            assert abs(r.step_um) < 0.5 and abs(r.spike_um) < 0.5, r
-    ccw_only = diagnose_reversals([_trace("ccw", fault)])
+            assert abs(r.step_um) < 0.5, r
+    _within(d.backlash_x_um, step_um)
+    assert abs(d.backlash_y_um) < 0.5
+    ccw_only = diagnose_reversals([_lost_motion("ccw", step_um * 1e-6)])
     _within(ccw_only.backlash_x_um, step_um)
     assert abs(ccw_only.backlash_y_um) < 0.5
 
@@ -83,23 +98,36 @@ def test_step_at_the_x_reversals_is_the_backlash(step_um: float) -> None:
 @pytest.mark.parametrize("direction", ["ccw", "cw"])
 def test_x_lost_motion_is_an_outward_step_at_the_x_reversals(direction: str) -> None:
     """x lags its command by b/2 against its direction of motion: the halves move apart by b along x."""
-    lost_m, sign = 10e-6, 1.0 if direction == "ccw" else -1.0
-    exact = _trace(direction)
-    theta = np.arctan2(exact.points_m[:, 1] - CENTRE_M[1], exact.points_m[:, 0] - CENTRE_M[0])
-    points = exact.points_m.copy()
-    points[:, 0] -= np.sign(-sign * np.sin(theta)) * lost_m / 2.0
-    d = diagnose_reversals([CircleTrace(points, CENTRE_M, R_M, direction)])
+    d = diagnose_reversals([_lost_motion(direction, 10e-6)])
     _within(d.backlash_x_um, 10.0)
     assert abs(d.backlash_y_um) < 0.5
 
 
+def test_a_spike_that_decays_is_no_step() -> None:
+    """A friction-like transient after each y reversal (outward, decaying by e every 3°) is a spike, no backlash."""
+    def spikes(sign: float) -> Fault:
+        def fault(deg: np.ndarray) -> np.ndarray:
+            out = np.zeros_like(deg)
+            for at_deg in (90.0, 270.0):
+                after = sign * ((deg - at_deg + 180.0) % 360.0 - 180.0)
+                out += np.where(after >= 0.0, 20e-6 * np.exp(-np.maximum(after, 0.0) / 3.0), 0.0)
+            return out
+        return fault
+
+    traces = [_trace(direction, spikes(sign)) for direction, sign in (("ccw", 1.0), ("cw", -1.0))]
+    d = diagnose_reversals(traces)
+    _within(d.spike_y_um, 20.0)
+    assert abs(d.backlash_y_um) < 0.5 and abs(d.backlash_x_um) < 0.5
+
+
 def test_spike_and_step_together_are_told_apart() -> None:
-    spike, step = _gaussian(6e-6, 181.5, sigma_deg=1.0), _sawtooth(10e-6)  # the spike just after the reversal
-    d = diagnose_reversals([_trace("ccw", lambda deg: spike(deg) + step(deg))], window_deg=8.0)
+    spike = _gaussian(6e-6, 181.5, sigma_deg=1.0)  # just after the reversal at 180° (ccw)
+    d = diagnose_reversals([_lost_motion("ccw", 10e-6, fault=spike)], before_deg=5.0, after_deg=20.0)
     at_180 = _one(d.reversals, "ccw", 180.0)
     _within(at_180.step_um, 10.0)
     _within(at_180.spike_um, 6.0)
-    assert d.window_deg == 8.0
+    _within(d.backlash_x_um, 10.0)
+    assert (d.before_deg, d.after_deg) == (5.0, 20.0)
 
 
 def test_motion_labels_the_axis_turning() -> None:
@@ -109,10 +137,14 @@ def test_motion_labels_the_axis_turning() -> None:
 
 
 def test_bad_window_and_sparse_flanks_are_errors() -> None:
-    with pytest.raises(ConfigError, match=r"window_deg must be in \(0, 22.5\], got 30"):
-        diagnose_reversals([_trace("ccw")], window_deg=30)
+    with pytest.raises(ConfigError, match=r"shorter than 90 deg, got before_deg 30, after_deg 60"):
+        diagnose_reversals([_trace("ccw")], before_deg=30, after_deg=60)
+    with pytest.raises(ConfigError, match=r"got before_deg -1"):
+        diagnose_reversals([_trace("ccw")], before_deg=-1)
+    sparse = _trace("ccw")
+    sparse = CircleTrace(sparse.points_m[::200], CENTRE_M, R_M, "ccw")  # 18 points, 20° apart
     with pytest.raises(ConfigError, match="flank"):
-        diagnose_reversals([_trace("ccw")], window_deg=0.05)
+        diagnose_reversals([sparse], before_deg=0.0, after_deg=1.0)
 
 
 def _lateral_play_trace(direction: str, play_m: float, axis: str) -> CircleTrace:

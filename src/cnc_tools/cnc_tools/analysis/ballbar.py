@@ -31,23 +31,26 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
 from scipy.optimize import least_squares, minimize
 
 from cnc_contour_control.core.config import require_choice, require_finite, require_positive
 from cnc_contour_control.core.errors import ConfigError
+from cnc_tools.analysis.ballbar_model import DIRECTIONS as DIRECTIONS  # re-exported: the traces' directions
+from cnc_tools.analysis.ballbar_model import MAX_HARMONIC as MAX_HARMONIC
+from cnc_tools.analysis.ballbar_model import FloatArray as FloatArray
+from cnc_tools.analysis.ballbar_model import (
+    LostMotionFit,
+    fit_lost_motion,
+    outside_windows,
+    polar,
+    without_steps,
+)
 from cnc_tools.analysis.circular import fit_circle
 
-FloatArray = NDArray[np.float64]
-
-#: Direction name -> sign of the angular velocity (a registry, not an if-chain).
-DIRECTIONS: dict[str, int] = {"ccw": 1, "cw": -1}
 #: Fewest points a trace may have.
 MIN_POINTS = 16
 #: Largest angular gap between consecutive points (about the programmed centre), degrees.
 MAX_ANGLE_GAP_DEG = 30.0
-#: Highest harmonic fitted; harmonics 3..this are the cyclic error.
-MAX_HARMONIC = 10
 #: Harmonic orders reported as cyclic error.
 CYCLIC_HARMONICS: tuple[int, ...] = tuple(range(3, MAX_HARMONIC + 1))
 #: Two programmed centres or radii this close are the same circle, m.
@@ -221,12 +224,33 @@ def harmonics(angle_rad: FloatArray, deviation_m: FloatArray) -> tuple[FloatArra
     return coef[1:MAX_HARMONIC + 1], coef[MAX_HARMONIC + 1:]
 
 
-def diagnose_trace(trace: CircleTrace) -> TraceDiagnosis:
-    """The per-trace diagnoses of :class:`TraceDiagnosis`."""
+def harmonics_at(angle_rad: FloatArray, deviation_m: FloatArray, at_rad: FloatArray) -> FloatArray:
+    """The Fourier series 0..MAX_HARMONIC fitted to ``deviation_m`` over ``angle_rad``, evaluated at ``at_rad``, m."""
+    orders = np.arange(1, MAX_HARMONIC + 1)
+
+    def design(angle: FloatArray) -> FloatArray:
+        phase = np.outer(angle, orders)
+        return np.column_stack((np.ones_like(angle), np.cos(phase), np.sin(phase)))
+
+    coef, *_ = np.linalg.lstsq(design(angle_rad), deviation_m, rcond=None)
+    return design(at_rad) @ coef
+
+
+def diagnose_trace(trace: CircleTrace, steps: LostMotionFit | None = None, index: int = 0) -> TraceDiagnosis:
+    """The per-trace diagnoses of :class:`TraceDiagnosis`.
+
+    The circularity, radial deviation and centre are figures of every point. The harmonics are fitted to the
+    radial deviation about the programmed centre with the backlash steps of ``steps`` taken out, over the
+    points outside the reversal windows (``steps.kept[index]``; every point outside the default windows
+    when ``steps`` is None, no steps taken out).
+    """
     points = trace.points_m
     centre, radius = fit_circle_ls(points)
     about_lsq = points - centre
-    cos_m, sin_m = harmonics(np.arctan2(about_lsq[:, 1], about_lsq[:, 0]), np.hypot(*about_lsq.T) - radius)
+    angle, deviation = polar(trace)
+    keep = outside_windows(angle, trace.direction) if steps is None else steps.kept[index]
+    corrected = deviation if steps is None else without_steps(trace, steps)
+    cos_m, sin_m = harmonics(angle[keep], corrected[keep])
     nominal = np.hypot(*(points - np.asarray(trace.center_m)).T) - trace.radius_m
     offset = (centre - np.asarray(trace.center_m)) * UM_PER_M
     return TraceDiagnosis(
@@ -286,7 +310,8 @@ def diagnose_circles(traces: Sequence[CircleTrace]) -> BallbarDiagnosis:
         Fields that need both directions (or feeds) are ``None`` and named in ``skipped``.
     """
     _check_pair(traces)
-    diags = tuple(diagnose_trace(t) for t in traces)
+    steps = fit_lost_motion(traces)
+    diags = tuple(diagnose_trace(t, steps, k) for k, t in enumerate(traces))
     mismatch_um, gain_s, squareness_urad, skipped = _flipping(traces, diags)
     mean_cos = np.mean([d.harmonic_cos_um for d in diags], axis=0)
     mean_sin = np.mean([d.harmonic_sin_um for d in diags], axis=0)

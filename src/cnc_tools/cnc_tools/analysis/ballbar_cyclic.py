@@ -10,7 +10,9 @@ its size. Here ``a_j, b_j`` are fitted by linear least squares
 (``numpy.linalg.lstsq``) to the radial deviation about the programmed centre,
 ``|p − c| − R``, of every trace at once, together with each trace's own
 harmonics 0..:data:`LOW_HARMONIC` (radius, centre offset, ellipses: set-up and
-the other faults' low orders). The amplitude of axis ``j`` is
+the other faults' low orders), with the backlash steps of
+:func:`~cnc_tools.analysis.ballbar_model.fit_lost_motion` taken out and the
+reversal windows left out (as for the ellipses). The amplitude of axis ``j`` is
 ``hypot(a_j, b_j)``: the ``A`` of the plant's ``A sin(2π q/P)``.
 """
 from __future__ import annotations
@@ -23,6 +25,7 @@ import numpy as np
 
 from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.analysis.ballbar import UM_PER_M, CircleTrace, FloatArray
+from cnc_tools.analysis.ballbar_model import fit_lost_motion, without_steps
 
 #: Plane axis name -> (column of the trace's points, the radial projection of that axis).
 PLANE_AXES: dict[str, int] = {"x": 0, "y": 1}
@@ -84,11 +87,13 @@ def fit_cyclic_error(traces: Sequence[CircleTrace], pitch_mm: Mapping[str, float
         raise ConfigError("traces must hold at least 1 circle trace, got 0")
     n_low = 1 + 2 * LOW_HARMONIC
     blocks, pitch_rows, deviation = [], [], []
-    for trace in traces:
+    steps = fit_lost_motion(traces)
+    for k, trace in enumerate(traces):
         about = trace.points_m - np.asarray(trace.center_m)
-        blocks.append(_harmonic_columns(np.arctan2(about[:, 1], about[:, 0])))
-        pitch_rows.append(_pitch_columns(trace, pitches))
-        deviation.append(np.hypot(*about.T) - trace.radius_m)
+        keep = steps.kept[k]
+        blocks.append(_harmonic_columns(np.arctan2(about[:, 1], about[:, 0]))[keep])
+        pitch_rows.append(_pitch_columns(trace, pitches)[keep])
+        deviation.append(without_steps(trace, steps)[keep])
     rows = sum(b.shape[0] for b in blocks)
     design = np.zeros((rows, n_low * len(blocks) + 2 * len(pitches)))
     start = 0

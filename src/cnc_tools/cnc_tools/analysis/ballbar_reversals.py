@@ -1,31 +1,38 @@
 """Reversal spikes and backlash steps of a circular-test trace, and its polar plot (ROS-free).
 
 On a circle about the centre, ``x = R cos θ`` reverses where ``sin θ = 0``
-(θ = 0°, 180°) and ``y = R sin θ`` where ``cos θ = 0`` (θ = 90°, 270°). The
-radial deviation is taken about the trace's least-squares circle
-(:func:`cnc_tools.analysis.ballbar.fit_circle_ls`, so a set-up offset drops
-out), the angle about its centre. Around each reversal angle ``θr``, with
-``w`` the window half-width and time order given by the trace's direction:
+(θ = 0°, 180°) and ``y = R sin θ`` where ``cos θ = 0`` (θ = 90°, 270°).
+A reversal shows two different things (:mod:`cnc_tools.analysis.ballbar_model`):
 
-- the *flanks* are the points ``w..2w`` before and ``w..2w`` after ``θr``
-  (in time); a straight line is fitted to the deviation on each flank
-  (``numpy.polyfit``) and evaluated at ``θr`` (a smooth trend such as a
-  first harmonic cancels);
-- ``step_um`` = after-line at ``θr`` − before-line at ``θr``: the backlash step,
-  positive when the radius jumps outwards as the axis reverses;
-- ``spike_um`` = the deviation inside ``±w`` minus the flank line of its side
-  (before/after), the value of largest magnitude, signed (positive outwards);
-- ``lateral_um`` = the lateral step: a shift ``t`` of the trace perpendicular to
-  the reversing axis (along the other axis) appearing at ``θr`` adds
-  ``t·sin(θ − θr)`` to the radius after it, a change of slope ``t`` per radian
-  and no step (the radius alone cannot show a perpendicular shift as a step);
-  ``t`` is the kink of one least-squares fit to both flanks,
-  ``a + b u + c u² + s H + t u H`` (``u`` the angle after ``θr`` in time, rad,
-  ``H`` 1 after it; the shared ``c u²`` takes a smooth trend's curvature),
-  signed along the *other* axis's + direction.
+- a **backlash step**: the trace offset along the reversing axis by ``b/2``
+  against the direction of motion, on the whole half-circle up to the next
+  reversal of that axis. ``backlash_*_um`` are the steps ``b_x``, ``b_y`` of
+  :func:`~cnc_tools.analysis.ballbar_model.fit_lost_motion`, fitted beside the
+  eccentricity and the ellipses (so a gain mismatch does not leak into them),
+  outside the reversal windows;
+- a **spike**: a transient (friction, stick-slip) after the reversal that
+  decays back. The *residual* is the radial deviation minus the whole fitted
+  model (the steps, and each trace's harmonics 0..10 fitted outside the
+  windows); ``spike_um`` is its signed value of largest magnitude within the
+  window from ``before_deg`` before to ``after_deg`` after the reversal in time.
+
+``step_um`` of one reversal is the local step: ``b`` of its axis plus the
+least-squares coefficient of that axis's step shape fitted to the residual on
+the flanks (:data:`FLANK_DEG` just outside the window, each side), so one
+reversal whose step differs from the others shows it.
+
+``lateral_um`` = the lateral step: a shift ``t`` of the trace perpendicular to
+the reversing axis (along the other axis) appearing at ``θr`` adds
+``t·sin(θ − θr)`` to the radius after it, a change of slope ``t`` per radian
+and no step (the radius alone cannot show a perpendicular shift as a step);
+``t`` is the kink of one least-squares fit to both flanks
+(:data:`LATERAL_WINDOW_DEG`..2× that, of the deviation about the LS circle with
+the steps taken out), ``a + b u + c u² + s H + t u H`` (``u`` the angle after
+``θr`` in time, rad, ``H`` 1 after it; the shared ``c u²`` takes a smooth
+trend's curvature), signed along the *other* axis's + direction.
 
 Per axis: ``spike_*_um`` is the signed spike of largest magnitude over that
-axis's reversals (all traces), ``backlash_*_um`` the mean of its steps,
+axis's reversals (all traces), ``backlash_*_um`` the fitted step,
 ``lateral_*_um`` the mean of its lateral steps times the motion's sign (+1 at
 "+ to -", −1 at "- to +": a play that follows the reversing axis's direction
 of force has one sign).
@@ -40,14 +47,33 @@ from pathlib import Path
 import numpy as np
 
 from cnc_contour_control.core.errors import ConfigError
-from cnc_tools.analysis.ballbar import DIRECTIONS, UM_PER_M, BallbarDiagnosis, CircleTrace, FloatArray, fit_circle_ls
+from cnc_tools.analysis.ballbar import (
+    DIRECTIONS,
+    UM_PER_M,
+    BallbarDiagnosis,
+    CircleTrace,
+    FloatArray,
+    fit_circle_ls,
+    harmonics_at,
+)
+from cnc_tools.analysis.ballbar_model import (
+    AFTER_DEG,
+    BEFORE_DEG,
+    REVERSAL_ANGLES_DEG,
+    LostMotionFit,
+    after_reversal_deg,
+    fit_lost_motion,
+    polar,
+    step_columns,
+    without_steps,
+)
 
-#: Reversal angles (degrees, about the centre) of each plane axis (a registry).
-REVERSAL_ANGLES_DEG: dict[str, tuple[float, float]] = {"x": (0.0, 180.0), "y": (90.0, 270.0)}
-#: Default half-width of the window around a reversal, degrees.
-WINDOW_DEG = 10.0
-#: Largest window: the flanks (out to 2w) must stay short of the next reversal.
-MAX_WINDOW_DEG = 22.5
+__all__ = ["AFTER_DEG", "BEFORE_DEG", "REVERSAL_ANGLES_DEG", "Reversal", "ReversalDiagnosis", "diagnose_reversals"]
+
+#: Width of the flanks just outside a reversal window on which a reversal's own step is read, degrees.
+FLANK_DEG = 30.0
+#: Half-width of the window of the lateral step's flanks (LATERAL_WINDOW_DEG..2x), degrees.
+LATERAL_WINDOW_DEG = 10.0
 #: Fewest points on each flank.
 MIN_FLANK_POINTS = 3
 
@@ -67,9 +93,11 @@ class Reversal:
 
 @dataclass(frozen=True)
 class ReversalDiagnosis:
-    """Reversals of one or more traces and the per-axis summary, µm; ``window_deg`` is ``w``."""
+    """Reversals of one or more traces and the per-axis summary, µm; the window runs from ``before_deg``
+    before each reversal to ``after_deg`` after it (in time)."""
 
-    window_deg: float
+    before_deg: float
+    after_deg: float
     reversals: tuple[Reversal, ...]
     spike_x_um: float
     spike_y_um: float
@@ -86,6 +114,14 @@ def radial_deviation(trace: CircleTrace) -> tuple[FloatArray, FloatArray]:
     return np.degrees(np.arctan2(about[:, 1], about[:, 0])), np.hypot(*about.T) - radius
 
 
+def residual(trace: CircleTrace, steps: LostMotionFit, index: int) -> FloatArray:
+    """Radial deviation minus the fitted model: the steps and the trace's harmonics 0..10 (outside the windows), m."""
+    angle, _ = polar(trace)
+    corrected = without_steps(trace, steps)
+    keep = steps.kept[index]
+    return corrected - harmonics_at(angle[keep], corrected[keep], angle)
+
+
 def _motion(axis: str, angle_deg: float) -> str:
     """``"+ to -"`` at the axis's maximum, ``"- to +"`` at its minimum (either direction of travel)."""
     theta = math.radians(angle_deg)
@@ -93,33 +129,37 @@ def _motion(axis: str, angle_deg: float) -> str:
     return "+ to -" if coordinate > 0 else "- to +"
 
 
-def _flank_line(offset_deg: FloatArray, deviation_m: FloatArray, mask: np.ndarray, name: str,
-                window_deg: float) -> np.poly1d:
-    count = int(np.sum(mask))
-    if count < MIN_FLANK_POINTS:
-        raise ConfigError(f"window_deg: the {name} flank ({window_deg:g}..{2 * window_deg:g} deg) must hold at "
-                          f"least {MIN_FLANK_POINTS} points, got {count}")
-    return np.poly1d(np.polyfit(offset_deg[mask], deviation_m[mask], 1))
+def _local_step_m(trace: CircleTrace, after: FloatArray, rest: FloatArray, axis: str, steps: LostMotionFit) -> float:
+    """``b`` of the axis plus the step shape's coefficient in the residual on the two flanks, m."""
+    flanks = ((after >= steps.after_deg) & (after <= steps.after_deg + FLANK_DEG)) | \
+        ((after <= -steps.before_deg) & (after >= -steps.before_deg - FLANK_DEG))
+    for name, side in (("before", after < 0), ("after", after > 0)):
+        count = int(np.sum(flanks & side))
+        if count < MIN_FLANK_POINTS:
+            raise ConfigError(f"the {name} flank of the {axis} reversal must hold at least {MIN_FLANK_POINTS} "
+                              f"points, got {count}")
+    angle, _ = polar(trace)
+    shape = step_columns(angle[flanks], trace.direction)[:, 0 if axis == "x" else 1]
+    extra = float(np.dot(shape, rest[flanks]) / np.dot(shape, shape))
+    return (steps.backlash_x_m if axis == "x" else steps.backlash_y_m) + extra
 
 
-def reversal_at(trace: CircleTrace, axis: str, angle_deg: float, window_deg: float = WINDOW_DEG) -> Reversal:
-    """The spike and step of ``trace`` at the reversal of ``axis`` at ``angle_deg`` (module docstring)."""
-    angle, deviation = radial_deviation(trace)
-    sign = DIRECTIONS[trace.direction]
-    offset = (angle - angle_deg + 180.0) % 360.0 - 180.0
-    after_deg = sign * offset  # > 0 after the reversal in time
-    before = _flank_line(offset, deviation, (after_deg <= -window_deg) & (after_deg >= -2 * window_deg),
-                         "before", window_deg)
-    after = _flank_line(offset, deviation, (after_deg >= window_deg) & (after_deg <= 2 * window_deg),
-                        "after", window_deg)
-    inside = np.abs(offset) <= window_deg
-    baseline = np.where(after_deg[inside] >= 0.0, after(offset[inside]), before(offset[inside]))
-    excess = deviation[inside] - baseline
-    spike_m = float(excess[np.argmax(np.abs(excess))]) if excess.size else 0.0
-    flanks = (np.abs(after_deg) >= window_deg) & (np.abs(after_deg) <= 2 * window_deg)
-    shift_m = lateral_shift(np.radians(after_deg[flanks]), deviation[flanks]) * sign
+def reversal_at(trace: CircleTrace, axis: str, angle_deg: float, steps: LostMotionFit, index: int = 0) -> Reversal:
+    """The spike, step and lateral step of ``trace`` at the reversal of ``axis`` at ``angle_deg`` (module docstring)."""
+    angle, _ = polar(trace)
+    after = after_reversal_deg(angle, angle_deg, trace.direction)
+    rest = residual(trace, steps, index)
+    inside = (after >= -steps.before_deg) & (after <= steps.after_deg)
+    spike_m = float(rest[inside][np.argmax(np.abs(rest[inside]))]) if np.any(inside) else 0.0
+    ls_angle, ls_deviation = radial_deviation(trace)
+    ls_deviation = ls_deviation - step_columns(np.radians(ls_angle), trace.direction) @ np.array(
+        [steps.backlash_x_m, steps.backlash_y_m])
+    ls_after = after_reversal_deg(np.radians(ls_angle), angle_deg, trace.direction)
+    w = LATERAL_WINDOW_DEG
+    lateral = (np.abs(ls_after) >= w) & (np.abs(ls_after) <= 2 * w)
+    shift_m = lateral_shift(np.radians(ls_after[lateral]), ls_deviation[lateral]) * DIRECTIONS[trace.direction]
     return Reversal(trace.direction, axis, angle_deg, _motion(axis, angle_deg), spike_m * UM_PER_M,
-                    float(after(0.0) - before(0.0)) * UM_PER_M,
+                    _local_step_m(trace, after, rest, axis, steps) * UM_PER_M,
                     shift_m * _tangent_along_other(axis, angle_deg) * UM_PER_M)
 
 
@@ -145,34 +185,33 @@ def _signed_largest(values: Sequence[float]) -> float:
     return float(max(values, key=abs))
 
 
-def diagnose_reversals(traces: Sequence[CircleTrace], window_deg: float = WINDOW_DEG) -> ReversalDiagnosis:
+def diagnose_reversals(traces: Sequence[CircleTrace], before_deg: float = BEFORE_DEG,
+                       after_deg: float = AFTER_DEG) -> ReversalDiagnosis:
     """Spikes and steps at every axis reversal of every trace, and the per-axis summary.
 
     Parameters
     ----------
     traces
-        One or more :class:`CircleTrace` (typically a cw/ccw pair).
-    window_deg
-        Half-width ``w`` of the window around a reversal, degrees, in (0, 22.5]; the flanks
-        span ``w..2w`` on each side.
+        One or two :class:`CircleTrace` of one circle (typically a cw/ccw pair).
+    before_deg, after_deg
+        The reversal window, degrees before and after each reversal in time (module docstring of
+        :mod:`cnc_tools.analysis.ballbar_model`); left out of the fits, searched for the spike.
 
     Returns
     -------
     ReversalDiagnosis
     """
-    if not 0.0 < window_deg <= MAX_WINDOW_DEG:
-        raise ConfigError(f"window_deg must be in (0, {MAX_WINDOW_DEG}], got {window_deg}")
     if not traces:
         raise ConfigError("traces must hold at least 1 circle trace, got 0")
-    found = tuple(reversal_at(t, axis, a, window_deg) for t in traces
+    steps = fit_lost_motion(traces, before_deg, after_deg)
+    found = tuple(reversal_at(t, axis, a, steps, k) for k, t in enumerate(traces)
                   for axis, angles in REVERSAL_ANGLES_DEG.items() for a in angles)
     by_axis = {axis: [r for r in found if r.axis == axis] for axis in REVERSAL_ANGLES_DEG}
     return ReversalDiagnosis(
-        window_deg=float(window_deg), reversals=found,
+        before_deg=float(before_deg), after_deg=float(after_deg), reversals=found,
         spike_x_um=_signed_largest([r.spike_um for r in by_axis["x"]]),
         spike_y_um=_signed_largest([r.spike_um for r in by_axis["y"]]),
-        backlash_x_um=float(np.mean([r.step_um for r in by_axis["x"]])),
-        backlash_y_um=float(np.mean([r.step_um for r in by_axis["y"]])),
+        backlash_x_um=steps.backlash_x_m * UM_PER_M, backlash_y_um=steps.backlash_y_m * UM_PER_M,
         lateral_x_um=_lateral(by_axis["x"]), lateral_y_um=_lateral(by_axis["y"]))
 
 

@@ -28,7 +28,7 @@ from cnc_tools.analysis.ballbar import (
 )
 from cnc_tools.analysis.ballbar_cyclic import PLANE_AXES, CyclicFit, fit_cyclic_error
 from cnc_tools.analysis.ballbar_radius import measured_radius_loss_um, model_from_scenario, predict_radius_loss
-from cnc_tools.analysis.ballbar_reversals import WINDOW_DEG, ReversalDiagnosis, diagnose_reversals, write_polar_plot
+from cnc_tools.analysis.ballbar_reversals import FLANK_DEG, ReversalDiagnosis, diagnose_reversals, write_polar_plot
 from cnc_tools.analysis.ballbar_trace import (  # noqa: F401 - measured_positions, arc_samples: re-exported
     SAMPLE_RULE,
     BagTrace,
@@ -72,13 +72,26 @@ CYCLIC_HOW = "amplitude of harmonic {k} of the traces' mean radius deviation"
 REVERSAL_ROWS: tuple[Row, ...] = (
     Row("spike_x_um", "µm", "largest reversal spike of x (0°/180°) over the traces, signed"),
     Row("spike_y_um", "µm", "largest reversal spike of y (90°/270°) over the traces, signed"),
-    Row("backlash_x_um", "µm", "mean step (after - before in time) of the radius across the x reversals"),
-    Row("backlash_y_um", "µm", "mean step (after - before in time) of the radius across the y reversals"),
+    Row("backlash_x_um", "µm", "x step b_x: half-circle shift of the trace along x against the motion, fitted "
+        "beside eccentricity and ellipses outside the reversal windows"),
+    Row("backlash_y_um", "µm", "y step b_y: half-circle shift of the trace along y against the motion, fitted "
+        "beside eccentricity and ellipses outside the reversal windows"),
     Row("lateral_x_um", "µm", "mean shift along y at the x reversals (flank slope change per rad) x motion sign"),
     Row("lateral_y_um", "µm", "mean shift along x at the y reversals (flank slope change per rad) x motion sign"),
 )
-REVERSAL_HOW = ("{what} at the {axis} reversal at {angle:g}° ({motion}), window ±{w:g}°, "
-                "flank lines {w:g}..{w2:g}° each side")
+REVERSAL_HOW = {
+    "spike": "largest residual (deviation - fitted model) at the {axis} reversal at {angle:g}° ({motion}), "
+             "from {before:g}° before to {after:g}° after it",
+    "step": "step at the {axis} reversal at {angle:g}° ({motion}): b_{axis} + the step shape in the residual "
+            "on the {flank:g}° flanks outside the window",
+}
+#: Which samples each group of figures uses (printed under the traces' sample rule).
+FIGURE_SAMPLES = (
+    "figures: circularity, radial deviation, centre offset: every sample of the measured turn",
+    "figures: ellipses (servo mismatch, squareness, scale), harmonics, backlash: the measured turn outside the "
+    "reversal windows ({before:g}° before to {after:g}° after each reversal in time), backlash steps taken out",
+    "figures: spikes: the residual inside the reversal windows",
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -150,10 +163,10 @@ def reversal_rows(reversals: ReversalDiagnosis) -> list[tuple[str, float | None,
     """``(quantity, value, unit, how)`` of the per-axis summary and of every reversal."""
     rows: list[tuple[str, float | None, str, str]] = [
         (row.field, getattr(reversals, row.field), row.unit, row.how) for row in REVERSAL_ROWS]
-    w = reversals.window_deg
     for r in reversals.reversals:
         for what, value in (("spike", r.spike_um), ("step", r.step_um)):
-            how = REVERSAL_HOW.format(what=what, axis=r.axis, angle=r.angle_deg, motion=r.motion, w=w, w2=2 * w)
+            how = REVERSAL_HOW[what].format(axis=r.axis, angle=r.angle_deg, motion=r.motion,
+                                            before=reversals.before_deg, after=reversals.after_deg, flank=FLANK_DEG)
             rows.append((f"{r.direction}.{r.axis}{r.angle_deg:g}.{what}_um", value, "µm", how))
     return rows
 
@@ -203,13 +216,26 @@ def table_rows(diagnosis: BallbarDiagnosis, reversals: ReversalDiagnosis | None 
     return rows + (reversal_rows(reversals) if reversals is not None else [])
 
 
+def sample_lines(traces: Sequence[BagTrace], reversals: ReversalDiagnosis | None) -> list[str]:
+    """Which samples each trace and each group of figures uses; a warning for a non-standard test."""
+    lines = [f"samples {t.trace.direction}: {t.rule}" + (f" (feed-in and feed-out arcs {t.feed_in_deg:.1f}°)"
+                                                          if t.standard else "") for t in traces]
+    if reversals is not None:
+        lines += [line.format(before=reversals.before_deg, after=reversals.after_deg) for line in FIGURE_SAMPLES]
+    lines += [f"warning: {t.bag}: not a standard circular test: the program has no feed-in and feed-out arcs, so "
+              "the start and end transients are diagnosed as if they were the machine (docs/circular_test.md)"
+              for t in traces if not t.standard]
+    return lines
+
+
 def to_table(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
              reversals: ReversalDiagnosis | None = None, cyclic: CyclicFit | None = None) -> str:
     """The printed report: the traces used, the diagnosis table, the skipped diagnoses."""
     lines = [f"trace {t.trace.direction}: {t.bag} ({t.n_samples} samples, "
              f"feed {t.trace.feed_m_s * 60e3:.1f} mm/min)"  # type: ignore[operator]  # a bag's trace has its feed
              for t in traces]
-    lines += [f"samples: {SAMPLE_RULE}", f"{'quantity':<28} {'value':>12} {'unit':<5} how"]
+    lines += sample_lines(traces, reversals)
+    lines.append(f"{'quantity':<28} {'value':>12} {'unit':<5} how")
     radius, radius_skipped = radius_rows(traces)
     for name, value, unit, how in table_rows(diagnosis, reversals, cyclic) + radius:
         shown = "skipped" if value is None else f"{value:.6g}"
@@ -225,8 +251,9 @@ def to_json(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
     extra = {} if reversals is None else {"reversals": dataclasses.asdict(reversals)}
     if cyclic is not None:
         extra["cyclic_pitch"] = dataclasses.asdict(cyclic)
-    return {**extra, "samples": SAMPLE_RULE,
+    return {**extra, "samples": sample_lines(traces, reversals),
             "traces": [{"bag": str(t.bag), "direction": t.trace.direction, "n_samples": t.n_samples,
+                        "samples": t.rule, "feed_in_deg": t.feed_in_deg,
                         "feed_m_s": t.trace.feed_m_s, "center_m": list(t.circle.center_m),
                         "radius_m": t.circle.radius_m} for t in traces],
             "diagnosis": dataclasses.asdict(diagnosis),
@@ -239,7 +266,7 @@ def circular(args: argparse.Namespace) -> int:
     try:
         traces = read_traces(args.bags)
         diagnosis = diagnose_circles([t.trace for t in traces])
-        reversals = diagnose_reversals([t.trace for t in traces], WINDOW_DEG)
+        reversals = diagnose_reversals([t.trace for t in traces])
         pitch_mm = pitches(args.pitch_mm)
         cyclic = fit_cyclic_error([t.trace for t in traces], pitch_mm) if pitch_mm else None
     except CncError as err:
