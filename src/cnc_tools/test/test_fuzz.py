@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.core.errors import CncError, ConfigError, FaultError
+from cnc_contour_control.core.errors import CncError, ConfigError, FaultError, ProgramError
 from cnc_contour_control.motion.gcode import parse_gcode
 from cnc_contour_control.nodes import conversions
 from cnc_contour_interfaces.msg import Compensation, Reference
@@ -117,6 +117,13 @@ def test_one_flipped_bit_loses_at_most_one_chunk(tmp_path_factory: pytest.TempPa
 def test_an_axis_named_twice_is_a_fault(decode: Any) -> None:
     with pytest.raises(FaultError, match="2 times"):
         decode()
+
+
+@pytest.mark.parametrize("line", ["M" + "9" * 400, "G1 X" + "9" * 400 + " F100", "G1 X1 F-" + "1" + "0" * 320])
+def test_a_value_beyond_any_float_is_refused_by_line(line: str) -> None:
+    """``float`` reads 310 digits as infinity; ``M`` + 400 nines raised OverflowError in ``int()``."""
+    with pytest.raises(ProgramError, match=r"line 1: .*beyond any number"):
+        parse_gcode(line, ("x", "y"))
 
 
 def test_the_bench_prints_the_goal_per_kind(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:

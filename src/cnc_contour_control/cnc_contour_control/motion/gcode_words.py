@@ -9,6 +9,7 @@ group, or to the reason it is refused); M codes other than the program ends
 """
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass, field
 
@@ -106,6 +107,9 @@ def read_block(line: str, number: int) -> Block:
 
 def _add_word(block: Block, letter: str, value_text: str) -> None:
     value, raw = float(value_text), f"{letter}{value_text}"
+    if not math.isfinite(value):  # over 309 digits: float() gives infinity
+        raise block.error(f"{raw[:20]}...: a value of {len(value_text)} characters is beyond any number "
+                          "(> 1.8e308)")
     if letter == "G":
         _add_g_code(block, value, raw)
     elif letter == "M":
