@@ -42,7 +42,7 @@ KNOWN_LETTERS = frozenset("XYIJKFPRSTGMN")
 POSITIVE_KEYS = frozenset({
     "sample_time_s", "duration_s", "radius_mm", "feed_mm_min", "max_velocity_mm_min", "max_acceleration_mm_s2",
     "counts_per_m", "output_limit", "leg_mm", "length_mm", "time_constant_s", "tool_diameter_mm", "flutes",
-    "update_period_s", "dynamometer_tau_s", "max_ratio"})
+    "update_period_s", "max_ratio"})
 #: Scenario sections that are free text for people, not read by the suite.
 FREE_KEYS = frozenset({"name", "description", "paper"})
 
