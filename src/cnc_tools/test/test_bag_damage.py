@@ -133,3 +133,14 @@ def test_a_flipped_bit_in_a_message_index_loses_nothing(tmp_path: Path, bag: tup
     assert run.integrity.lost == dict.fromkeys(run.integrity.found, 0)
     assert not run.integrity.complete and judge(run).status == "partial"
     assert run.joint_states.stamp_ns.size == whole.joint_states.stamp_ns.size
+
+
+def test_a_damaged_schema_in_the_summary_is_not_taken(tmp_path: Path, bag: tuple[bytes, str, RunRecord]) -> None:
+    """Found by bench fuzz: the scan took the summary's Schema records although the summary failed its CRC."""
+    data, metadata, whole = bag
+    summary_start = struct.unpack_from("<Q", data, len(data) - 8 - 20)[0]
+    at = data.index(b"float64", summary_start)
+    run = read_bag(_damaged_copy(tmp_path, data, metadata, at, bit=1))  # "float64" -> "dloat64"
+    assert run.integrity.lost == dict.fromkeys(run.integrity.found, 0)
+    assert judge(run).status == "partial"
+    np.testing.assert_array_equal(run.joint_states.position_m, whole.joint_states.position_m)

@@ -252,6 +252,21 @@ def _lost_in(scan: SalvageScan, data: bytes, start: int, stop: int) -> str:
     return f"{sum(lost.values())} messages lost with it ({listed})" if lost else "no messages lost with it"
 
 
+def _outside_chunks(scan: SalvageScan, opcode: int, body: memoryview) -> None:
+    """A record outside every chunk (the summary's, in the files the suite writes): no chunk CRC vouches for it.
+
+    Nothing but messages is taken from a file whose summary fails its CRC, and a
+    schema or channel already read (from a checked chunk or summary) is kept.
+    """
+    if opcode != _OP_MESSAGE and scan.summary_damaged:
+        return
+    if opcode in (_OP_SCHEMA, _OP_CHANNEL):
+        (record_id,) = struct.unpack_from("<H", body, 0)
+        if record_id in (scan.schemas if opcode == _OP_SCHEMA else scan.channels):
+            return
+    _HANDLERS[opcode](scan, body)
+
+
 def _top_record(scan: SalvageScan, view: memoryview, pos: int) -> int | None:
     """Handle the top-level record at ``pos``; the offset after it, or None at a footer followed by the magic."""
     if pos + 9 > len(view):
@@ -270,7 +285,7 @@ def _top_record(scan: SalvageScan, view: memoryview, pos: int) -> int | None:
         return None
     if opcode in _HANDLERS:
         try:
-            _HANDLERS[opcode](scan, view[pos + 9:end])
+            _outside_chunks(scan, opcode, view[pos + 9:end])
         except struct.error as err:
             raise _Damaged(f"malformed record (opcode {opcode:#x}) at byte {pos}: {err}") from err
     return end
