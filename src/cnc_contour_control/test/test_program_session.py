@@ -20,9 +20,12 @@ DT_S = DT_NS * 1e-9
 SQUARE = "G1 X5 F1200\nG1 Y5\nG1 X0\nG1 Y0\n"
 
 
-def session(settle_time_s: float = 0.0, **interpolator: object) -> ProgramSession:
+def session(settle_time_s: float = 0.0, in_position_tolerance_mm: float = 0.05, goal_time_s: float = 5.0,
+            **interpolator: object) -> ProgramSession:
     return ProgramSession(AXES, LIMITS, InterpolatorConfig(**interpolator), OverrideConfig(),
-                          ProgramSessionParams(program_source="action", settle_time_s=settle_time_s))
+                          ProgramSessionParams(program_source="action", settle_time_s=settle_time_s,
+                                               in_position_tolerance_mm=in_position_tolerance_mm,
+                                               goal_time_s=goal_time_s))
 
 
 class Machine:
@@ -304,3 +307,30 @@ def test_deactivation_stops_on_the_path_and_ends_aborted() -> None:
     outcome = next(o for o in iter(machine.tick, "never") if o is not None)
     assert outcome.outcome == "aborted" and "deactivated" in outcome.reason
     assert 0.0 < outcome.path_length_m < 0.02 and not machine.s.deactivate(), "nothing left to stop"
+
+
+def test_a_goal_whose_axis_lags_past_the_end_is_not_completed_but_faulted_naming_it() -> None:
+    """The finding: a G0 home goal completed while the axis stood 310 µm from its target."""
+    machine = Machine(session(in_position_tolerance_mm=0.01, goal_time_s=0.2), offset_m=(3.1e-4, 0.0))
+    machine.tick()
+    outcome = machine.run(ProgramGoal(gcode="G0 X5\n"))
+    assert outcome.outcome == "faulted", outcome.reason
+    assert "not in position: axis x stood 0.3100 mm from the program's end" in outcome.reason
+    assert "goal_time_s 0.2" in outcome.reason
+
+
+def test_a_goal_completes_once_every_axis_is_in_position() -> None:
+    machine = Machine(session(in_position_tolerance_mm=0.01, goal_time_s=5.0), offset_m=(3.1e-4, 0.0))
+    machine.tick()
+    machine.s.start(*machine.s.prepare(ProgramGoal(gcode="G1 X5 F1200\n")))
+    outcome, lagging = None, 0
+    for _ in range(10_000):
+        outcome = machine.tick()
+        if outcome is not None:
+            break
+        if machine.references[-1][0] == pytest.approx(0.005, abs=1e-12):  # the reference ended: the axis settles
+            lagging += 1
+            machine.offset_m = machine.offset_m * 0.8
+    assert outcome is not None and outcome.outcome == "completed", outcome
+    assert lagging > 10, "it waited for the axis, not only for the reference"
+    assert "every axis within 0.01 mm of the end" in outcome.reason

@@ -55,8 +55,8 @@ PROGRAM_SOURCES = ("file", "action")
 #: default-constructed result never reads as success). ``rejected``: refused before it started, the reason
 #: given; ``aborted``: stopped on the path because the interpolator was deactivated.
 OUTCOMES = ("unknown", "completed", "canceled", "faulted", "rejected", "aborted")
-#: The reason of a completed program (every outcome carries one).
-COMPLETED_REASON = "completed: the program's end reached and settled"
+#: The reason of a completed program (every outcome carries one), before its in-position figures.
+COMPLETED_REASON = "completed: the program's end reached, in position"
 #: The reason of a program stopped by the interpolator's deactivation.
 DEACTIVATED_REASON = "aborted: the interpolator was deactivated; stopped on the path"
 #: A reference slower than this on every axis is at rest, m/s (an exponential accel_decel never reaches 0).
@@ -78,6 +78,11 @@ class ProgramSessionParams:
         machine, mm, in [0, 1000].
     settle_time_s : float
         Time scored after the reference came to rest before the goal ends, s, in [0, 60].
+    in_position_tolerance_mm : float
+        A completed goal has every axis within this of the program's end point, mm, in [1e-6, 100].
+    goal_time_s : float
+        Time after the reference came to rest within which every axis must be in position, s, in [0, 3600];
+        later, the goal ends faulted naming the axis and its distance.
     feedback_period_s : float
         Wall time between two feedback messages, s, in [0.01, 10].
     bag_path : str
@@ -90,6 +95,11 @@ class ProgramSessionParams:
                                       description="largest distance of a non-G-code goal's start from the machine")
     settle_time_s: float = param(0.05, unit="s", low=0.0, high=60.0, read_only=True,
                                  description="time scored after a goal's reference came to rest")
+    in_position_tolerance_mm: float = param(0.01, unit="mm", low=1.0e-6, high=100.0, read_only=True,
+                                            description="a completed goal has every axis within this of its end")
+    goal_time_s: float = param(5.0, unit="s", low=0.0, high=3600.0, read_only=True,
+                               description="time after the reference ended within which the axes must be in "
+                                           "position; later the goal ends faulted")
     feedback_period_s: float = param(0.2, unit="s", low=0.01, high=10.0, read_only=True,
                                      description="wall time between two RunProgram feedback messages")
     bag_path: str = param("", read_only=True, description="the run's recording, returned in every result "
@@ -341,18 +351,38 @@ class ProgramSession:
         sample = run.live.step(relative_ns, ratio)
         run.scores.add(measured, sample.position_m)
         run.last, run.last_ns = sample, stamp_ns
-        self._check_end(run, sample, stamp_ns)
+        self._check_end(run, sample, stamp_ns, measured)
         return sample
 
-    def _check_end(self, run: _Run, sample: ReferenceSample, stamp_ns: int) -> None:
-        """Note when the reference came to rest (at the end, or held after a cancel); finish after settling."""
+    def _check_end(self, run: _Run, sample: ReferenceSample, stamp_ns: int, measured: FloatArray) -> None:
+        """Note when the reference came to rest (at the end, or held after a cancel); after settling, a program
+        that reached its end completes once every axis is in position, or faults once ``goal_time_s`` has passed."""
         at_rest = float(np.max(np.abs(sample.velocity_m_s))) <= STOPPED_SPEED_M_S
         held = run.stopping and sample.feed_override_ratio == 0.0
         if run.rest_ns is None and at_rest and (sample.done or held):
             run.rest_ns = stamp_ns
-        if run.rest_ns is not None and ns_to_s(stamp_ns - run.rest_ns) >= self.params.settle_time_s:
-            outcome, reason = ("completed", COMPLETED_REASON) if sample.done else run.stop_outcome
-            self._finish(run, outcome, reason)
+        if run.rest_ns is None:
+            return
+        waited_s = ns_to_s(stamp_ns - run.rest_ns)
+        if waited_s < self.params.settle_time_s:
+            return
+        if not sample.done:
+            self._finish(run, *run.stop_outcome)
+            return
+        off_m = np.abs(measured - np.asarray(sample.position_m, dtype=float))
+        tolerance_m = mm_to_m(self.params.in_position_tolerance_mm)
+        if np.all(off_m <= tolerance_m):
+            self._finish(run, "completed", f"{COMPLETED_REASON}: every axis within "
+                                           f"{self.params.in_position_tolerance_mm:g} mm of the end (largest "
+                                           f"{1e6 * float(np.max(off_m)):.1f} µm) {waited_s:.3f} s after the "
+                                           f"reference ended")
+        elif waited_s >= self.params.goal_time_s:
+            worst = int(np.argmax(off_m))
+            self._finish(run, "faulted", f"not in position: axis {self.axes[worst]} stood "
+                                         f"{1e3 * float(off_m[worst]):.4f} mm from the program's end "
+                                         f"{waited_s:.3f} s after the reference ended (goal_time_s "
+                                         f"{self.params.goal_time_s:g}, in_position_tolerance_mm "
+                                         f"{self.params.in_position_tolerance_mm:g})")
 
     def _hold_sample(self, hold_m: FloatArray) -> ReferenceSample:
         zeros = np.zeros(len(self.axes))
