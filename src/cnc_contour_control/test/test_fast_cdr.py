@@ -98,6 +98,18 @@ def test_codec_agrees_with_rclpy_both_ways(cls: type, data: st.DataObject) -> No
         assert read_by_rclpy == msg
 
 
+@pytest.mark.parametrize("cls", TYPES, ids=lambda t: t.__name__)
+def test_a_new_message_is_the_classs_own_default_and_owns_its_fields(cls: type) -> None:
+    new = fast_cdr.constructor(cls)
+    first, second, reference = new(), new(), cls()
+    assert type(first) is cls and first == reference
+    for name in cls.get_fields_and_field_types():
+        assert type(getattr(first, name)) is type(getattr(reference, name)), name
+        value = getattr(first, name)
+        if not isinstance(value, (bool, int, float, str, bytes)):  # a sequence, array or message: never shared
+            assert value is not getattr(second, name), name
+
+
 @pytest.mark.parametrize("cls", SUITE_TYPES, ids=lambda t: t.__name__)
 def test_a_truncated_buffer_is_refused_naming_the_type(cls: type) -> None:
     codec = fast_cdr.codec_for(cls)

@@ -57,8 +57,18 @@ def stamp_to_ns(stamp: Time) -> int:
 
 def ns_to_stamp(stamp_ns: int) -> Time:
     """Integer nanoseconds to builtin_interfaces/Time."""
-    sec, nanosec = split_ns(stamp_ns)
-    return Time(sec=sec, nanosec=nanosec)
+    stamp = _new_time()
+    set_stamp(stamp, stamp_ns)
+    return stamp
+
+
+def set_stamp(stamp: Time, stamp_ns: int) -> None:
+    """Set a builtin_interfaces/Time (a message's ``header.stamp``) to integer nanoseconds, in place."""
+    stamp.sec, stamp.nanosec = split_ns(stamp_ns)
+
+
+#: ``Time()`` without rosidl's keyword checks (:func:`fast_cdr.constructor`).
+_new_time = fast_cdr.constructor(Time)
 
 
 def describe(

@@ -13,14 +13,19 @@ from cnc_contour_control.core.lockstep import require_finite_values, require_sam
 from cnc_contour_control.estimators import ContourEstimate
 from cnc_contour_control.motion.geometry import ArcSegment, Program, Segment
 from cnc_contour_control.motion.interpolation import ReferenceSample
-from cnc_contour_control.nodes.common import ns_to_stamp
+from cnc_contour_control.nodes.common import ns_to_stamp, set_stamp
+from cnc_contour_control.nodes.fast_cdr import constructor
 from cnc_contour_interfaces.msg import AxisCommand, Compensation, ContourError, Path, PathSegment, Reference
+
+#: New per-tick messages at their defaults, as ``Reference()`` and ``AxisCommand()`` give them (without their checks).
+_new_reference = constructor(Reference)
+_new_command = constructor(AxisCommand)
 
 
 def reference_to_msg(sample: ReferenceSample, axes: Sequence[str], stamp_ns: int, frame_id: str) -> Reference:
     """A core reference sample to a Reference message."""
-    msg = Reference()
-    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg = _new_reference()
+    set_stamp(msg.header.stamp, stamp_ns)
     msg.header.frame_id = frame_id
     msg.axis_names = list(axes)
     msg.position_m = sample.position_m.tolist()
@@ -101,8 +106,8 @@ def raise_missing_axis(what: str, axis: str, present: Sequence[str]) -> NoReturn
 
 def command_to_msg(output: ServoOutput, axis: str, law: str, unit: str, stamp_ns: int) -> AxisCommand:
     """A core servo output to an AxisCommand message."""
-    msg = AxisCommand()
-    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg = _new_command()
+    set_stamp(msg.header.stamp, stamp_ns)
     msg.header.frame_id = axis
     msg.axis_name = axis
     msg.law = law

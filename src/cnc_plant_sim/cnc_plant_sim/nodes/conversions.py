@@ -10,16 +10,21 @@ from sensor_msgs.msg import JointState
 
 from cnc_contour_control.core.errors import FaultError
 from cnc_contour_control.core.lockstep import require_finite_values
-from cnc_contour_control.nodes.common import ns_to_stamp
+from cnc_contour_control.nodes.common import ns_to_stamp, set_stamp
+from cnc_contour_control.nodes.fast_cdr import constructor
 from cnc_contour_interfaces.msg import AxisCommand
 from cnc_plant_sim.process.cutting import TOOL_FRAME
+
+#: New per-tick messages at their defaults, as ``JointState()`` and ``Clock()`` give them (without their checks).
+_new_joint_state = constructor(JointState)
+_new_clock = constructor(Clock)
 
 
 def joint_state_msg(axes: Sequence[str], positions_m: Sequence[float] | np.ndarray, velocities_m_s: Sequence[float],
                     stamp_ns: int) -> JointState:
     """Axis positions [m] and velocities [m/s] to a JointState stamped ``stamp_ns``."""
-    msg = JointState()
-    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg = _new_joint_state()
+    set_stamp(msg.header.stamp, stamp_ns)
     msg.header.frame_id = "machine"
     msg.name = list(axes)
     msg.position = list(map(float, positions_m))
@@ -38,7 +43,9 @@ def wrench_msg(force_n: float, stamp_ns: int) -> WrenchStamped:
 
 def clock_msg(stamp_ns: int) -> Clock:
     """Simulation time to a /clock message."""
-    return Clock(clock=ns_to_stamp(stamp_ns))
+    msg = _new_clock()
+    set_stamp(msg.clock, stamp_ns)
+    return msg
 
 
 def command_value(msg: AxisCommand, axis: str) -> float:
