@@ -210,7 +210,7 @@ def test_absolute_arc_centres_need_both_plane_words() -> None:
     ("G93 G1 X1 F2", r"line 1: G93: G93 \(inverse-time feed\) is not supported: give F in mm/min under G94"),
     ("G1 X١٢ F100", r"line 1: non-ASCII character '١' \(U\+0661\)"),
     ("G1 X1 F１００", r"line 1: non-ASCII character '１' \(U\+FF11\)"),
-    ("G1 X1 F100\nN20 G1 X1 Y1 F0", r"line 2 \(N20\): F0: F must be > 0"),
+    ("G1 X1 F100\nN20 G1 X1 Y1 F0", r"line 2 \(N20\): F0: F must be >= 0.01 mm/min"),
 ])
 def test_refusals_name_the_line(text: str, message: str) -> None:
     with pytest.raises(ProgramError, match=message):

@@ -26,6 +26,7 @@ from cnc_contour_control.core.units import mm_min_to_m_s, mm_to_m
 from cnc_contour_control.motion.gcode_arcs import OFFSETS, PLANES, ArcFrame, center_from_offsets, center_from_radius
 from cnc_contour_control.motion.gcode_words import G_CODES, PROGRAM_END_M, Block, read_block
 from cnc_contour_control.motion.geometry import ArcSegment, Dwell, FloatArray, LineSegment, Program, Segment
+from cnc_contour_control.motion.points import MIN_FEED_MM_MIN
 
 __all__ = ["G_CODES", "OFFSETS", "PLANES", "WORK_OFFSETS", "parse_gcode"]
 
@@ -161,9 +162,11 @@ def _execute(block: Block, state: _State) -> None:
         GROUP_ACTIONS[group](block, state, code)
     if "F" in block.words:
         feed, raw = block.words["F"]
-        if feed <= 0.0:
-            raise block.error(f"{raw}: F must be > 0, got {feed:g}")
-        state.feed_mm_min = feed * state.scale
+        feed_mm_min = feed * state.scale
+        if not feed > 0.0 or feed_mm_min < MIN_FEED_MM_MIN:
+            raise block.error(f"{raw}: F must be >= {MIN_FEED_MM_MIN:g} mm/min "
+                              f"({MIN_FEED_MM_MIN / state.scale:g} in this program's units), got {feed:g}")
+        state.feed_mm_min = feed_mm_min
     if "non_modal" not in block.g_codes:
         _move(block, state)
     if PROGRAM_END_M.intersection(block.m_codes):
