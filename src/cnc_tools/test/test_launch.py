@@ -140,7 +140,8 @@ def fake_launch_api(monkeypatch: pytest.MonkeyPatch) -> dict[str, type]:
 
 
 def installed_params_file() -> Path:
-    return Path(__file__).resolve().parents[2] / "cnc_contour_control" / "config" / load_launch_file().DEFAULT_PARAMS_FILE
+    config_dir = Path(__file__).resolve().parents[2] / "cnc_contour_control" / "config"
+    return config_dir / load_launch_file().DEFAULT_PARAMS_FILE
 
 
 def test_the_launch_file_starts_every_node_of_one_file_and_shuts_down_when_the_plant_exits(
