@@ -9,9 +9,18 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters
+from rclpy.action import ActionClient
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Header
 
+from cnc_contour_control.nodes.common import ns_to_stamp, stamp_to_ns
 from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
 from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_interfaces.action import RunProgram
+from cnc_contour_interfaces.msg import Reference
 
 pytestmark = pytest.mark.nodes
 NS = "/lifecycle_test"
@@ -51,8 +60,11 @@ def test_a_managed_interpolator_builds_on_configure_and_arms_on_activate_only_in
         assert _state(probe) == "active" and node.node.armed
         assert not _change(probe, Transition.TRANSITION_CONFIGURE), "configure while active"
         assert _change(probe, Transition.TRANSITION_DEACTIVATE) and not node.node.armed
-        assert not _change(probe, Transition.TRANSITION_CLEANUP), "cleanup is refused (read-only parameters)"
-        assert _state(probe) == "inactive"
+        assert _change(probe, Transition.TRANSITION_CLEANUP)
+        assert _state(probe) == "unconfigured" and not node.node.finished
+        probe.wait_for(lambda: probe.node.count_publishers(f"{NS}/reference") == 0, 10.0, "cleanup's end of reference")
+        assert _change(probe, Transition.TRANSITION_CONFIGURE), "configured anew after cleanup"
+        probe.wait_for(lambda: probe.node.count_publishers(f"{NS}/reference") == 1, 10.0, "one reference publisher")
         assert _change(probe, Transition.TRANSITION_INACTIVE_SHUTDOWN)
         probe.wait_for(lambda: node.node.finished, 10.0, "the node to end on shutdown")
 
@@ -89,3 +101,63 @@ def test_a_fixed_profile_refuses_deactivate_it_cannot_stop_on_the_path(tmp_path:
         assert _change(probe, Transition.TRANSITION_CONFIGURE) and _change(probe, Transition.TRANSITION_ACTIVATE)
         assert not _change(probe, Transition.TRANSITION_DEACTIVATE)
         assert _state(probe) == "active" and node.node.armed
+
+
+def _set_string(probe: TopicProbe, name: str, value: str) -> bool:
+    request = SetParameters.Request(parameters=[ParameterMsg(name=name, value=ParameterValue(
+        type=ParameterType.PARAMETER_STRING, string_value=value))])
+    return bool(_call(probe, SetParameters, "set_parameters", request).results[0].successful)
+
+
+def test_cleanup_lets_new_parameters_be_configured_and_a_second_program_runs_with_them() -> None:
+    """configure, activate, goal 1; deactivate, cleanup, a read-only parameter set anew, configure, activate, goal 2.
+
+    The test is the machine (each joint state at the last reference, as test_program_goals_node's); the second
+    configuration is a new run, its ticks from t = 0 again.
+    """
+    params = {**ACTION_MODE, "settle_time_s": 0.02, "feedback_period_s": 0.05}
+    with TopicProbe({f"{NS}/reference": Reference}) as probe, \
+            InProcessNode(InterpolatorNode, params, namespace=NS) as node:
+        client = ActionClient(probe.node, RunProgram, f"{NS}/run_program")
+        joints = probe.publisher(JointState, f"{NS}/joint_states")
+        position_m, k = [0.0, 0.0], 0
+
+        def tick() -> None:
+            nonlocal position_m, k
+            joints.publish(JointState(header=Header(stamp=ns_to_stamp(k * 10_000_000)), name=["x", "y"],
+                                      position=list(position_m), velocity=[0.0, 0.0]))
+            refs = lambda: [m for m in probe.received(f"{NS}/reference")
+                            if stamp_to_ns(m.header.stamp) == k * 10_000_000 and m.header.frame_id == frame]
+            probe.wait_for(lambda: bool(refs()), 20.0, f"reference {k} in frame {frame}")
+            position_m, k = list(refs()[-1].position_m), k + 1
+
+        def until(future: Any) -> Any:
+            for _ in range(3000):
+                if future.done():
+                    return future.result()
+                tick()
+            raise AssertionError("no answer within 3000 ticks")
+
+        def run(gcode: str) -> Any:
+            probe.wait_for(client.server_is_ready, 20.0, "the RunProgram server")
+            probe.wait_for(lambda: joints.get_subscription_count() > 0, 20.0, "the joint_states reader")
+            handle = until(client.send_goal_async(RunProgram.Goal(gcode=gcode)))
+            return until(handle.get_result_async()).result
+
+        frame = "machine"
+        assert _change(probe, Transition.TRANSITION_CONFIGURE) and _change(probe, Transition.TRANSITION_ACTIVATE)
+        first = run("G1 X1 F1200")
+        assert not _set_string(probe, "frame_id", "table"), "read-only while configured"
+        assert _change(probe, Transition.TRANSITION_DEACTIVATE) and _change(probe, Transition.TRANSITION_CLEANUP)
+        assert _state(probe) == "unconfigured"
+        assert _set_string(probe, "frame_id", "table"), "writable while unconfigured"
+        assert _change(probe, Transition.TRANSITION_CONFIGURE) and _change(probe, Transition.TRANSITION_ACTIVATE)
+        assert not _set_string(probe, "frame_id", "shop"), "read-only again once configured"
+        got = _call(probe, GetParameters, "get_parameters", GetParameters.Request(names=["frame_id"]))
+        frame, k = "table", 0
+        second = run("G1 X2 F1200")
+        assert not node.node.finished
+    assert first.outcome == RunProgram.Result.COMPLETED, first.reason
+    assert second.outcome == RunProgram.Result.COMPLETED, second.reason
+    assert got.values[0].string_value == "table" and position_m[0] == pytest.approx(2e-3, abs=1e-5)
+    assert second.path_length_m == pytest.approx(1e-3, rel=1e-3), "the second run started where the first ended"
