@@ -117,7 +117,7 @@ class Recorded:
 
 class LaunchConfiguration(Recorded):
     def perform(self, context: dict[str, str]) -> str:
-        return context[self.args[0]]
+        return context[self.args[0]] if self.args[0] in context else str(self.kwargs["default"])
 
 
 def fake_launch_api(monkeypatch: pytest.MonkeyPatch) -> dict[str, type]:
