@@ -33,7 +33,9 @@ from hypothesis import strategies as st
 from cnc_tools.analysis.ballbar import diagnose_circles
 from cnc_tools.analysis.ballbar_cyclic import fit_cyclic_error
 from cnc_tools.analysis.ballbar_reversals import diagnose_reversals
-from cnc_tools.analysis.ballbar_trace import WHOLE_PROGRAM_RULE, BagTrace, trace_of
+from cnc_tools.analysis.ballbar_trace import SAMPLE_RULE, WHOLE_PROGRAM_RULE, BagTrace, trace_of
+from cnc_tools.bagio.record_bag import write_record_bag
+from cnc_tools.cli.main import main
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.scenario import build_scenario
 
@@ -136,9 +138,18 @@ def test_injected_faults_are_diagnosed_at_their_size(x: dict[str, float], y: dic
     _within("scale_mismatch_ppm", read["scale_mismatch_ppm"], x["scale_ppm"] - y["scale_ppm"], PER_R)
 
 
-def test_a_one_turn_program_is_flagged_not_standard() -> None:
+def test_the_command_says_which_samples_it_used(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A standard pair: the measured turn after 180° of feed-in arc; one turn from rest: flagged, with a warning."""
+    bags = [str(write_record_bag(run_engine(build_scenario(scenario(d))), tmp_path / d)) for d in ("ccw", "cw")]
+    assert main(["circular", *bags]) == 0
+    out = capsys.readouterr().out
+    assert "samples ccw: " + SAMPLE_RULE + " (feed-in and feed-out arcs 180.0°)" in out
+    assert "figures: spikes: the residual inside the reversal windows" in out and "warning:" not in out
     raw = scenario("ccw")
     raw["program"]["segments"] = raw["program"]["segments"][:2]  # one turn from rest: no feed arcs
-    trace = trace_of(Path("one_turn"), run_engine(build_scenario(raw)))
-    assert not trace.standard and trace.rule == WHOLE_PROGRAM_RULE
-    assert trace.feed_in_deg == pytest.approx(0.0)
+    record = run_engine(build_scenario(raw))
+    trace = trace_of(Path("one_turn"), record)
+    assert not trace.standard and trace.rule == WHOLE_PROGRAM_RULE and trace.feed_in_deg == 0.0
+    assert main(["circular", str(write_record_bag(record, tmp_path / "one_turn"))]) == 0
+    out = capsys.readouterr().out
+    assert "samples ccw: " + WHOLE_PROGRAM_RULE in out and "not a standard circular test" in out

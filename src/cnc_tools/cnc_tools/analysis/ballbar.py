@@ -149,9 +149,10 @@ class BallbarDiagnosis(CircleFigures):
     servo_mismatch_um : ``(B_ccw − B_cw)/2``, the ±45° ellipse that flips with direction, µm.
     gain_difference_s : ``1/k_x − 1/k_y = 2·servo_mismatch / v̄``, s, with ``v̄`` the mean feed of
         the two traces: Eq. 8 to first order gives ``B_ccw = −B_cw = (v/2)(1/k_x − 1/k_y)``.
-    squareness_urad : ``(B_ccw + B_cw)/R``, the ±45° ellipse common to both directions; positive
+    squareness_urad : ``(B_ccw + B_cw)/R_d`` (``R_d`` the drawn radius, :func:`drawn_radius_m`), the ±45°
+        ellipse common to both directions; positive
         when x reads ``x + α·y`` with ``α > 0`` (the axes close to less than 90° in the first quadrant).
-    scale_mismatch_ppm : ``sx − sy = Σ A_2 / (n_traces·R/2)``, the 0°/90° ellipse common to the traces.
+    scale_mismatch_ppm : ``sx − sy = Σ A_2 / (n_traces·R_d/2)``, the 0°/90° ellipse common to the traces.
     scale_mismatch_um : the same as the mean ``A_2``, µm.
     cyclic_error_um : amplitudes of harmonics :data:`CYCLIC_HARMONICS` of the mean coefficients, µm.
     skipped : names of the fields left ``None`` and why (both directions or a feed needed).
@@ -279,6 +280,12 @@ def _check_pair(traces: Sequence[CircleTrace]) -> None:
                               f"{first.center_m}, {second.center_m} and radii {first.radius_m}, {second.radius_m} m")
 
 
+def drawn_radius_m(traces: Sequence[CircleTrace]) -> float:
+    """The mean radius the traces draw about the programmed centre, m: an ellipse's size is relative to it
+    (a circle drawn 2.5 % small by servo lag shows a squareness or scale error 2.5 % smaller)."""
+    return float(np.mean(np.concatenate([np.hypot(*(t.points_m - np.asarray(t.center_m)).T) for t in traces])))
+
+
 def _flipping(traces: Sequence[CircleTrace], diags: Sequence[TraceDiagnosis]) -> tuple[
         float | None, float | None, float | None, tuple[str, ...]]:
     """Servo mismatch (µm), gain difference (s), squareness (µrad) and the names skipped."""
@@ -288,7 +295,7 @@ def _flipping(traces: Sequence[CircleTrace], diags: Sequence[TraceDiagnosis]) ->
                                   f"squareness_urad: {need}")
     b = {d.direction: d.ellipse_45_um for d in diags}
     mismatch_um = 0.5 * (b["ccw"] - b["cw"])
-    squareness_urad = (b["ccw"] + b["cw"]) / traces[0].radius_m
+    squareness_urad = (b["ccw"] + b["cw"]) / drawn_radius_m(traces)
     feeds = [t.feed_m_s for t in traces]
     if any(f is None for f in feeds):
         return mismatch_um, None, squareness_urad, ("gain_difference_s: needs feed_m_s of both traces",)
@@ -325,6 +332,6 @@ def diagnose_circles(traces: Sequence[CircleTrace]) -> BallbarDiagnosis:
         center_offset_x_um=float(np.mean([d.center_offset_x_um for d in diags])),
         center_offset_y_um=float(np.mean([d.center_offset_y_um for d in diags])),
         servo_mismatch_um=mismatch_um, gain_difference_s=gain_s, squareness_urad=squareness_urad,
-        scale_mismatch_ppm=2.0 * scale_um / traces[0].radius_m, scale_mismatch_um=scale_um,
+        scale_mismatch_ppm=2.0 * scale_um / drawn_radius_m(traces), scale_mismatch_um=scale_um,
         cyclic_error_um=tuple(float(np.hypot(mean_cos[k - 1], mean_sin[k - 1])) for k in CYCLIC_HARMONICS),
         skipped=skipped)
