@@ -22,6 +22,15 @@ program ends when its reference is at rest, at the end (completed) or on the
 path after a cancel (canceled), plus ``settle_time_s`` during which the
 following error is still scored; then the session holds the last reference.
 
+Every goal carries tolerances (:mod:`~cnc_contour_control.motion.goal_tolerances`): each tick
+while the reference moves, an axis beyond its path tolerance, or the contour error beyond the contour
+tolerance, stops the program on the path (the feed-hold ramp) and it ends ``path_tolerance_violated``;
+once the reference ended it completes when every axis is within its goal tolerance of the end and
+stopped, else ``goal_tolerance_violated`` after ``goal_time``. Each reason names the axis (or the
+contour), the amount, the time and the G-code line. A trajectory
+(:class:`~cnc_contour_control.motion.trajectory_motion.TrajectoryMotion`, FollowTrajectory) runs the
+same way (:meth:`ProgramSession.start_motion`), without a contour.
+
 When the machine stops under a program (an e-stop, a following-error trip:
 :meth:`ProgramSession.machine_stopped`) the program ends at once as faulted
 with the cause, and until :meth:`ProgramSession.machine_running` the hold
@@ -35,6 +44,7 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -45,16 +55,29 @@ from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.core.units import mm_to_m
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
 from cnc_contour_control.motion.geometry import PREFILTER_MIN_SEGMENTS, FloatArray, Program
+from cnc_contour_control.motion.goal_tolerances import (
+    GOAL_VIOLATED,
+    PATH_VIOLATED,
+    GoalTolerances,
+    ToleranceDefaults,
+    ToleranceMonitor,
+    Tolerances,
+    resolve_tolerances,
+)
+from cnc_contour_control.motion.homing import HomedState, HomingParams, homing_program
 from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig, ReferenceSample
 from cnc_contour_control.motion.program_goal import ProgramGoal, goal_program
+from cnc_contour_control.motion.trajectory_motion import TrajectoryMotion
+from cnc_contour_control.motion.travel import TravelLimits
 
 #: Where the interpolator's program comes from: ``file`` the ``program_file`` parameter, run once at start-up;
 #: ``action`` RunProgram goals, any number in a row, holding position in between.
 PROGRAM_SOURCES = ("file", "action")
 #: How a program ended (the RunProgram result's outcome, in its constants' order: 0 is "unknown", so a
 #: default-constructed result never reads as success). ``rejected``: refused before it started, the reason
-#: given; ``aborted``: stopped on the path because the interpolator was deactivated.
-OUTCOMES = ("unknown", "completed", "canceled", "faulted", "rejected", "aborted")
+#: given; ``aborted``: stopped on the path because the interpolator was deactivated; the two violations of a
+#: goal's tolerances last (goal_tolerances).
+OUTCOMES = ("unknown", "completed", "canceled", "faulted", "rejected", "aborted", PATH_VIOLATED, GOAL_VIOLATED)
 #: The reason of a completed program (every outcome carries one), before its in-position figures.
 COMPLETED_REASON = "completed: the program's end reached, in position"
 #: The reason of a program stopped by the interpolator's deactivation.
@@ -63,6 +86,8 @@ DEACTIVATED_REASON = "aborted: the interpolator was deactivated; stopped on the 
 STOPPED_SPEED_M_S = 1.0e-7
 #: Measured positions scored by one call of Program.contour_distance.
 SCORE_BATCH = 64
+#: The same while a contour tolerance is checked (a violation is seen at most this many ticks late).
+CONTOUR_CHECK_BATCH = 4
 
 
 @dataclass(frozen=True)
@@ -82,7 +107,13 @@ class ProgramSessionParams:
         A completed goal has every axis within this of the program's end point, mm, in [1e-6, 100].
     goal_time_s : float
         Time after the reference came to rest within which every axis must be in position, s, in [0, 3600];
-        later, the goal ends faulted naming the axis and its distance.
+        later, the goal ends goal_tolerance_violated naming the axis and its distance.
+    in_position_velocity_mm_s : float
+        A completed goal has every axis slower than this (measured), mm/s, in [1e-6, 1000].
+    contour_tolerance_mm : float
+        Default contour tolerance of a goal, mm, in [0, 1000] (0: not checked).
+    joint_path_tolerance_mm : float
+        Default per-axis path tolerance of a goal, mm, in [0, 1000] (0: not checked).
     feedback_period_s : float
         Wall time between two feedback messages, s, in [0.01, 10].
     bag_path : str
@@ -99,7 +130,13 @@ class ProgramSessionParams:
                                             description="a completed goal has every axis within this of its end")
     goal_time_s: float = param(5.0, unit="s", low=0.0, high=3600.0, read_only=True,
                                description="time after the reference ended within which the axes must be in "
-                                           "position; later the goal ends faulted")
+                                           "position; later the goal ends goal_tolerance_violated")
+    in_position_velocity_mm_s: float = param(1.0, unit="mm/s", low=1.0e-6, high=1000.0, read_only=True,
+                                             description="a completed goal has every axis slower than this")
+    contour_tolerance_mm: float = param(0.0, unit="mm", low=0.0, high=1000.0, read_only=True,
+                                        description="a goal's default contour tolerance (0: not checked)")
+    joint_path_tolerance_mm: float = param(0.0, unit="mm", low=0.0, high=1000.0, read_only=True,
+                                           description="a goal's default per-axis path tolerance (0: not checked)")
     feedback_period_s: float = param(0.2, unit="s", low=0.01, high=10.0, read_only=True,
                                      description="wall time between two RunProgram feedback messages")
     bag_path: str = param("", read_only=True, description="the run's recording, returned in every result "
@@ -110,6 +147,12 @@ class ProgramSessionParams:
         if not isinstance(self.bag_path, str):
             raise ConfigError(f"bag_path must be a path, got {self.bag_path!r}")
         check_ranges(self)
+
+    def tolerance_defaults(self) -> ToleranceDefaults:
+        """A goal's default tolerances, SI units."""
+        return ToleranceDefaults.from_mm(self.contour_tolerance_mm, self.joint_path_tolerance_mm,
+                                         self.in_position_tolerance_mm, self.in_position_velocity_mm_s,
+                                         self.goal_time_s)
 
 
 @dataclass(frozen=True)
@@ -152,13 +195,18 @@ class LiveScores:
 
     Parameters
     ----------
-    program : Program
+    program : Program or None
         The program as written; the contour error is ``program.contour_distance``
-        (the scorer's), computed in batches of ``batch`` positions.
+        (the scorer's), computed in batches of ``batch`` positions (None: no contour, NaN).
+    contour_limit_m : float
+        The contour tolerance, m (inf: not checked); the first tick beyond it is kept in ``beyond``.
     """
 
-    def __init__(self, program: Program, batch: int = SCORE_BATCH) -> None:
+    def __init__(self, program: Program | None, batch: int = SCORE_BATCH, contour_limit_m: float = math.inf) -> None:
         self.program, self.batch = program, int(batch)
+        self.contour_limit_m = float(contour_limit_m)
+        self.beyond: tuple[float, Any] | None = None  # (distance m, the tick's tag given to add) of the first
+        self._tags: list[Any] = []
         self._pending: list[FloatArray] = []
         self.ticks = 0
         self.max_contour_m = self.max_following_m = 0.0
@@ -166,11 +214,16 @@ class LiveScores:
         self._sum_square_m2 = 0.0
         self._scored = 0
 
-    def add(self, position_m: FloatArray, reference_m: FloatArray) -> None:
-        """One tick: the measured position and the reference at the same stamp, m, shape ``(n_axes,)``."""
+    def add(self, position_m: FloatArray, reference_m: FloatArray, tag: Any = None) -> None:
+        """One tick: the measured position and the reference at the same stamp, m, shape ``(n_axes,)``; ``tag``
+        comes back in ``beyond`` if this tick's contour error is the first beyond the tolerance."""
         self.latest_following_m = float(np.max(np.abs(reference_m - position_m)))
         self.max_following_m = max(self.max_following_m, self.latest_following_m)
+        if self.program is None:
+            self.ticks += 1
+            return
         self._pending.append(np.array(position_m, dtype=float))
+        self._tags.append(tag)
         self.ticks += 1
         if len(self._pending) >= self.batch:
             self.flush()
@@ -179,8 +232,13 @@ class LiveScores:
         """Score the positions not yet scored."""
         if not self._pending:
             return
+        assert self.program is not None, "add() keeps no position without a program"
         distance_m, _ = self.program.contour_distance(np.vstack(self._pending))
+        if self.beyond is None and float(np.max(distance_m)) > self.contour_limit_m:
+            first = int(np.argmax(distance_m > self.contour_limit_m))
+            self.beyond = (float(distance_m[first]), self._tags[first])
         self._pending.clear()
+        self._tags.clear()
         self.max_contour_m = max(self.max_contour_m, float(np.max(distance_m)))
         self._sum_square_m2 += float(np.dot(distance_m, distance_m))
         self._scored += distance_m.size
@@ -195,17 +253,25 @@ class LiveScores:
 
 @dataclass
 class _Run:
-    """A planned program and where it stands."""
+    """A planned program (or a trajectory: ``program`` None) and where it stands."""
 
-    program: Program
-    live: LiveReference
+    name: str
+    program: Program | None
+    live: LiveReference | TrajectoryMotion
     scores: LiveScores
+    monitor: ToleranceMonitor
+    owner: str
+    total_length_m: float
+    lines: tuple[int, ...]  # G-code line of each planned segment (0: none)
+    previous: tuple[int, FloatArray] | None = None  # the last tick's stamp and measured position
+    velocity_m_s: FloatArray | None = None  # measured, by difference
     start_ns: int | None = None
     stopping: bool = False
     rest_ns: int | None = None
     last: ReferenceSample | None = None
     last_ns: int = 0
     stop_outcome: tuple[str, str] = ("canceled", "cancelled: stopped on the path")
+    homing: bool = False  # the homing program (motion/homing.py): completed, every axis is homed
 
 
 class ProgramSession:
@@ -222,11 +288,20 @@ class ProgramSession:
     override_config : OverrideConfig
         The live feed override's options (the ramp of a cancel uses them too).
     params : ProgramSessionParams
+    travel : TravelLimits, optional
+        Soft travel limits every planned program must stay within (default: none).
+    homing : HomingParams, optional
+        Home position, homing feeds and ``require_homing`` (default: home at 0, not required).
     """
 
     def __init__(self, axes: Sequence[str], limits: AxisLimits, interpolator_config: InterpolatorConfig,
-                 override_config: OverrideConfig, params: ProgramSessionParams) -> None:
+                 override_config: OverrideConfig, params: ProgramSessionParams, travel: TravelLimits | None = None,
+                 homing: HomingParams | None = None) -> None:
         self.axes = tuple(axes)
+        self.travel, self.homing = travel or TravelLimits(), homing or HomingParams()
+        self.travel.bounds_m(self.axes)
+        self.homing.check(self.axes, self.travel)
+        self.homed = HomedState(self.axes, self.homing.require_homing)
         self.limits, self.interpolator_config, self.override_config = limits, interpolator_config, override_config
         self.params = params
         self.hold_position_m: FloatArray | None = None
@@ -234,6 +309,7 @@ class ProgramSession:
         self._started: _Run | None = None
         self._outcome: ProgramOutcome | None = None
         self.pending: str | None = None  # the name of a goal being planned (reserve .. start or refuse)
+        self._pending_owner = self._outcome_owner = "program"  # which server's goal is planned, which ended
         self.stop_cause = ""  # why the machine is stopped ("" while it runs)
 
     @property
@@ -244,7 +320,7 @@ class ProgramSession:
     def check_ready(self) -> None:
         """A ProgramError with the reason if a goal cannot start now (busy, position unknown, machine stopped)."""
         if self._run is not None:
-            raise ProgramError(f"busy: program {self._run.program.name!r} is running; cancel it or wait for its end")
+            raise ProgramError(f"busy: program {self._run.name!r} is running; cancel it or wait for its end")
         if self.pending is not None:
             raise ProgramError(f"busy: program {self.pending!r} is being planned; cancel it or wait for its end")
         if self.hold_position_m is None:
@@ -255,17 +331,19 @@ class ProgramSession:
     def prepare(self, goal: ProgramGoal) -> tuple[Program, LiveReference]:
         """The goal's program and its planned reference; a ProgramError with the reason if it cannot run now."""
         self.check_ready()
+        self.homed.check()
         assert self.hold_position_m is not None, "check_ready refuses an unknown position"
         return self.plan(goal, self.hold_position_m)
 
-    def reserve(self, name: str) -> FloatArray:
+    def reserve(self, name: str, owner: str = "program") -> FloatArray:
         """Take the session for the goal ``name`` while it is planned elsewhere; the hold position to plan from, m.
 
         Raises the reason of :meth:`check_ready`. The axes hold until :meth:`start` or :meth:`refuse`.
         """
         self.check_ready()
+        self.homed.check()
         assert self.hold_position_m is not None, "check_ready refuses an unknown position"
-        self.pending = name
+        self.pending, self._pending_owner = name, owner
         return self.hold_position_m.copy()
 
     def plan(self, goal: ProgramGoal, hold_m: FloatArray) -> tuple[Program, LiveReference]:
@@ -276,14 +354,58 @@ class ProgramSession:
         config = self.interpolator_config
         if goal.path_tolerance_mm > 0.0:
             config = dataclasses.replace(config, path_tolerance_mm=goal.path_tolerance_mm)
-        return program, LiveReference(program, self.limits, config, self.override_config)
+        live = LiveReference(program, self.limits, config, self.override_config)
+        if self.travel.active:  # the planned path, blends included (a streaming plan blends it whole here)
+            self.travel.check_program(live.interpolator.program)
+        return program, live
 
-    def start(self, program: Program, live: LiveReference) -> None:
-        """Queue a prepared program: it starts at the next tick."""
+    def home(self) -> str:
+        """Start the homing program (motion/homing.py) at the next tick; what it does, or a ProgramError why not.
+
+        Every axis is homed once it completes in position (at once when the machine stands at home).
+        """
+        self.check_ready()
+        assert self.hold_position_m is not None, "check_ready refuses an unknown position"
+        program = homing_program(self.axes, self.hold_position_m, self.homing)
+        if program is None:
+            self.homed.mark_all()
+            return "every axis is at its home position: homed"
+        config = dataclasses.replace(self.interpolator_config, path_tolerance_mm=0.0)  # exact stops
+        live = LiveReference(program, self.limits, config, self.override_config)
+        self._run = dataclasses.replace(self._program_run(program, live, self.tolerances(), "program"), homing=True)
+        home_mm = ", ".join(f"{a} {1e3 * float(p):g}" for a, p in zip(self.axes, self.homing.position_m(self.axes)))
+        return f"homing started: {len(program.segments)} moves, one axis at a time, to {home_mm} mm"
+
+    def tolerances(self, requested: GoalTolerances | None = None) -> Tolerances:
+        """A goal's tolerances resolved with the node's defaults (None: the defaults); a ProgramError naming a bad
+        one."""
+        return resolve_tolerances(requested or GoalTolerances(), self.axes, self.params.tolerance_defaults())
+
+    def start(self, program: Program, live: LiveReference, tolerances: Tolerances | None = None,
+              owner: str = "program") -> None:
+        """Queue a prepared program: it starts at the next tick (``tolerances`` None: the node's defaults)."""
+        self._queue(self._program_run(program, live, tolerances if tolerances is not None else self.tolerances(),
+                                      owner))
+
+    def _program_run(self, program: Program, live: LiveReference, tolerances: Tolerances, owner: str) -> _Run:
+        batch = CONTOUR_CHECK_BATCH if math.isfinite(tolerances.contour_m) else SCORE_BATCH
+        planned = live.interpolator.program
+        lines = tuple(int(getattr(segment, "source_line", None) or 0) for segment in planned.segments)
+        return _Run(program.name, program, live, LiveScores(program, batch, tolerances.contour_m),
+                    ToleranceMonitor(self.axes, tolerances), owner, planned.total_length_m, lines)
+
+    def start_motion(self, name: str, motion: TrajectoryMotion, tolerances: Tolerances | None = None,
+                     owner: str = "trajectory") -> None:
+        """Queue a trajectory (no contour; checked against ``tolerances``): it starts at the next tick."""
+        tolerances = tolerances if tolerances is not None else self.tolerances()
+        self._queue(_Run(name, None, motion, LiveScores(None), ToleranceMonitor(self.axes, tolerances), owner,
+                         0.0, ()))
+
+    def _queue(self, run: _Run) -> None:
         if self._run is not None:
-            raise ProgramError(f"busy: program {self._run.program.name!r} is running")
+            raise ProgramError(f"busy: program {self._run.name!r} is running")
         self.pending = None
-        self._run = _Run(program, live, LiveScores(program))
+        self._run = run
 
     def refuse(self, reason: str) -> None:
         """The reserved goal cannot run (``reason``): it ends as ``rejected``."""
@@ -328,6 +450,7 @@ class ProgramSession:
         if self.pending is None:
             return
         self._outcome = ProgramOutcome(outcome, reason, self.pending, math.nan, math.nan, math.nan, 0.0, 0.0, 0.0, 0)
+        self._outcome_owner = self._pending_owner
         self.pending = None
 
     def machine_running(self) -> None:
@@ -349,10 +472,32 @@ class ProgramSession:
         relative_ns = stamp_ns - run.start_ns
         ratio = 0.0 if run.stopping else run.live.request(relative_ns, requested_ratio)
         sample = run.live.step(relative_ns, ratio)
-        run.scores.add(measured, sample.position_m)
+        if run.previous is not None and stamp_ns > run.previous[0]:
+            run.velocity_m_s = (measured - run.previous[1]) / ns_to_s(stamp_ns - run.previous[0])
+        run.previous = (stamp_ns, measured)
+        line = self._line(run, sample.segment_index)
+        run.scores.add(measured, sample.position_m, (ns_to_s(relative_ns), line))
         run.last, run.last_ns = sample, stamp_ns
+        self._check_path(run, sample, relative_ns, measured, line)
         self._check_end(run, sample, stamp_ns, measured)
         return sample
+
+    @staticmethod
+    def _line(run: _Run, segment_index: int) -> int:
+        return run.lines[segment_index] if 0 <= segment_index < len(run.lines) else 0
+
+    def _check_path(self, run: _Run, sample: ReferenceSample, relative_ns: int, measured: FloatArray,
+                    line: int) -> None:
+        """While the reference moves: an axis beyond its path tolerance, or the contour beyond the contour
+        tolerance, stops the program on the path; it ends ``path_tolerance_violated`` once at rest."""
+        if run.stopping or run.rest_ns is not None:
+            return
+        reason = run.monitor.path(ns_to_s(relative_ns), sample.position_m, measured, line)
+        if reason is None and run.scores.beyond is not None:
+            distance_m, (time_s, at_line) = run.scores.beyond
+            reason = run.monitor.contour(time_s, distance_m, at_line)
+        if reason is not None:
+            run.stopping, run.stop_outcome = True, (PATH_VIOLATED, reason + "; stopped on the path")
 
     def _check_end(self, run: _Run, sample: ReferenceSample, stamp_ns: int, measured: FloatArray) -> None:
         """Note when the reference came to rest (at the end, or held after a cancel); after settling, a program
@@ -369,20 +514,20 @@ class ProgramSession:
         if not sample.done:
             self._finish(run, *run.stop_outcome)
             return
-        off_m = np.abs(measured - np.asarray(sample.position_m, dtype=float))
-        tolerance_m = mm_to_m(self.params.in_position_tolerance_mm)
-        if np.all(off_m <= tolerance_m):
-            self._finish(run, "completed", f"{COMPLETED_REASON}: every axis within "
-                                           f"{self.params.in_position_tolerance_mm:g} mm of the end (largest "
-                                           f"{1e6 * float(np.max(off_m)):.1f} µm) {waited_s:.3f} s after the "
-                                           f"reference ended")
-        elif waited_s >= self.params.goal_time_s:
-            worst = int(np.argmax(off_m))
-            self._finish(run, "faulted", f"not in position: axis {self.axes[worst]} stood "
-                                         f"{1e3 * float(off_m[worst]):.4f} mm from the program's end "
-                                         f"{waited_s:.3f} s after the reference ended (goal_time_s "
-                                         f"{self.params.goal_time_s:g}, in_position_tolerance_mm "
-                                         f"{self.params.in_position_tolerance_mm:g})")
+        end_m = np.asarray(sample.position_m, dtype=float)
+        off_m = np.abs(measured - end_m)
+        velocity_m_s = run.velocity_m_s if run.velocity_m_s is not None else np.zeros(len(self.axes))
+        tolerances = run.monitor.tolerances
+        if run.monitor.in_goal(end_m, measured, velocity_m_s):
+            self._finish(run, "completed", f"{COMPLETED_REASON}: every axis within its goal tolerance (largest "
+                                           f"{1e3 * float(np.max(tolerances.goal_m)):g} mm) of the end and "
+                                           f"stopped (largest distance {1e6 * float(np.max(off_m)):.1f} µm) "
+                                           f"{waited_s:.3f} s after the reference ended")
+        elif waited_s >= tolerances.goal_time_s:
+            assert run.start_ns is not None, "a run that ticked has a start"
+            self._finish(run, GOAL_VIOLATED, run.monitor.goal(
+                ns_to_s(stamp_ns - run.start_ns), waited_s, end_m, measured, velocity_m_s,
+                self._line(run, sample.segment_index)))
 
     def _hold_sample(self, hold_m: FloatArray) -> ReferenceSample:
         zeros = np.zeros(len(self.axes))
@@ -395,26 +540,41 @@ class ProgramSession:
         rms = scores.rms_contour_m
         ticked = scores.ticks > 0
         end_ns = run.rest_ns if run.rest_ns is not None else run.last_ns
+        self._outcome_owner = run.owner
         self._outcome = ProgramOutcome(
-            outcome=outcome, reason=reason, program_name=run.program.name,
+            outcome=outcome, reason=reason, program_name=run.name,
             max_contour_error_m=scores.max_contour_m if ticked else math.nan, rms_contour_error_m=rms,
             max_following_error_m=scores.max_following_m if ticked else math.nan,
             cycle_time_s=ns_to_s(end_ns - run.start_ns) if run.start_ns is not None else 0.0,
             path_length_m=run.last.path_length_m if run.last is not None else 0.0,
-            total_length_m=run.live.interpolator.program.total_length_m, ticks=scores.ticks)
+            total_length_m=run.total_length_m, ticks=scores.ticks)
         if run.last is not None:
             self.hold_position_m = np.array(run.last.position_m, dtype=float)
+        if run.homing and outcome == "completed":
+            self.homed.mark_all()
         self._run = None
 
     def take_started(self) -> tuple[Program, LiveReference, int] | None:
-        """Once per program: (program, planned reference, start stamp ns) after its first tick; else None."""
+        """Once per program: (program, planned reference, start stamp ns) after its first tick; else None (and for a
+        trajectory)."""
         run, self._started = self._started, None
-        return None if run is None or run.start_ns is None else (run.program, run.live, run.start_ns)
+        if run is None or run.start_ns is None or run.program is None or not isinstance(run.live, LiveReference):
+            return None
+        return run.program, run.live, run.start_ns
 
-    def take_outcome(self) -> ProgramOutcome | None:
-        """Once per program: its outcome after it ended; else None."""
+    def take_outcome(self, owner: str = "program") -> ProgramOutcome | None:
+        """Once per goal: its outcome after it ended, to the server ``owner`` that started it; else None."""
+        if self._outcome is None or self._outcome_owner != owner:
+            return None
         outcome, self._outcome = self._outcome, None
         return outcome
+
+    @property
+    def running_owner(self) -> str | None:
+        """The server whose goal runs or is planned (None: holding)."""
+        if self._run is not None:
+            return self._run.owner
+        return self._pending_owner if self.pending is not None else None
 
     def feedback(self) -> ProgramFeedback | None:
         """The running program's progress (None before its first tick or when idle)."""
@@ -422,11 +582,10 @@ class ProgramSession:
         if run is None or run.last is None or run.start_ns is None:
             return None
         run.scores.flush()
-        sample, planned = run.last, run.live.interpolator.program
-        line = getattr(planned.segments[sample.segment_index], "source_line", None)
+        sample = run.last
         return ProgramFeedback(
-            line_number=int(line or 0), segment_index=int(sample.segment_index),
-            path_length_m=float(sample.path_length_m), total_length_m=float(planned.total_length_m),
+            line_number=self._line(run, sample.segment_index), segment_index=int(sample.segment_index),
+            path_length_m=float(sample.path_length_m), total_length_m=float(run.total_length_m),
             feed_m_s=float(sample.feed_m_s), feed_override_ratio=float(sample.feed_override_ratio),
             contour_error_m=run.scores.latest_contour_m, following_error_m=run.scores.latest_following_m,
             elapsed_s=(run.last_ns - run.start_ns) / NS_PER_S)

@@ -37,6 +37,7 @@ from cnc_contour_control.core.config import require_choice, require_name
 from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.core.lockstep import NS_PER_S, stamp_horizon_ns
 from cnc_contour_control.core.params import check_ranges, param
+from cnc_contour_control.motion.travel import check_trajectory
 
 __all__ = ["INTERPOLATIONS", "REFERENCE_SOURCES", "JointTrajectoryReference", "ReferenceSourceParams",
            "TrajectoryFollower"]
@@ -60,11 +61,23 @@ class ReferenceSourceParams:
                                               "trajectory_msgs/JointTrajectory sampled at each tick's stamp")
     trajectory_topic: str = param("joint_trajectory", read_only=True,
                                   description="topic of the JointTrajectory (reference_source joint_trajectory)")
+    travel_mm: tuple[float, ...] = param((), unit="mm", read_only=True,
+                                         description="soft travel limits [min, max] of the axis: a trajectory "
+                                                     "leaving them is refused (empty: none)")
 
     def __post_init__(self) -> None:
         require_choice("reference_source", self.reference_source, REFERENCE_SOURCES)
         require_name("trajectory_topic", self.trajectory_topic)
+        travel = tuple(float(v) for v in self.travel_mm)
+        if travel and not (len(travel) == 2 and all(map(math.isfinite, travel)) and travel[0] < travel[1]):
+            raise ConfigError(f"travel_mm must be empty or [min, max], finite, min < max, got {list(travel)}")
+        object.__setattr__(self, "travel_mm", travel)
         check_ranges(self)
+
+    @property
+    def travel(self) -> tuple[float, float] | None:
+        """``(min_mm, max_mm)``, or None without travel limits."""
+        return (self.travel_mm[0], self.travel_mm[1]) if self.travel_mm else None
 
 
 def _finite(values: Sequence[float], name: str) -> list[float]:
@@ -145,12 +158,16 @@ class TrajectoryFollower:
         The axis (the joint name it takes from a trajectory), named in refusals.
     horizon_ns : int
         How far after the latest sampled tick a trajectory's start may lie [ns] (default :func:`stamp_horizon_ns`).
+    travel_mm : (float, float), optional
+        Soft travel limits ``(min, max)`` [mm]: a trajectory whose interpolant leaves them is refused
+        (:func:`~cnc_contour_control.motion.travel.check_trajectory`; from the reference held now when its
+        first point lies later).
     """
 
-    def __init__(self, axis: str, horizon_ns: int | None = None) -> None:
+    def __init__(self, axis: str, horizon_ns: int | None = None, travel_mm: tuple[float, float] | None = None) -> None:
         if not isinstance(axis, str) or not axis:
             raise ConfigError(f"axis must be a non-empty string, got {axis!r}")
-        self.axis = axis
+        self.axis, self.travel_mm = axis, travel_mm
         self.horizon_ns = stamp_horizon_ns() if horizon_ns is None else int(horizon_ns)
         self.latest_ns: int | None = None  # the stamp of the latest sampled tick
         self.current: JointTrajectoryReference | None = None
@@ -167,9 +184,22 @@ class TrajectoryFollower:
         """
         checked = JointTrajectoryReference(start_ns, times_s, positions_m, velocities_m_s)
         self._check_window(checked)
+        self._check_travel(checked)
         velocities = None if velocities_m_s is None else list(velocities_m_s)
         self._pending = (int(start_ns), list(times_s), list(positions_m), velocities)
         self.received += 1
+
+    def _check_travel(self, trajectory: JointTrajectoryReference) -> None:
+        """Refuse a trajectory leaving the travel limits (with the piece from the held reference, as taken up)."""
+        if self.travel_mm is None:
+            return
+        times, positions, velocities = trajectory.times_s, trajectory.positions_m, trajectory.velocities_m_s
+        held = times[0] > 0.0 and self._last is not None
+        if held:
+            assert self._last is not None, "held needs a held reference"
+            times, positions = [0.0, *times], [self._last[0], *positions]
+            velocities = None if velocities is None else [0.0, *velocities]
+        check_trajectory(self.axis, self.travel_mm, times, positions, velocities, held)
 
     def _check_window(self, trajectory: JointTrajectoryReference) -> None:
         """Refuse a stamped trajectory over before the latest tick, or starting beyond the horizon after it."""

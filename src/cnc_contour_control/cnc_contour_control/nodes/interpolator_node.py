@@ -31,6 +31,7 @@ from cnc_contour_control.motion.feed_override import (
     message_ratio,
 )
 from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.homing import HomingParams
 from cnc_contour_control.motion.interpolation import (
     AxisLimits,
     Interpolator,
@@ -40,6 +41,7 @@ from cnc_contour_control.motion.interpolation import (
 )
 from cnc_contour_control.motion.program_file import read_program_file
 from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
+from cnc_contour_control.motion.travel import TravelLimits
 from cnc_contour_control.nodes import fast_cdr
 from cnc_contour_control.nodes.common import (
     LATCHED_QOS,
@@ -49,6 +51,7 @@ from cnc_contour_control.nodes.common import (
     wall_time_s,
 )
 from cnc_contour_control.nodes.conversions import joint_positions, program_to_path, reference_to_msg
+from cnc_contour_control.nodes.homing_io import HomingService
 from cnc_contour_control.nodes.parameters import declare_config
 from cnc_contour_control.nodes.program_action import ProgramActionServer, stamped_cdr
 from cnc_contour_control.nodes.refusals import RefusalCounter
@@ -73,13 +76,18 @@ class InterpolatorNode(SuiteNode):
         """Lifecycle configure (nodes/lifecycle.py): the parameters validated, the program planned, the topics."""
         run = declare_config(self, InterpolatorRunParams)
         session_params = declare_config(self, ProgramSessionParams)
+        self.travel, self.homing = declare_config(self, TravelLimits), declare_config(self, HomingParams)
         self.axes, self.frame_id = run.axes, run.frame_id
         self.session: ProgramSession | None = None
         self.action: ProgramActionServer | None = None
+        self.home_service: HomingService | None = None
         if session_params.program_source == "file":
             self.interpolator = self._make_interpolator(run.program_file, run.feed_override_source)
+            if self.travel.active:  # the planned path (blends included): refused before any axis moves
+                self.travel.check_program(self.interpolator.program)
         else:
             self.session = self._make_session(run.feed_override_source, session_params)
+            self.home_service = HomingService(self, self.session)
         self.reference_pub = self.gated_publisher(Reference, "reference", 1)
         self.path_pub = self.create_publisher(Path, "path", LATCHED_QOS)
         if self.session is None:  # the program as written: the scorer measures the blends' deviation as contour error
@@ -128,7 +136,7 @@ class InterpolatorNode(SuiteNode):
         """Action mode: the session that runs goals (always through the live override: a cancel ramps to 0)."""
         config, override, limits = self._declare_planning(source)
         self.live: LiveReference | None = None
-        return ProgramSession(self.axes, limits, config, override, params)
+        return ProgramSession(self.axes, limits, config, override, params, self.travel, self.homing)
 
     def _make_interpolator(self, program_file: str, source: str) -> Interpolator:
         """The program's interpolator with the declared limits (config units: m/s, m/s^2) and options.
@@ -199,6 +207,8 @@ class InterpolatorNode(SuiteNode):
         self.reference_pub.publish(reference_to_msg(sample, self.axes, stamp_ns, self.frame_id))
         if self.action is not None:
             self.action.after_tick()
+        if self.home_service is not None:
+            self.home_service.after_tick()
 
     def _path_cdr(self, program: Program, live: LiveReference) -> bytes:
         """An action-mode program's ``path`` message, serialized (the planning thread calls this; stamp 0).

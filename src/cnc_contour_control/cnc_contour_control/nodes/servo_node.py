@@ -72,7 +72,8 @@ class ServoNode(SuiteNode):
         self.spindle_override = watch_spindle_rpm(self, law_receiver(self.controller.law), f"servo {self.axis}")
         self.parameters.watch(self._retune)  # gains change, the law's state stays
         source = declare_config(self, ReferenceSourceParams)
-        self.trajectory = TrajectoryFollower(self.axis) if source.reference_source == "joint_trajectory" else None
+        self.trajectory = (TrajectoryFollower(self.axis, travel_mm=source.travel)
+                           if source.reference_source == "joint_trajectory" else None)
         inputs = (["joint_states"] + (["reference"] if self.trajectory is None else [])
                   + (["compensation"] if run.use_compensation else []))
         self.matcher = StampMatcher(inputs, run.input_timeout_s, run.startup_timeout_s,

@@ -177,8 +177,11 @@ def _interpolator_parameters(run: _Run, stage: Stage, node: str, axis: str | Non
                                              # a missing override is reported before the servos' "no reference"
                                              feed_override_timeout_s=max(TIMEOUT_RANGE_S[0], 0.5 * run.input_timeout_s))
     override = {k: v for k, v in config_values(scenario.override_config).items() if v != []}  # rcl: no empty lists
+    machine = {**(config_values(scenario.travel) if scenario.travel.active else {}),
+               **(config_values(scenario.homing) if scenario.raw.get("homing") is not None else {})}
     return _merge(config_values(interpolator_run), config_values(scenario.interpolator),
-                  config_values(scenario.limits), {"feed_override": override} if scenario.override_active else {})
+                  config_values(scenario.limits), {"feed_override": override} if scenario.override_active else {},
+                  {k: v for k, v in machine.items() if v != []})
 
 
 def _servo_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> dict[str, Any]:
@@ -191,7 +194,8 @@ def _servo_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
                                input_timeout_s=run.input_timeout_s,
                                startup_timeout_s=max(ServoRunParams.startup_timeout_s, run.input_timeout_s))
     servo = {k: v for k, v in servo_config_values(config).items() if v != []}  # rcl: no empty lists (no schedule)
-    return _merge(config_values(servo_run), servo)
+    travel = {"travel_mm": list(scenario.travel.limit_mm(str(axis)))} if str(axis) in scenario.travel.travel_axes else {}
+    return _merge(config_values(servo_run), servo, travel)
 
 
 def _timeouts(run: _Run, cls: type) -> dict[str, float]:

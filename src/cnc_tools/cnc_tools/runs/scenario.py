@@ -19,7 +19,7 @@ from cnc_contour_control.core.config import (
     require_positive,
     require_range,
 )
-from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.errors import CncError, ConfigError
 from cnc_contour_control.core.lockstep import seconds_to_ns
 from cnc_contour_control.core.params import param_specs
 from cnc_contour_control.core.stages import Pipeline, pipeline
@@ -28,9 +28,11 @@ from cnc_contour_control.force.settings import ForceRegulatorSettings
 from cnc_contour_control.graph.cross_axis import CompensatorSettings, EstimatorSettings
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig, planning_limits
 from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.homing import HomingParams
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_contour_control.motion.points import require_feed_mm_min
 from cnc_contour_control.motion.program import load_program
+from cnc_contour_control.motion.travel import TravelLimits
 from cnc_plant_sim.models.plant import PlantConfig
 from cnc_plant_sim.models.velocity_loop import VelocityLoopOptions
 from cnc_plant_sim.run.run_params import PlantRunParams
@@ -40,9 +42,10 @@ MODES = ("lockstep", "realtime")
 #: Scenario sections that switch on an optional stage of the pipeline (the section's name is the stage's).
 OPTIONAL_STAGE_KEYS: tuple[str, ...] = ("estimator", "compensator", "force_regulator")
 _TOP_KEYS = ("name", "format_version", "description", "sample_time_s", "duration_s", "settle_s", "seed", "mode",
-             "plant", "limits", "program", "servo", "interpolator", "paper", "feed_override",
+             "plant", "limits", "program", "servo", "interpolator", "paper", "feed_override", "homing",
              *OPTIONAL_STAGE_KEYS)
-_LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2")
+_LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2", "travel_mm")
+_HOMING_KEYS = ("position_mm", "feed_mm_min", "require_homing")
 
 
 @dataclass(frozen=True)
@@ -66,6 +69,10 @@ class Scenario:
     compensator: CompensatorSettings | None = None
     feed_override: OverrideConfig | None = None
     force_regulator: ForceRegulatorSettings | None = None
+    #: Soft travel limits (``limits.travel_mm``; none: every axis unbounded).
+    travel: TravelLimits = field(default_factory=TravelLimits)
+    #: Home position, homing feeds, ``require_homing`` (the ``homing`` section; the interpolator's action mode).
+    homing: HomingParams = field(default_factory=HomingParams)
 
     @property
     def axes(self) -> tuple[str, ...]:
@@ -173,10 +180,14 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         raise ConfigError(f"scenario.program.axes {list(program.axis_names)} differ from "
                           f"scenario.plant.axes {list(plant.axes)}")
     limits = _limits(raw.get("limits", {}), len(plant.axes))
+    travel = _travel(raw.get("limits", {}), plant.axes)
+    homing = _homing(raw.get("homing"), plant.axes, travel)
     interpolator = _interpolator_config(_section(raw, "interpolator", {}))
     feed_override = _feed_override(raw.get("feed_override"))
     planned = limits if feed_override is None else planning_limits(limits, feed_override)
-    duration_s = _duration(raw, Interpolator(program, planned, interpolator).duration_s)
+    planner = Interpolator(program, planned, interpolator)
+    _check_travel(travel, planner)
+    duration_s = _duration(raw, planner.duration_s)
     _as_the_nodes_take(sample_time_s=sample_time_s, duration_s=duration_s, mode=mode)
     scenario = Scenario(
         name=name,
@@ -193,6 +204,8 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         raw=dict(raw),
         source=source,
         feed_override=feed_override,
+        travel=travel,
+        homing=homing,
         **_cross_axis(raw),
     )
     check_format(raw, scenario.servos, sample_time_s)
@@ -268,6 +281,60 @@ def _limits(section: Any, n_axes: int) -> AxisLimits:
                                for v in velocity),
         max_acceleration_m_s2=tuple(mm_s2_to_m_s2(_acceleration_mm_s2(a)) for a in accel),
     )
+
+
+def _travel(section: Mapping[str, Any], axes: tuple[str, ...]) -> TravelLimits:
+    """``limits.travel_mm: {axis: [min_mm, max_mm], ...}`` (absent: unbounded), axes of the plant only."""
+    value = section.get("travel_mm")
+    if value is None:
+        return TravelLimits()
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"scenario.limits.travel_mm must be a mapping {{axis: [min_mm, max_mm]}}, got {value!r}")
+    try:
+        travel = TravelLimits.of(dict(value))
+        travel.bounds_m(axes)
+    except ConfigError as err:
+        raise ConfigError(f"scenario.limits.{err}") from err
+    return travel
+
+
+def _check_travel(travel: TravelLimits, planner: Interpolator) -> None:
+    """The planned path (blends included) within the travel limits, else refused naming line, axis and excess."""
+    if not travel.active:
+        return
+    try:
+        travel.check_program(planner.program)
+    except CncError as err:
+        raise ConfigError(f"scenario.limits.travel_mm: {err}") from err
+
+
+def _homing(section: Any, axes: tuple[str, ...], travel: TravelLimits) -> HomingParams:
+    """``homing: {position_mm: {axis: mm}, feed_mm_min: mm/min or {axis: mm/min}, require_homing: bool}``."""
+    if section is None:
+        return HomingParams()
+    if not isinstance(section, Mapping):
+        raise ConfigError(f"scenario.homing must be a mapping, got {section!r}")
+    _refuse_unknown(section, _HOMING_KEYS, "scenario.homing")
+    position = _axis_map(section.get("position_mm", {}), axes, "scenario.homing.position_mm", 0.0)
+    feed = section.get("feed_mm_min", ())
+    feeds = _axis_map(feed, axes, "scenario.homing.feed_mm_min", None) if isinstance(feed, Mapping) else (
+        () if feed == () else (feed,))
+    try:
+        homing = HomingParams(tuple(position), tuple(feeds), section.get("require_homing", False))
+        homing.check(axes, travel)
+    except ConfigError as err:
+        raise ConfigError(f"scenario.homing.{err}") from err
+    return homing
+
+
+def _axis_map(value: Any, axes: tuple[str, ...], context: str, absent: float | None) -> list[Any]:
+    """``{axis: value}`` in axis order; an absent axis takes ``absent`` (None: every axis is required)."""
+    if not isinstance(value, Mapping):
+        raise ConfigError(f"{context} must be a mapping {{axis: value}}, got {value!r}")
+    _refuse_unknown(value, axes, context)
+    if absent is None and set(value) != set(axes):
+        raise ConfigError(f"{context} needs every axis {list(axes)}, got {sorted(value)}")
+    return [value.get(axis, absent) for axis in axes]
 
 
 #: Smallest acceleration limit, mm/s² (0.1 mm in 14 s from rest): lower, no program ends within a run.
