@@ -45,22 +45,23 @@ class TravelLimits:
     Parameters
     ----------
     travel_axes : tuple of str
-        The limited axes.
+        The limited axes (the interpolator's default: every axis, in order).
     travel_min_mm, travel_max_mm : tuple of float
-        Lowest and highest position of each limited axis, mm, finite, ``min < max``.
+        Lowest and highest position of each axis of ``travel_axes``, mm, finite, ``min < max``; both empty:
+        no limits (``travel_axes`` is then ignored).
     """
 
     travel_axes: tuple[str, ...] = param((), read_only=True,
-                                         description="axes with soft travel limits (empty: none); "
-                                                     "travel_min_mm and travel_max_mm hold one value each")
+                                         description="the axes travel_min_mm and travel_max_mm limit, one value "
+                                                     "each (the interpolator's default: every axis)")
     travel_min_mm: tuple[float, ...] = param((), unit="mm", read_only=True,
                                              description="lowest position of each axis of travel_axes")
     travel_max_mm: tuple[float, ...] = param((), unit="mm", read_only=True,
                                              description="highest position of each axis of travel_axes")
 
     def __post_init__(self) -> None:
-        axes = require_names("travel_axes", self.travel_axes) if self.travel_axes else ()
         low, high = _floats("travel_min_mm", self.travel_min_mm), _floats("travel_max_mm", self.travel_max_mm)
+        axes = require_names("travel_axes", self.travel_axes) if low or high else ()
         if not len(low) == len(high) == len(axes):
             raise ConfigError(f"travel_min_mm and travel_max_mm need one value per travel_axes entry "
                               f"({len(axes)}: {list(axes)}), got {len(low)} and {len(high)}")

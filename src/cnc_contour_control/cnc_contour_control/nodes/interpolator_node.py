@@ -9,7 +9,12 @@ is echoed in ``reference.feed_override_ratio``.
 With ``program_source: action`` it reads no program at start-up: it runs
 RunProgram goals one after another (:mod:`~cnc_contour_control.nodes.program_action`,
 :class:`~cnc_contour_control.motion.program_session.ProgramSession`), answers every
-tick in between with a hold reference, and republishes ``path`` for each program.
+tick in between with a hold reference, and republishes ``path`` for each program. In that
+mode it also serves FollowTrajectory (:mod:`~cnc_contour_control.nodes.trajectory_action`:
+a trajectory_msgs/JointTrajectory with a trajectory controller's semantics; control_msgs'
+FollowJointTrajectory too where installed). Every ``controller_state_decimation`` ticks it
+publishes ``~/controller_state``: reference, feedback, error per axis (the output, the servo's
+command, is not seen here: NaN, ``output_known`` false).
 """
 from __future__ import annotations
 
@@ -41,6 +46,7 @@ from cnc_contour_control.motion.interpolation import (
 )
 from cnc_contour_control.motion.program_file import read_program_file
 from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
+from cnc_contour_control.motion.trajectory_motion import ControllerStateParams
 from cnc_contour_control.motion.travel import TravelLimits
 from cnc_contour_control.nodes import fast_cdr
 from cnc_contour_control.nodes.common import (
@@ -55,11 +61,15 @@ from cnc_contour_control.nodes.homing_io import HomingService
 from cnc_contour_control.nodes.parameters import declare_config
 from cnc_contour_control.nodes.program_action import ProgramActionServer, stamped_cdr
 from cnc_contour_control.nodes.refusals import RefusalCounter
-from cnc_contour_interfaces.msg import FeedOverride, Path, Reference
+from cnc_contour_control.nodes.trajectory_action import TrajectoryActionServer
+from cnc_contour_interfaces.msg import ControllerState, FeedOverride, Path, Reference
 
 #: Axis limits of a node started without them: 6000 mm/min and 1000 mm/s^2 on every axis.
 DEFAULT_MAX_VELOCITY_M_S = 0.1
 DEFAULT_MAX_ACCELERATION_M_S2 = 1.0
+
+#: What controller_state says of its output (the interpolator does not see the servos' commands).
+OUTPUT_SOURCE = "not known to the interpolator: each servo's command is on servo/<axis>/command"
 
 #: The first tick's override may take this many feed_override_timeout_s: the regulator's publisher opens
 #: only once its readers are discovered (a start-up cost, as the plant's startup_timeout_s allows for).
@@ -76,10 +86,14 @@ class InterpolatorNode(SuiteNode):
         """Lifecycle configure (nodes/lifecycle.py): the parameters validated, the program planned, the topics."""
         run = declare_config(self, InterpolatorRunParams)
         session_params = declare_config(self, ProgramSessionParams)
-        self.travel, self.homing = declare_config(self, TravelLimits), declare_config(self, HomingParams)
+        state_params = declare_config(self, ControllerStateParams)
+        self.travel = declare_config(self, TravelLimits, defaults={"travel_axes": list(run.axes)})
+        self.homing = declare_config(self, HomingParams)
         self.axes, self.frame_id = run.axes, run.frame_id
         self.session: ProgramSession | None = None
         self.action: ProgramActionServer | None = None
+        self.trajectory_action: TrajectoryActionServer | None = None
+        self._latest: tuple[int, ReferenceSample, list[float]] | None = None  # last tick: stamp, reference, position
         self.home_service: HomingService | None = None
         if session_params.program_source == "file":
             self.interpolator = self._make_interpolator(run.program_file, run.feed_override_source)
@@ -95,6 +109,11 @@ class InterpolatorNode(SuiteNode):
         else:
             self.action = ProgramActionServer(self, self.session, session_params.bag_path,
                                               session_params.feedback_period_s, self._path_cdr, self._publish_started)
+            self.trajectory_action = TrajectoryActionServer(self, self.session, self.session.limits,
+                                                            session_params.feedback_period_s, lambda: self._latest)
+        self.state_decimation, self._state_ticks = state_params.controller_state_decimation, -1
+        self.state_pub = (self.create_publisher(ControllerState, "~/controller_state", 10)
+                          if self.state_decimation > 0 else None)
         # A joint state is answered at once (previous_tick: once feed_override(k-1) is in, watched by a timer);
         # the matcher checks stamps (from t = 0).
         self.matcher = StampMatcher(("joint_states",), math.inf, max_ahead_ns=stamp_horizon_ns())
@@ -200,15 +219,38 @@ class InterpolatorNode(SuiteNode):
     def on_tick(self, msg: JointState) -> None:
         """One tick: the reference at the joint state's stamp."""
         stamp_ns = stamp_to_ns(msg.header.stamp)
+        positions, velocities = joint_positions(msg, self.axes)
         if self.session is None:
             sample = self._sample(stamp_ns)
         else:  # action mode: the running program's reference, or the hold
-            sample = self.session.step(stamp_ns, joint_positions(msg, self.axes)[0], self.inbox.take(stamp_ns))
+            sample = self.session.step(stamp_ns, positions, self.inbox.take(stamp_ns))
         self.reference_pub.publish(reference_to_msg(sample, self.axes, stamp_ns, self.frame_id))
+        self._latest = (stamp_ns, sample, positions)
+        if self.state_pub is not None:
+            self._publish_state(msg, sample, positions, velocities)
         if self.action is not None:
             self.action.after_tick()
+        if self.trajectory_action is not None:
+            self.trajectory_action.after_tick()
         if self.home_service is not None:
             self.home_service.after_tick()
+
+    def _publish_state(self, msg: JointState, sample: ReferenceSample, positions: list[float],
+                       velocities: list[float]) -> None:
+        """``~/controller_state`` every ``controller_state_decimation`` ticks: reference, feedback, error per axis."""
+        self._state_ticks += 1
+        if self._state_ticks % self.state_decimation:
+            return
+        assert self.state_pub is not None
+        reference = [float(v) for v in sample.position_m]
+        n = len(self.axes)
+        owner = self.session.running_owner if self.session is not None else "program_file"
+        self.state_pub.publish(ControllerState(
+            header=msg.header, joint_names=list(self.axes), reference_position_m=reference,
+            reference_velocity_m_s=[float(v) for v in sample.velocity_m_s], feedback_position_m=positions,
+            feedback_velocity_m_s=velocities if len(msg.velocity) else [math.nan] * n,
+            error_position_m=[r - p for r, p in zip(reference, positions)], output=[math.nan] * n,
+            output_known=False, output_source=OUTPUT_SOURCE, goal=owner or ""))
 
     def _path_cdr(self, program: Program, live: LiveReference) -> bytes:
         """An action-mode program's ``path`` message, serialized (the planning thread calls this; stamp 0).
@@ -242,6 +284,8 @@ class InterpolatorNode(SuiteNode):
         """Fault as every node does; a running goal ends as faulted with the reason."""
         if self.action is not None and not self.finished:
             self.action.abort(message)
+            if self.trajectory_action is not None:
+                self.trajectory_action.after_tick()
         super().fault(message)
 
 
