@@ -96,7 +96,11 @@ class CircleShape:
     """A full circle through ``start_mm``; the start is at ``start_angle_deg`` seen from the centre.
 
     The default ``start_angle_deg = -90`` puts the centre at ``(0, radius)``
-    for a start at the origin, as paper 000's circular test.
+    for a start at the origin, as paper 000's circular test. ``feed_in_deg`` and
+    ``feed_out_deg`` (in [0, 360]) add a feed-in arc before the full turn and a
+    feed-out arc after it on the same circle, as a ballbar test runs it (the
+    measured turn then starts ``feed_in_deg`` after ``start_mm``; see
+    docs/circular_test.md).
     """
 
     radius_mm: float
@@ -105,18 +109,33 @@ class CircleShape:
     start_angle_deg: float = -90.0
     start_mm: Any = None
     axes: Any = ("x", "y")
+    feed_in_deg: float = 0.0
+    feed_out_deg: float = 0.0
 
     def __post_init__(self) -> None:
         require_extent_mm("radius_mm", self.radius_mm, "program", positive=True)
         require_feed_mm_min("feed_mm_min", self.feed_mm_min, "program")
         require_choice("direction", self.direction, DIRECTIONS, "program")
         require_range("start_angle_deg", self.start_angle_deg, -360.0, 360.0, "program")
+        require_range("feed_in_deg", self.feed_in_deg, 0.0, 360.0, "program")
+        require_range("feed_out_deg", self.feed_out_deg, 0.0, 360.0, "program")
 
     def segments(self, start_mm: FloatArray) -> list[Segment]:
         center_mm = start_mm - _planar_offset_mm(start_mm.size, self.radius_mm, self.start_angle_deg)
-        start_m = mm_to_m(start_mm)
-        return [ArcSegment(start_m, start_m, mm_to_m(center_mm), DIRECTIONS[self.direction],
-                           (0, 1), mm_min_to_m_s(self.feed_mm_min))]
+        turn = 1.0 if self.direction == "ccw" else -1.0
+
+        def point_mm(after_deg: float) -> FloatArray:
+            """The point ``after_deg`` along the direction from the start (the start itself at 0 or 360)."""
+            if after_deg % 360.0 == 0.0:
+                return start_mm
+            return center_mm + _planar_offset_mm(start_mm.size, self.radius_mm,
+                                                 self.start_angle_deg + turn * after_deg)
+
+        turn_mm = point_mm(self.feed_in_deg)
+        arcs = [(start_mm, turn_mm, self.feed_in_deg), (turn_mm, turn_mm, 360.0),
+                (turn_mm, point_mm(self.feed_in_deg + self.feed_out_deg), self.feed_out_deg)]
+        return [ArcSegment(mm_to_m(a), mm_to_m(b), mm_to_m(center_mm), DIRECTIONS[self.direction], (0, 1),
+                           mm_min_to_m_s(self.feed_mm_min)) for a, b, sweep_deg in arcs if sweep_deg > 0.0]
 
 
 @dataclass(frozen=True)
