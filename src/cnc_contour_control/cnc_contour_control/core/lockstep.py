@@ -160,7 +160,9 @@ class StampMatcher:
             self._check_horizon(name, stamp_ns, previous_ns if previous_ns is not None and previous_ns < stamp_ns
                                 else None)
         self._latest_ns[name] = max(stamp_ns, self._latest_ns.get(name, stamp_ns))
-        pending = self._pending.setdefault(stamp_ns, _Pending(now_s))
+        pending = self._pending.get(stamp_ns)
+        if pending is None:  # (not setdefault: that builds a _Pending for every input of a tick)
+            pending = self._pending[stamp_ns] = _Pending(now_s)
         if name in pending.items:
             raise FaultError(f"{name}: a second message for tick t={ns_to_s(stamp_ns):.6f} s "
                              "(another publisher outside the run?)")

@@ -162,6 +162,9 @@ class GatedPublisher:
 
     def publish(self, msg: Any) -> None:
         """Publish now if the readers are there, else hold."""
+        if self._open:  # once open nothing is held: straight through
+            self.publisher.publish(msg)
+            return
         self._held.append(msg)
         self.flush()
 

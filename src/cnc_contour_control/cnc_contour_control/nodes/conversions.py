@@ -40,14 +40,27 @@ def reference_to_msg(sample: ReferenceSample, axes: Sequence[str], stamp_ns: int
     return msg
 
 
+#: A Reference's per-axis fields, with the names its faults give them.
+_REFERENCE_AXIS_FIELDS = tuple((name, f"reference.{name}") for name in ("position_m", "velocity_m_s",
+                                                                        "acceleration_m_s2"))
+
+
 def reference_axis(msg: Reference, axis: str) -> tuple[float, float, float]:
     """Position, velocity, acceleration of one axis from a Reference; faults on bad data."""
     index = axis_index(msg.axis_names, axis, "reference")
-    for name in ("position_m", "velocity_m_s", "acceleration_m_s2"):
-        require_length(getattr(msg, name), len(msg.axis_names), f"reference.{name}", "axis_names")
+    count = len(msg.axis_names)
+    for name, field in _REFERENCE_AXIS_FIELDS:
+        require_length(getattr(msg, name), count, field, "axis_names")
     values = (msg.position_m[index], msg.velocity_m_s[index], msg.acceleration_m_s2[index])
-    require_finite_values(values, f"reference[{axis}] (position_m, velocity_m_s, acceleration_m_s2)")
+    if not _all_finite(values):  # the fault's wording only when there is one
+        require_finite_values(values, f"reference[{axis}] (position_m, velocity_m_s, acceleration_m_s2)")
     return values
+
+
+def _all_finite(values: tuple[float, ...]) -> bool:
+    """True when no value is NaN or infinite (one sum: a NaN or an infinity makes it NaN)."""
+    total = sum(values)
+    return total - total == 0.0
 
 
 def joint_positions(msg: JointState, axes: Sequence[str]) -> tuple[list[float], list[float]]:
@@ -67,7 +80,8 @@ def joint_position(msg: JointState, axis: str) -> float:
     index = axis_index(msg.name, axis, "joint_states")
     require_length(msg.position, len(msg.name), "joint_states.position", "name")
     value = msg.position[index]
-    require_finite_values((value,), f"joint_states.position[{axis}]")
+    if not _all_finite((value,)):
+        require_finite_values((value,), f"joint_states.position[{axis}]")
     return float(value)
 
 
@@ -78,7 +92,8 @@ def joint_velocity(msg: JointState, axis: str) -> float:
         return 0.0
     require_length(msg.velocity, len(msg.name), "joint_states.velocity", "name")
     value = msg.velocity[index]
-    require_finite_values((value,), f"joint_states.velocity[{axis}]")
+    if not _all_finite((value,)):
+        require_finite_values((value,), f"joint_states.velocity[{axis}]")
     return float(value)
 
 
