@@ -23,6 +23,8 @@ COMMANDS: dict[str, Subcommand] = {
     "replay": _command("replay", "configure", "replay", "republish a bag with its recorded timing"),
     "send-program": _command("send_program", "configure", "send_program",
                              "run a part program on a running interpolator (RunProgram action; Ctrl-C cancels)"),
+    "ros": _command("ros", "configure", "ros",
+                    "nodes, topics, echo, hz, param, action send: ROS tools for a wheel install (no ros2 CLI)"),
     "machine": _command("machine", "configure", "machine",
                         "e-stop, release, reset, enable or disable a running graph's plant and servos"),
     "identify-friction": _command("identify_friction", "configure", "identify_friction",
