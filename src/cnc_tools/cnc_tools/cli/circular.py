@@ -57,9 +57,10 @@ ROWS: tuple[Row, ...] = (
     Row("center_offset_y_um", "µm", "least-squares centre - programmed centre, y (mean of the traces)"),
     Row("servo_mismatch_um", "µm", "(B2_ccw - B2_cw)/2: the ±45° ellipse that flips with direction"),
     Row("gain_difference_s", "s", "1/k_x - 1/k_y = 2 servo_mismatch / mean feed (Eq. 8, first order)"),
-    Row("squareness_urad", "µrad", "(B2_ccw + B2_cw)/R: the ±45° ellipse common to both directions"),
+    Row("squareness_urad", "µrad", "(B2_ccw + B2_cw)/R_d (R_d the drawn radius): the ±45° ellipse common to both "
+        "directions"),
     Row("scale_mismatch_um", "µm", "mean A2: the 0°/90° ellipse common to the traces"),
-    Row("scale_mismatch_ppm", "ppm", "sx - sy = 2 mean A2 / R"),
+    Row("scale_mismatch_ppm", "ppm", "sx - sy = 2 mean A2 / R_d"),
 )
 #: Rows of each trace: a field of :class:`cnc_tools.analysis.ballbar.TraceDiagnosis`.
 TRACE_ROWS: tuple[Row, ...] = (
