@@ -97,7 +97,8 @@ def test_registries_list_the_forms() -> None:
     ({"shape": "ellipse", "radius_mm": 20},
      r"program.shape must be one of \['circle', 'corner', 'line'\], got 'ellipse'"),
     ({"shape": "circle", "radius_mm": 20, "feed_mm_min": 400, "radius": 3},
-     r"program.radius: unknown key; valid keys are \['axes', 'direction', 'feed_in_deg', 'feed_mm_min', 'feed_out_deg'"),
+     r"program.radius: unknown key; valid keys are "
+     r"\['axes', 'direction', 'feed_in_deg', 'feed_mm_min', 'feed_out_deg'"),
     ({"shape": "circle", "feed_mm_min": 400}, "radius_mm"),
     ({"radius_mm": 20}, r"program needs exactly one of \['gcode', 'gcode_file', 'segments', 'shape'\]"),
     ({"shape": "circle", "gcode": "G1 X1"}, "program needs exactly one of"),

@@ -194,7 +194,8 @@ def _servo_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
                                input_timeout_s=run.input_timeout_s,
                                startup_timeout_s=max(ServoRunParams.startup_timeout_s, run.input_timeout_s))
     servo = {k: v for k, v in servo_config_values(config).items() if v != []}  # rcl: no empty lists (no schedule)
-    travel = {"travel_mm": list(scenario.travel.limit_mm(str(axis)))} if str(axis) in scenario.travel.travel_axes else {}
+    travel_axes = scenario.travel.travel_axes
+    travel = {"travel_mm": list(scenario.travel.limit_mm(str(axis)))} if str(axis) in travel_axes else {}
     return _merge(config_values(servo_run), servo, travel)
 
 
