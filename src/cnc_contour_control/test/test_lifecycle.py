@@ -150,6 +150,7 @@ def test_cleanup_lets_new_parameters_be_configured_and_a_second_program_runs_wit
         assert not _set_string(probe, "frame_id", "table"), "read-only while configured"
         assert _change(probe, Transition.TRANSITION_DEACTIVATE) and _change(probe, Transition.TRANSITION_CLEANUP)
         assert _state(probe) == "unconfigured"
+        probe.wait_for(lambda: joints.get_subscription_count() == 0, 10.0, "cleanup's end of the joint_states reader")
         assert _set_string(probe, "frame_id", "table"), "writable while unconfigured"
         assert _change(probe, Transition.TRANSITION_CONFIGURE) and _change(probe, Transition.TRANSITION_ACTIVATE)
         assert not _set_string(probe, "frame_id", "shop"), "read-only again once configured"

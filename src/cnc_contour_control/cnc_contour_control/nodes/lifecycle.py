@@ -17,7 +17,9 @@ interpolator, the servos, the plant) is a managed node:
   the parameters configure declared stay, now writable (``ros2 param set``,
   ``cnc-contour ros param set``), so the next **configure** declares them
   read-only again with the new values and validates them as the first did;
-  **shutdown** ends the process. In a composed process (a local bus) cleanup
+  **shutdown** destroys what configure made (its topics leave the graph at
+  once: a partner waiting for them faults naming the node, the plant stops
+  the machine) and ends the process. In a composed process (a local bus) cleanup
   is refused: the bus's deliveries to the node cannot be taken back.
 
 A transition the state machine does not allow from the current state (e.g.
@@ -154,7 +156,11 @@ class ManagedNode(LifecycleNode):  # type: ignore[misc]  # rclpy is skipped (myp
         return super().declare_parameter(name, value, descriptor, ignore_override)
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        """End the node; what configure made leaves the graph now (not when the process ends), so a partner
+        that waited for it faults naming it at once while the others stay up."""
         self.armed = False
+        if state.label != "unconfigured" and local_bus.bus_of(self.context) is None:
+            self._destroy_configured()
         self.end_lifecycle()
         return SUCCESS
 
