@@ -126,8 +126,11 @@ def test_cleanup_lets_new_parameters_be_configured_and_a_second_program_runs_wit
             nonlocal position_m, k
             joints.publish(JointState(header=Header(stamp=ns_to_stamp(k * 10_000_000)), name=["x", "y"],
                                       position=list(position_m), velocity=[0.0, 0.0]))
-            refs = lambda: [m for m in probe.received(f"{NS}/reference")
-                            if stamp_to_ns(m.header.stamp) == k * 10_000_000 and m.header.frame_id == frame]
+
+            def refs() -> list[Any]:
+                return [m for m in probe.received(f"{NS}/reference")
+                        if stamp_to_ns(m.header.stamp) == k * 10_000_000 and m.header.frame_id == frame]
+
             probe.wait_for(lambda: bool(refs()), 20.0, f"reference {k} in frame {frame}")
             position_m, k = list(refs()[-1].position_m), k + 1
 

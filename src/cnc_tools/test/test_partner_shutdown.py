@@ -23,7 +23,7 @@ from cnc_tools.runs.scenario import load_scenario
 pytestmark = pytest.mark.nodes
 SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "paper000_circle_high.yaml"
 NODE_CLASSES = {"plant": PlantNode, "interpolator": InterpolatorNode, "servo": ServoNode}
-OVERRIDES = {"plant": {"duration_s": 1.0e5, "summary_file": ""},
+OVERRIDES: dict[str, dict[str, Any]] = {"plant": {"duration_s": 1.0e5, "summary_file": ""},
              "interpolator": {"program_source": "action", "program_file": ""}}
 
 
@@ -57,8 +57,10 @@ def test_a_servo_shut_down_faults_the_run_naming_it_and_the_others_stay_up_and_r
         probe = stack.enter_context(TopicProbe({"/cnc/joint_states": JointState, "/diagnostics": DiagnosticArray}))
         probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 10, 30.0, "the graph's ticks")
         assert change(probe, "servo_x", Transition.TRANSITION_ACTIVE_SHUTDOWN)
-        errors = lambda: [s for a in probe.received("/diagnostics") for s in a.status
-                          if s.level == DiagnosticStatus.ERROR]
+
+        def errors() -> list[Any]:
+            return [s for a in probe.received("/diagnostics") for s in a.status if s.level == DiagnosticStatus.ERROR]
+
         probe.wait_for(errors, 10.0, "the plant's fault")
         probe.wait_for(lambda: nodes["plant"].finished, 10.0, "the plant to end")
         assert nodes["servo_x"].finished
