@@ -309,14 +309,14 @@ def test_deactivation_stops_on_the_path_and_ends_aborted() -> None:
     assert 0.0 < outcome.path_length_m < 0.02 and not machine.s.deactivate(), "nothing left to stop"
 
 
-def test_a_goal_whose_axis_lags_past_the_end_is_not_completed_but_faulted_naming_it() -> None:
+def test_a_goal_whose_axis_lags_past_the_end_is_not_completed_but_violates_its_goal_tolerance_naming_it() -> None:
     """The finding: a G0 home goal completed while the axis stood 310 µm from its target."""
     machine = Machine(session(in_position_tolerance_mm=0.01, goal_time_s=0.2), offset_m=(3.1e-4, 0.0))
     machine.tick()
     outcome = machine.run(ProgramGoal(gcode="G0 X5\n"))
-    assert outcome.outcome == "faulted", outcome.reason
-    assert "not in position: axis x stood 0.3100 mm from the program's end" in outcome.reason
-    assert "goal_time_s 0.2" in outcome.reason
+    assert outcome.outcome == "goal_tolerance_violated", outcome.reason
+    assert "axis x 0.3100 mm from its end (tolerance 0.01 mm)" in outcome.reason
+    assert "goal_time_s 0.2" in outcome.reason and "G-code line 1" in outcome.reason
 
 
 def test_a_goal_completes_once_every_axis_is_in_position() -> None:
@@ -333,4 +333,4 @@ def test_a_goal_completes_once_every_axis_is_in_position() -> None:
             machine.offset_m = machine.offset_m * 0.8
     assert outcome is not None and outcome.outcome == "completed", outcome
     assert lagging > 10, "it waited for the axis, not only for the reference"
-    assert "every axis within 0.01 mm of the end" in outcome.reason
+    assert "every axis within its goal tolerance (largest 0.01 mm) of the end and stopped" in outcome.reason

@@ -45,8 +45,10 @@ from rclpy.task import Future
 from cnc_contour_control.axis.safety import MachineWatch
 from cnc_contour_control.core.errors import CncError
 from cnc_contour_control.core.topics import RUN_ID_KEY
+from cnc_contour_control.core.units import mm_to_m
 from cnc_contour_control.motion.feed_override import LiveReference
 from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.goal_tolerances import AxisTolerance, GoalTolerances, Tolerances
 from cnc_contour_control.motion.program_goal import ProgramGoal, SegmentSpec
 from cnc_contour_control.motion.program_session import OUTCOMES, ProgramFeedback, ProgramOutcome, ProgramSession
 from cnc_contour_interfaces.action import RunProgram
@@ -63,6 +65,19 @@ def goal_from_msg(msg: Any) -> ProgramGoal:
     return ProgramGoal(gcode=msg.gcode, program_file=msg.program_file, segments=segments,
                        program_name=msg.program_name, feed_mm_min=float(msg.feed_mm_min),
                        path_tolerance_mm=float(msg.path_tolerance_mm))
+
+
+def axis_tolerances(msgs: Any) -> tuple[AxisTolerance, ...]:
+    """JointTolerance messages (ours or control_msgs', same fields; m, m/s) as the core's."""
+    return tuple(AxisTolerance(str(t.name), float(t.position), float(t.velocity)) for t in msgs)
+
+
+def tolerances_from_msg(msg: Any) -> GoalTolerances:
+    """A RunProgram goal's tolerances (contour in mm, per axis in m; 0 the node's default, < 0 not checked)."""
+    contour_mm = float(msg.contour_tolerance_mm)
+    return GoalTolerances(contour_m=mm_to_m(contour_mm) if contour_mm > 0.0 else contour_mm,
+                          path=axis_tolerances(msg.path_tolerance), goal=axis_tolerances(msg.goal_tolerance),
+                          goal_time_s=float(msg.goal_time_s))
 
 
 def feedback_to_msg(feedback: ProgramFeedback) -> Any:
@@ -112,9 +127,9 @@ class PlanJob:
 
     _one_at_a_time = threading.Lock()
 
-    def __init__(self, work: Callable[..., tuple[Program, LiveReference, bytes]], *args: Any) -> None:
+    def __init__(self, work: Callable[..., tuple[Program, LiveReference, bytes, Tolerances]], *args: Any) -> None:
         self._work, self._args = work, args
-        self._result: tuple[Program, LiveReference, bytes] | None = None
+        self._result: tuple[Program, LiveReference, bytes, Tolerances] | None = None
         self._error: Exception | None = None
         self._done = threading.Event()
         threading.Thread(target=self._run, name="run_program_plan", daemon=True).start()
@@ -132,7 +147,7 @@ class PlanJob:
         """True once the work returned or raised."""
         return self._done.is_set()
 
-    def result(self) -> tuple[Program, LiveReference, bytes]:
+    def result(self) -> tuple[Program, LiveReference, bytes, Tolerances]:
         """The work's result; its exception raised here."""
         if self._error is not None:
             raise self._error
@@ -248,12 +263,13 @@ class ProgramActionServer:
         self.node.get_logger().info(f"RunProgram: {outcome.program_name!r} {outcome.outcome}: {outcome.reason}")
         return outcome_to_result(outcome, self.bag_path)
 
-    def _plan(self, request: Any, hold_m: Any) -> tuple[Program, LiveReference, bytes]:
-        """In the worker thread: the goal message read and planned from the hold position ``hold_m`` [m], and
-        its serialized ``path``."""
+    def _plan(self, request: Any, hold_m: Any) -> tuple[Program, LiveReference, bytes, Tolerances]:
+        """In the worker thread: the goal message read and planned from the hold position ``hold_m`` [m], its
+        serialized ``path`` and its tolerances."""
         with planning_heap():
+            tolerances = self.session.tolerances(tolerances_from_msg(request))
             program, live = self.session.plan(goal_from_msg(request), hold_m)
-            return program, live, self.path_of(program, live)
+            return program, live, self.path_of(program, live), tolerances
 
     def _collect_plan(self) -> None:
         """A plan the worker finished: start it at the next tick, or refuse the goal with the reason."""
@@ -266,14 +282,14 @@ class ProgramActionServer:
                 gc.unfreeze()
             return
         try:
-            program, live, path = future.result()
+            program, live, path, tolerances = future.result()
         except CncError as err:
             self.session.refuse(str(err))
         except Exception as err:  # a planner bug ends this goal with its reason, never the node
             self.node.get_logger().error("RunProgram: planning failed:\n" + traceback.format_exc())
             self.session.refuse(f"internal error while planning: {type(err).__name__}: {err}")
         else:
-            self.session.start(program, live)
+            self.session.start(program, live, tolerances)
             self._path = (program, path)
             self.node.get_logger().info(f"RunProgram: {program.name!r}, {len(program.segments)} segments, "
                                         f"{live.interpolator.duration_s:.3f} s planned")
