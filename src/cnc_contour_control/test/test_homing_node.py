@@ -6,6 +6,7 @@ REJECTED "axis x is not homed; call home first"; the ``home`` service moves
 the axes, one at a time, to the home position through the reference and the
 homed state turns true on ``/diagnostics``; a goal leaving the travel ends
 REJECTED naming line, axis and excess before any axis moved; one inside runs.
+A servo's JointTrajectory past its ``travel_mm`` is refused and counted, never an exit.
 """
 from __future__ import annotations
 
@@ -14,15 +15,20 @@ import uuid
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.action import ActionClient
+from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
 
+from cnc_contour_control.core.errors import CncError
 from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
+from cnc_contour_control.nodes.servo_node import ServoNode
 from cnc_contour_control.testing import InProcessNode, TopicProbe, sibling_module
 from cnc_contour_interfaces.action import RunProgram
-from cnc_contour_interfaces.msg import Reference
+from cnc_contour_interfaces.msg import AxisCommand, Reference
 
 pytestmark = pytest.mark.nodes
 _GOALS = sibling_module(__file__, "test_program_goals_node")
+_INPUTS = sibling_module(__file__, "test_outside_inputs")
 PARAMS = {"axes": ["x", "y"], "program_source": "action", "program_file": "", "settle_time_s": 0.02,
           "feedback_period_s": 0.05, "require_homing": True, "home_position_mm": [2.0, 1.0],
           "homing_feed_mm_min": [1200.0, 600.0], "travel_axes": ["x", "y"], "travel_min_mm": [-1.0, -1.0],
@@ -84,3 +90,41 @@ def test_require_homing_then_home_then_travel_limits_refuse_before_any_move() ->
         assert deep.outcome == RunProgram.Result.REJECTED  # the half circle dips to y -2: ends inside, arc not
         assert "line 1 takes axis y to -2.0000 mm, 1.0000 mm beyond its travel_min_mm -1" in deep.reason
 
+
+
+def test_a_joint_trajectory_leaving_the_servos_travel_is_refused_counted_and_the_servo_goes_on() -> None:
+    """A servo with ``travel_mm``: a trajectory past it (by 1 mm at its second point) is refused and counted on
+    /diagnostics naming the point, the axis and the excess; the one inside drives the axis; nothing exits."""
+    inputs = _INPUTS
+    ns = f"/travel_{uuid.uuid4().hex[:8]}"
+    params = {"axis": "x", "sample_time_s": 0.01, "law": "pid", "input_timeout_s": 30.0, "travel_mm": [-1.0, 1.0],
+              "reference_source": "joint_trajectory", "trajectory_topic": "planner/trajectory"}
+    topic, commands = f"{ns}/planner/trajectory", f"{ns}/servo/x/command"
+    with TopicProbe({commands: AxisCommand, "/diagnostics": DiagnosticArray}) as probe, \
+            InProcessNode(ServoNode, params, namespace=ns) as servo:
+        js_pub = probe.publisher(JointState, f"{ns}/joint_states")
+        pub = probe.node.create_publisher(JointTrajectory, topic, 10)
+        probe.wait_for(lambda: pub.get_subscription_count() > 0 and js_pub.get_subscription_count() > 0, 10.0,
+                       "the servo's readers")
+        pub.publish(inputs.trajectory(["x", "y"], [[0.0, 0.0], [2e-3, 0.0]]))
+        probe.wait_for(lambda: inputs.refusals(probe, topic), 10.0, "the refusal on /diagnostics")
+        pub.publish(inputs.trajectory(["x", "y"], [[0.0, 0.0], [5e-4, 0.0]]))
+        probe.wait_for(lambda: servo.node.trajectory.received == 1, 10.0, "the trajectory inside")
+        for k in range(8):
+            js_pub.publish(inputs.joint_state(k))
+        probe.wait_for(lambda: len(probe.received(commands)) == 8, 10.0, "8 commands")
+        assert not servo.node.finished and servo.node.fault_message is None
+    first = inputs.refusals(probe, topic)[0]
+    assert first.level == DiagnosticStatus.WARN and inputs.values(first)["refused_count"] == "1"
+    assert "point 1 takes axis x to 2.0000 mm, 1.0000 mm beyond its travel_max_mm 1" in first.message
+    assert max(abs(m.command) for m in probe.received(commands)) > 0.0, "the trajectory inside drives the axis"
+
+
+def test_a_program_file_leaving_the_travel_is_refused_at_configure_naming_line_axis_and_excess(tmp_path) -> None:
+    program = tmp_path / "part.ngc"
+    program.write_text("G1 X5 F1200\nG2 X5 Y-6 I0 J-3\n")  # the half circle reaches x 8
+    params = {"axes": ["x", "y"], "program_file": str(program), "travel_min_mm": [-1.0, -10.0],
+              "travel_max_mm": [7.5, 10.0]}
+    with pytest.raises(CncError, match=r"line 2 takes axis x to 8\.0000 mm, 0\.5000 mm beyond its travel_max_mm 7\.5"):
+        with InProcessNode(InterpolatorNode, params, namespace=f"/travel_{uuid.uuid4().hex[:8]}"):
+            pass
