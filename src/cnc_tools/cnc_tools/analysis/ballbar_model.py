@@ -34,17 +34,28 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
 from cnc_contour_control.core.errors import ConfigError
 
-if TYPE_CHECKING:  # ballbar imports this module; the trace type is for annotations only
-    from cnc_tools.analysis.ballbar import CircleTrace
-
 FloatArray = NDArray[np.float64]
+
+
+class CircleTrace(Protocol):
+    """What the fit reads of a trace (:class:`cnc_tools.analysis.ballbar.CircleTrace`, which imports this module)."""
+
+    @property
+    def points_m(self) -> FloatArray: ...
+    @property
+    def center_m(self) -> tuple[float, float]: ...
+    @property
+    def radius_m(self) -> float: ...
+    @property
+    def direction(self) -> str: ...
+
 #: Direction name -> sign of the angular velocity (a registry, not an if-chain).
 DIRECTIONS: dict[str, int] = {"ccw": 1, "cw": -1}
 #: Highest harmonic fitted; harmonics 3..this are the cyclic error.
