@@ -80,7 +80,7 @@ def test_require_homing_then_home_then_travel_limits_refuse_before_any_move() ->
         before = list(machine.position_m)
         outside = _GOALS.run_goal(machine, client, RunProgram.Goal(gcode="G1 X5 F1200\nG1 X12\n"))
         assert outside.outcome == RunProgram.Result.REJECTED
-        assert "line 2 takes axis x to 12.0000 mm, 2.0000 mm beyond its travel_max_mm 10" in outside.reason
+        assert "line 2 takes axis x to 12.000000 mm, 2.000000 mm beyond its travel_max_mm 10" in outside.reason
         assert machine.position_m == before and outside.ticks == 0
         inside = _GOALS.run_goal(machine, client, RunProgram.Goal(gcode="G1 X5 F1200\nG2 X9 Y1 R2\n"))
         assert inside.outcome == RunProgram.Result.COMPLETED, inside.reason
@@ -88,7 +88,7 @@ def test_require_homing_then_home_then_travel_limits_refuse_before_any_move() ->
         assert touching.outcome == RunProgram.Result.COMPLETED, touching.reason  # its lowest point is y -1 exactly
         deep = _GOALS.run_goal(machine, client, RunProgram.Goal(gcode="G91 G2 X-6 Y0 I-3 J0 F1200\n"))
         assert deep.outcome == RunProgram.Result.REJECTED  # the half circle dips to y -2: ends inside, arc not
-        assert "line 1 takes axis y to -2.0000 mm, 1.0000 mm beyond its travel_min_mm -1" in deep.reason
+        assert "line 1 takes axis y to -2.000000 mm, 1.000000 mm beyond its travel_min_mm -1" in deep.reason
 
 
 
@@ -116,7 +116,7 @@ def test_a_joint_trajectory_leaving_the_servos_travel_is_refused_counted_and_the
         assert not servo.node.finished and servo.node.fault_message is None
     first = inputs.refusals(probe, topic)[0]
     assert first.level == DiagnosticStatus.WARN and inputs.values(first)["refused_count"] == "1"
-    assert "point 1 takes axis x to 2.0000 mm, 1.0000 mm beyond its travel_max_mm 1" in first.message
+    assert "point 1 takes axis x to 2.000000 mm, 1.000000 mm beyond its travel_max_mm 1" in first.message
     assert max(abs(m.command) for m in probe.received(commands)) > 0.0, "the trajectory inside drives the axis"
 
 
@@ -125,6 +125,7 @@ def test_a_program_file_leaving_the_travel_is_refused_at_configure_naming_line_a
     program.write_text("G1 X5 F1200\nG2 X5 Y-6 I0 J-3\n")  # the half circle reaches x 8
     params = {"axes": ["x", "y"], "program_file": str(program), "travel_min_mm": [-1.0, -10.0],
               "travel_max_mm": [7.5, 10.0]}
-    with pytest.raises(CncError, match=r"line 2 takes axis x to 8\.0000 mm, 0\.5000 mm beyond its travel_max_mm 7\.5"):
+    with pytest.raises(CncError, match=r"line 2 takes axis x to 8\.000000 mm, 0\.500000 mm beyond its "
+                                       r"travel_max_mm 7\.5"):
         with InProcessNode(InterpolatorNode, params, namespace=f"/travel_{uuid.uuid4().hex[:8]}"):
             pass

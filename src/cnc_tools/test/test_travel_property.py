@@ -36,8 +36,8 @@ from cnc_tools.runs.scenario import build_scenario
 PROGRAMS = int(os.environ.get("CNC_TRAVEL_PROGRAMS", "12"))
 #: A position may stand outside the box by its following error; this bounds it over every program, mm.
 POSITION_EXCESS_BOUND_MM = 0.5
-REFUSAL = re.compile(r"^scenario\.limits\.travel_mm: travel limit: line (\d+) takes axis ([xy]) to (-?\d+\.\d{4}) mm, "
-                     r"(\d+\.\d{4}) mm beyond its travel_(min|max)_mm (-?[\d.e+-]+); refused before any axis moves$")
+REFUSAL = re.compile(r"^scenario\.limits\.travel_mm: travel limit: line (\d+) takes axis ([xy]) to (-?\d+\.\d{6}) mm, "
+                     r"(\d+\.\d{6}) mm beyond its travel_(min|max)_mm (-?[\d.e+-]+); refused before any axis moves$")
 TALLY = {"programs": 0, "refused": 0, "ran": 0, "reference_outside": 0, "position_outside_widened": 0,
          "position_outside_box": 0, "max_position_excess_mm": 0.0}
 
@@ -120,8 +120,8 @@ def test_a_random_program_is_refused_naming_line_axis_and_excess_or_stays_in_the
         line, axis, reach_mm, excess_mm, side = (int(match[1]), match[2], float(match[3]), float(match[4]),
                                                  match[5])
         bound = travel[axis][0 if side == "min" else 1]
-        assert 1 <= line <= gcode.count("\n") and excess_mm > 0.0
-        assert abs(abs(reach_mm - bound) - excess_mm) < 2e-4
+        assert 1 <= line <= gcode.count("\n") and excess_mm >= 1e-6  # > TRAVEL_TOLERANCE_M, 1 nm
+        assert abs(abs(reach_mm - bound) - excess_mm) < 2e-6
         TALLY["refused"] += 1
         return
     try:

@@ -154,8 +154,8 @@ def check_program(program: Program, low_m: FloatArray, high_m: FloatArray) -> No
         line = getattr(segment, "source_line", None)
         where = f"line {line}" if line else f"segment {index}"
         raise ProgramError(f"travel limit: {where} takes axis {program.axis_names[worst]} to "
-                           f"{1e3 * reach_m:.4f} mm, {1e3 * excess_m:.4f} mm beyond its travel_{side}_mm "
-                           f"{1e3 * bound_m:g}; refused before any axis moves")
+                           f"{1e3 * reach_m:.6f} mm, {1e3 * excess_m:.6f} mm beyond its travel_{side}_mm "
+                           f"{1e3 * bound_m:.10g}; refused before any axis moves")
 
 
 def trajectory_extent_m(times_s: Sequence[float], positions_m: Sequence[float],
@@ -212,4 +212,4 @@ def check_trajectory(axis: str, travel_mm: tuple[float, float], times_s: Sequenc
             continue
         side, bound = ("min", low_mm) if value_mm < low_mm else ("max", high_mm)
         raise FaultError(f"travel limit: joint_trajectory {where} takes axis {axis} "
-                         f"to {value_mm:.4f} mm, {excess_mm:.4f} mm beyond its travel_{side}_mm {bound:g}")
+                         f"to {value_mm:.6f} mm, {excess_mm:.6f} mm beyond its travel_{side}_mm {bound:.10g}")
