@@ -140,8 +140,10 @@ class PlantNode(SuiteNode):
         self.force_pub, self.force_gate = self._cutting_force_publisher()
         self.clock_pub = self.create_publisher(Clock, "/clock", LOCKSTEP_QOS)
         self.command_topics = self._subscribe_commands(declare_config(self, CommandSourceParams))
-        self.partners = PartnerMonitor(self, self.command_topics, lambda: self.started, self._partner_lost,
-                                       lambda: self.clock.stamp_ns)
+        # a commanding node that leaves while a tick waits faults the run; while paused (deactivated, the next
+        # tick held) none waits: a servo may be cleaned up and configured anew (nodes/lifecycle.py)
+        self.partners = PartnerMonitor(self, self.command_topics, lambda: self.started and not self._tick_held,
+                                       self._partner_lost, lambda: self.clock.stamp_ns)
         self.create_timer(0.02, self.guarded(self._wait_for_graph))
         self.create_timer(0.1, self.guarded(self._watchdog))
         self.create_timer(1.0, self._write_progress)
