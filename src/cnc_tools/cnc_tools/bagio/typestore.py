@@ -270,7 +270,7 @@ def decode_columns(raws: Sequence[bytes | memoryview], msgtype: str,
     """
     if msgtype not in typestore.fielddefs:
         raise ConfigError(f"message type {msgtype!r} is not in the typestore")
-    lengths = np.fromiter((len(raw) for raw in raws), dtype=np.int64, count=len(raws))
+    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=len(raws))
     blocks: list[ColumnBlock] = []
     try:
         for length in np.unique(lengths):
