@@ -89,6 +89,9 @@ class InterpolatorNode(SuiteNode):
         state_params = declare_config(self, ControllerStateParams)
         self.travel = declare_config(self, TravelLimits, defaults={"travel_axes": list(run.axes)})
         self.homing = declare_config(self, HomingParams)
+        if self.homing.require_homing and session_params.program_source == "file":
+            raise ConfigError("require_homing needs program_source: action (the home service); a program_file "
+                              "runs at start-up")
         self.axes, self.frame_id = run.axes, run.frame_id
         self.session: ProgramSession | None = None
         self.action: ProgramActionServer | None = None

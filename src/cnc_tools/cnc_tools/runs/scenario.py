@@ -319,6 +319,9 @@ def _homing(section: Any, axes: tuple[str, ...], travel: TravelLimits) -> Homing
     feed = section.get("feed_mm_min", ())
     feeds = _axis_map(feed, axes, "scenario.homing.feed_mm_min", None) if isinstance(feed, Mapping) else (
         () if feed == () else (feed,))
+    if section.get("require_homing", False) is True:  # as the interpolator refuses it in file mode
+        raise ConfigError("scenario.homing.require_homing needs the interpolator's action mode (the home service); "
+                          "a scenario's program runs at start-up")
     try:
         homing = HomingParams(tuple(position), tuple(feeds), section.get("require_homing", False))
         homing.check(axes, travel)
