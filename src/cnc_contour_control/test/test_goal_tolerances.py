@@ -210,3 +210,13 @@ def test_a_trajectory_that_cannot_be_followed_is_refused_with_its_code(points: T
     with pytest.raises(TrajectoryGoalError, match=words) as err:
         motion(points)
     assert err.value.code == code
+
+
+def test_a_trajectory_stamped_after_the_first_tick_holds_until_its_stamp() -> None:
+    points = TrajectoryPoints(("x",), (0.5,), ((0.002,),))
+    first_ns = 1_000_000_000
+    m = TrajectoryMotion(AXES, points, np.zeros(3), LIMITS, stamp_ns=first_ns + 200_000_000)
+    m.begin(first_ns)
+    x = [float(m.step(k * DT_NS, 1.0).position_m[0]) for k in range(200)]
+    assert x[:41] == [0.0] * 41, "held for the 0.2 s before its stamp"
+    assert 0.0 < x[60] < 0.002 and x[140] == pytest.approx(0.002), "then 0.5 s to its point (0.7 s after the tick)"

@@ -172,6 +172,8 @@ def test_a_trajectory_of_two_of_three_axes_moves_them_holds_the_third_and_the_st
         refs = machine.references[start:]
         bad_joint = machine.run(client, FollowTrajectory.Goal(trajectory=JointTrajectory(
             joint_names=["q"], points=[point(1.0, [0.0])])))
+        old = machine.run(client, FollowTrajectory.Goal(trajectory=JointTrajectory(
+            header=Header(stamp=ns_to_stamp(T_NS)), joint_names=["x"], points=[point(0.1, [0.0])])))
         stuck = machine.run(client, FollowTrajectory.Goal(
             trajectory=JointTrajectory(joint_names=["x"], points=[point(0.5, [0.0])]),
             goal_tolerance=[tolerance("x", 1e-4)], goal_time_tolerance=Duration(nanosec=100_000_000)),
@@ -185,6 +187,8 @@ def test_a_trajectory_of_two_of_three_axes_moves_them_holds_the_third_and_the_st
     assert refs[-1][0] == pytest.approx(0.004) and refs[-1][1] == pytest.approx(0.006)
     assert refs[51][1] == pytest.approx(0.004, abs=1e-9), "time_from_start from the goal's first tick"
     assert bad_joint.error_code == FollowTrajectory.Result.INVALID_JOINTS and "'q'" in bad_joint.error_string
+    assert old.error_code == FollowTrajectory.Result.OLD_HEADER_TIMESTAMP, old.error_string
+    assert "before the latest tick" in old.error_string
     assert stuck.error_code == FollowTrajectory.Result.GOAL_TOLERANCE_VIOLATED == -5, stuck.error_string
     assert "axis x 0.2000 mm from its end (tolerance 0.1 mm)" in stuck.error_string
     assert cancelled.error_code == FollowTrajectory.Result.CANCELED, cancelled.error_string

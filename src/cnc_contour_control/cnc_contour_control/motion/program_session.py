@@ -469,6 +469,8 @@ class ProgramSession:
             return self._hold_sample(self.hold_position_m)
         if run.start_ns is None:
             run.start_ns, self._started = stamp_ns, run
+            if isinstance(run.live, TrajectoryMotion):
+                run.live.begin(stamp_ns)
         relative_ns = stamp_ns - run.start_ns
         ratio = 0.0 if run.stopping else run.live.request(relative_ns, requested_ratio)
         sample = run.live.step(relative_ns, ratio)

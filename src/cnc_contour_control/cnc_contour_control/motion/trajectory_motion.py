@@ -5,8 +5,11 @@ trajectory names some of the machine's axes; the others hold where they
 stand. Each named axis follows its points through
 :class:`~cnc_contour_control.motion.trajectory_reference.JointTrajectoryReference`
 (cubic Hermite with velocities, else linear), its times ``time_from_start``
-counted from the goal's first tick (a first point after 0 starts from the hold
-position at rest, so taking up a trajectory never steps the reference).
+counted from ``header.stamp`` (0: the goal's first tick; a later stamp: the axes
+hold until then; an earlier one: from the first tick, as the reference must not
+step; a trajectory over before the first tick is refused, OLD_HEADER_TIMESTAMP,
+by the node). A first point after 0 starts from the hold position at rest, so
+taking up a trajectory never steps the reference.
 
 The trajectory's time τ advances at a rate ``r`` (1 while it runs): position
 p(τ), velocity r·p'(τ), acceleration r²·p''(τ). A cancel ramps ``r`` linearly
@@ -77,7 +80,8 @@ class TrajectoryMotion:
         within ``max_acceleration_m_s2``.
     """
 
-    def __init__(self, axes: Sequence[str], points: TrajectoryPoints, hold_m: FloatArray, limits: AxisLimits) -> None:
+    def __init__(self, axes: Sequence[str], points: TrajectoryPoints, hold_m: FloatArray, limits: AxisLimits,
+                 stamp_ns: int = 0) -> None:
         self.axes = tuple(axes)
         names = points.joint_names
         if not names:
@@ -121,6 +125,7 @@ class TrajectoryMotion:
                 raise TrajectoryGoalError("invalid_goal", f"joint {names[j]}: speed {float(np.max(speeds)):.6g} m/s "
                                                           f"beyond its max_velocity_m_s {limit:g}")
         self.end_s = float(times[-1])
+        self.stamp_ns = int(stamp_ns)
         self.tau_s = 0.0
         self.rate = 1.0
         self._last_ns: int | None = None
@@ -130,6 +135,11 @@ class TrajectoryMotion:
     def duration_s(self) -> float:
         """The trajectory's length at rate 1, s."""
         return self.end_s
+
+    def begin(self, first_tick_ns: int) -> None:
+        """The goal's first tick is at ``first_tick_ns``: a stamp after it delays the start (the axes hold)."""
+        if self.stamp_ns > first_tick_ns:
+            self.tau_s = -(self.stamp_ns - first_tick_ns) / NS_PER_S
 
     def request(self, relative_ns: int, requested_ratio: float) -> float:
         """The rate asked: 1 (a trajectory ignores the feed override); a cancel steps with 0."""
@@ -157,7 +167,7 @@ class TrajectoryMotion:
         position, velocity, acceleration = self._sample(self.tau_s)
         done = self.tau_s >= self.end_s
         rate = 0.0 if done else self.rate
-        segment = max(0, int(np.searchsorted(self.joints[0].times_s, self.tau_s, side="right")) - 1)
+        segment = max(0, int(np.searchsorted(self.joints[0].times_s, max(self.tau_s, 0.0), side="right")) - 1)
         return ReferenceSample(position_m=position, velocity_m_s=velocity * rate,
                                acceleration_m_s2=acceleration * rate * rate, path_length_m=0.0,
                                segment_index=segment, feed_m_s=float(np.linalg.norm(velocity * rate)),

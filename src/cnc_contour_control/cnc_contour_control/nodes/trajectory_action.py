@@ -5,8 +5,9 @@ Only translation: a goal's ``trajectory_msgs/JointTrajectory`` becomes a
 interpolator's :class:`~cnc_contour_control.motion.program_session.ProgramSession`
 (the same session as RunProgram: one goal at a time, hold in between, the same
 tolerance checks, cancel, deactivation and machine stops). Joints not named hold;
-``time_from_start`` counts from the goal's first tick (``header.stamp`` is not
-used); path and goal tolerances and ``goal_time_tolerance`` as in
+``time_from_start`` counts from ``header.stamp`` (0 or past: the goal's first
+tick; later: the axes hold until then; over before the latest tick:
+OLD_HEADER_TIMESTAMP); path and goal tolerances and ``goal_time_tolerance`` as in
 FollowJointTrajectory (0: the node's default, < 0: not checked). The result's
 ``error_code`` is FollowJointTrajectory's where it has one (SUCCESSFUL,
 INVALID_GOAL, INVALID_JOINTS, PATH_TOLERANCE_VIOLATED, GOAL_TOLERANCE_VIOLATED),
@@ -33,7 +34,7 @@ from cnc_contour_control.motion.goal_tolerances import GoalTolerances
 from cnc_contour_control.motion.interpolation import AxisLimits
 from cnc_contour_control.motion.program_session import ProgramOutcome, ProgramSession
 from cnc_contour_control.motion.trajectory_motion import TrajectoryGoalError, TrajectoryMotion, TrajectoryPoints
-from cnc_contour_control.nodes.common import ns_to_stamp
+from cnc_contour_control.nodes.common import ns_to_stamp, stamp_to_ns
 from cnc_contour_control.nodes.program_action import axis_tolerances
 from cnc_contour_interfaces.action import FollowTrajectory
 
@@ -58,6 +59,7 @@ ERROR_CODES = {
     "rejected": FollowTrajectory.Result.REJECTED,
     "invalid_goal": FollowTrajectory.Result.INVALID_GOAL,
     "invalid_joints": FollowTrajectory.Result.INVALID_JOINTS,
+    "old_header_timestamp": FollowTrajectory.Result.OLD_HEADER_TIMESTAMP,
 }
 
 
@@ -119,7 +121,14 @@ class TrajectoryActionServer:
             raise TrajectoryGoalError("invalid_goal", str(err)) from None
         hold_m = self.session.hold_position_m
         assert hold_m is not None, "check_ready refuses an unknown position"
-        motion = TrajectoryMotion(self.session.axes, points_from_msg(request.trajectory), hold_m, self.limits)
+        points = points_from_msg(request.trajectory)
+        stamp_ns = stamp_to_ns(request.trajectory.header.stamp)
+        latest = self.latest()
+        if stamp_ns and latest is not None and points.times_s and stamp_ns + points.times_s[-1] * 1e9 < latest[0]:
+            raise TrajectoryGoalError("old_header_timestamp", f"the trajectory stamped {stamp_ns * 1e-9:.6f} s ends "
+                                                              f"at {stamp_ns * 1e-9 + points.times_s[-1]:.6f} s, "
+                                                              f"before the latest tick at {latest[0] * 1e-9:.6f} s")
+        motion = TrajectoryMotion(self.session.axes, points, hold_m, self.limits, stamp_ns)
         self.session.start_motion(ACTION_NAME, motion, tolerances, OWNER)
         self._joints = tuple(request.trajectory.joint_names)
         self.node.get_logger().info(f"FollowTrajectory: joints {list(self._joints)}, "
