@@ -23,7 +23,7 @@ from rosbags.highlevel import AnyReader
 
 from cnc_tools.bagio.bag import BagWriter
 from cnc_tools.bagio.mcap_salvage import crc_problem, scan_mcap
-from cnc_tools.bagio.mcap_storage import CHUNK_SIZE_BYTES
+from cnc_tools.bagio.mcap_storage import CHUNK_SHARE, CHUNK_SIZE_BYTES
 from cnc_tools.bagio.mcap_writer import McapWriter
 from cnc_tools.bench.bag_write import LibraryBagWriter, run_messages
 
@@ -104,9 +104,15 @@ def bags(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
 
 
 def test_the_direct_path_writes_what_rosbags_writes(bags: tuple[Path, Path]) -> None:
+    """The same records and metadata; the bytes differ only where the direct path's chunks grow with the file
+    (CHUNK_SHARE: the library writes fixed-size chunks; the writer's own byte-for-byte test is above)."""
     direct, library = bags
-    assert (direct / "run.mcap").read_bytes() == (library / "run.mcap").read_bytes()
     assert (direct / "metadata.yaml").read_text() == (library / "metadata.yaml").read_text()
+    ours, theirs = (make_reader(io.BytesIO((bag / "run.mcap").read_bytes()), validate_crcs=True) for bag in bags)
+    assert [(c.topic, s.name, m.log_time, m.data) for s, c, m in ours.iter_messages(log_time_order=False)] == \
+        [(c.topic, s.name, m.log_time, m.data) for s, c, m in theirs.iter_messages(log_time_order=False)]
+    chunks = [len(_chunk_spans((bag / "run.mcap").read_bytes())) for bag in bags]
+    assert chunks[0] < chunks[1], f"growing chunks: {chunks[0]} against the library's {chunks[1]}"
     with AnyReader([direct]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
         assert sum(1 for _ in reader.messages()) == 6000 == sum(counts.values())
@@ -130,6 +136,34 @@ def test_a_cut_file_salvages_its_whole_chunks(tmp_path: Path, bags: tuple[Path, 
     scan, problem = scan_mcap(cut, lambda topic: True, lambda topic, stamp, raw: kept.append(stamp))
     whole = [m.log_time for _, _, m in make_reader(io.BytesIO(data)).iter_messages(log_time_order=False)]
     assert "truncated" in problem or "ends" in problem, problem
-    chunk_messages = max(1, len(whole) * CHUNK_SIZE_BYTES // summary_start)
+    chunk_messages = max(1, len(whole) * max(CHUNK_SIZE_BYTES, int(CHUNK_SHARE * summary_start)) // summary_start)
     assert len(whole) // 2 - 2 * chunk_messages <= len(kept) < len(whole)
     assert kept == whole[: len(kept)]
+
+
+def _chunk_spans(data: bytes) -> list[tuple[int, int]]:
+    """(offset, length) of every Chunk record of an MCAP file, walking its records from the magic."""
+    spans, offset = [], 8
+    while offset + 9 <= len(data):
+        opcode, length = data[offset], struct.unpack_from("<Q", data, offset + 1)[0]
+        if opcode == 0x06:
+            spans.append((offset, 9 + length))
+        if opcode == 0x0F:  # the footer
+            break
+        offset += 9 + length
+    return spans
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(st.integers(0, 3000), min_size=1, max_size=3000), st.sampled_from([1 / 200, 1 / 50]))
+def test_growing_chunks_stay_within_their_share_of_the_file_and_read_back(sizes: list[int], share: float) -> None:
+    stream = io.BytesIO()
+    written = _play(McapWriter(stream, CHUNK_SIZE_BYTES, max_share=share),
+                    [("message", k % 2, k, size) for k, size in enumerate(sizes)])
+    data = stream.getvalue()
+    reader = make_reader(io.BytesIO(data), validate_crcs=True)
+    assert [(c.topic, m.log_time, m.data) for _, c, m in reader.iter_messages(log_time_order=False)] == written
+    for offset, length in _chunk_spans(data):
+        records = length - 9 - 8 * 3 - 4 - 4 - 8  # the chunk record's fixed fields and its empty compression
+        limit = max(CHUNK_SIZE_BYTES, int(share * offset))
+        assert records <= limit + 31 + 3000, "a chunk closes with the message that crossed its limit"

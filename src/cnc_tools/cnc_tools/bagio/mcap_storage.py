@@ -27,9 +27,13 @@ from ruamel.yaml import YAML
 from cnc_contour_control.core.errors import BagError
 from cnc_tools.bagio.mcap_writer import McapWriter
 
-#: Largest chunk before it is closed [bytes]: about 5 ticks of a 2-axis run, so one damaged chunk loses
-#: <= 1 % of a short run (105 chunks in the 6.47 s, T = 10 ms paper000_circle_high run; was 64 KiB, then 1 MiB).
+#: Smallest chunk before it is closed [bytes]: about 5 ticks of a 2-axis run, so one damaged chunk loses
+#: <= 1 % of a short run (105 chunks in the 6.47 s, T = 10 ms paper000_circle_high run).
 CHUNK_SIZE_BYTES = 3584
+#: Past that, a chunk closes at this share of the bytes before it (:class:`McapWriter`'s ``max_share``): one
+#: damaged chunk is <= 0.5 % of a run of any length, and a 60 s 1 kHz run is read in hundreds of chunks, not
+#: ten thousand (each chunk costs the reader a fixed step).
+CHUNK_SHARE = 1.0 / 200.0
 #: The ``library`` field of the MCAP header.
 LIBRARY = "cnc_tools (mcap)"
 #: The ROS distribution the suite records for (``ros_distro`` of ``metadata.yaml``).
@@ -62,8 +66,8 @@ class _FileWriter(Protocol):
 
 
 def _our_writer(stream: BinaryIO) -> _FileWriter:
-    """:class:`McapWriter` in chunks of :data:`CHUNK_SIZE_BYTES`."""
-    return McapWriter(stream, CHUNK_SIZE_BYTES)
+    """:class:`McapWriter` in chunks of :data:`CHUNK_SIZE_BYTES`, growing to :data:`CHUNK_SHARE` of the file."""
+    return McapWriter(stream, CHUNK_SIZE_BYTES, max_share=CHUNK_SHARE)
 
 
 def _library_writer(stream: BinaryIO) -> _FileWriter:

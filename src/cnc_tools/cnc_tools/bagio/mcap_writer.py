@@ -67,11 +67,21 @@ class McapWriter:
         Binary file open for writing, positioned at its start; not closed here.
     chunk_size_bytes
         A chunk closes once its records exceed this size [bytes].
+    max_share
+        If given, the chunk size grows with the file: a chunk closes past ``max_share`` of the bytes written
+        before it (never below ``chunk_size_bytes``, never above ``max_chunk_bytes``), so one damaged chunk is
+        at most that share of a run of any length while a long run is read in few chunks. None: a fixed size,
+        as ``mcap.writer.Writer`` writes (byte-identical to it).
+    max_chunk_bytes
+        The largest chunk size ``max_share`` may grow to [bytes].
     """
 
-    def __init__(self, stream: BinaryIO, chunk_size_bytes: int) -> None:
+    def __init__(self, stream: BinaryIO, chunk_size_bytes: int, max_share: float | None = None,
+                 max_chunk_bytes: int = 1 << 20) -> None:
         self._stream = stream
-        self._chunk_size_bytes = chunk_size_bytes
+        self._chunk_size_bytes = self._min_chunk_bytes = chunk_size_bytes
+        self._max_share = max_share
+        self._max_chunk_bytes = max(max_chunk_bytes, chunk_size_bytes)
         self._offset = 0                                   # bytes written to the file
         self._data_crc = 0
         self._schemas: list[bytes] = []
@@ -157,6 +167,9 @@ class McapWriter:
                            len(chunk), zlib.crc32(chunk)) + _string("") + _U64.pack(len(chunk))
         self._emit(head)
         self._emit(chunk)
+        if self._max_share is not None:
+            self._chunk_size_bytes = min(self._max_chunk_bytes,
+                                         max(self._min_chunk_bytes, int(self._max_share * chunk_start)))
         index_start = self._offset
         offsets, indexes = bytearray(), bytearray()
         for channel_id, entries in self._index.items():
