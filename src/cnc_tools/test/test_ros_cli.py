@@ -62,10 +62,10 @@ def ros(capsys: pytest.CaptureFixture[str], *words: str) -> tuple[int, str]:
 
 
 def test_nodes_topics_echo_and_hz_read_the_running_graph(graph: None, capsys: pytest.CaptureFixture[str]) -> None:
-    code, out = ros(capsys, "nodes")
+    code, out = ros(capsys, "nodes", "--settle-s", "3", "--wait-s", "10")  # the default settles in 2 s: see ros.py
     assert code == 0 and {"/cnc/plant", "/cnc/interpolator", "/cnc/servo_x", "/cnc/servo_y"} <= set(out.split())
     assert "_cnc_contour_ros" not in out, "the tool's own node is hidden"
-    code, out = ros(capsys, "topics", "-t")
+    code, out = ros(capsys, "topics", "-t", "--settle-s", "3", "--wait-s", "10")
     assert code == 0 and "/cnc/joint_states [sensor_msgs/msg/JointState]" in out.splitlines(), out
     code, out = ros(capsys, "echo", "/cnc/joint_states", "--once")
     assert code == 0 and out.count("---") == 1 and "name:\n- x\n- y\n" in out, out
@@ -108,3 +108,13 @@ def test_action_send_prints_feedback_and_ctrl_c_cancels_the_goal(graph: None, tm
     monkeypatch.setattr(send_program.FeedbackPrinter, "__call__", ctrl_c)
     code, out = ros(capsys, "action", "send", str(long_part))
     assert code == 130 and out.startswith("interrupted: long: canceled at "), out
+
+
+def test_lifecycle_get_and_set_a_servo_last(graph: None, capsys: pytest.CaptureFixture[str]) -> None:
+    """Last in the module: the machine watch takes the re-enabled servo's state from its next status report."""
+    assert ros(capsys, "lifecycle", "get", "/cnc/servo_y") == (0, "/cnc/servo_y: active\n")
+    assert ros(capsys, "lifecycle", "set", "/cnc/servo_y", "configure") == (
+        1, "/cnc/servo_y configure: refused (its log and /diagnostics give the reason)\n")
+    assert ros(capsys, "lifecycle", "set", "/cnc/servo_y", "deactivate") == (0, "/cnc/servo_y: inactive\n")
+    assert ros(capsys, "lifecycle", "set", "/cnc/servo_y", "activate") == (0, "/cnc/servo_y: active\n")
+

@@ -7,6 +7,8 @@
     cnc-contour ros param get|describe /cnc/servo_x gains.kp
     cnc-contour ros param set /cnc/servo_x gains.kp 3.0
     cnc-contour ros action send part.ngc               # cnc-contour send-program: feedback, Ctrl-C cancels
+    cnc-contour ros lifecycle get /cnc/servo_x         # its state (unconfigured, inactive, active)
+    cnc-contour ros lifecycle set /cnc/servo_x cleanup # configure, cleanup, activate, deactivate, shutdown
 
 Where the real ``ros2`` exists (a system Jazzy), use it; these cover what a
 user of this suite needs, with the suite's own message types: a topic's type
@@ -34,14 +36,17 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.cli import send_program as send_program_cli
 from cnc_tools.runs.dds import apply_loopback_policy
 
-#: The graph is taken as discovered once it has not changed for this long, s, and no sooner than DISCOVERY_S after
-#: the tool's start (a participant's first announcements; the nodes of one run may be found a second apart).
-SETTLE_S = 0.5
-DISCOVERY_S = 1.5
+#: The graph is taken as discovered once it has not changed for ``--settle-s`` (default SETTLE_S), and no sooner
+#: than DISCOVERY_S after the tool's start. Measured with paper 000's graph in-process on the shared 2-core host:
+#: a new participant names the four nodes after 2.2-2.9 s, up to 1.7 s apart.
+SETTLE_S = 2.0
+DISCOVERY_S = 2.0
 #: Exit code after Ctrl-C (128 + SIGINT).
 EXIT_INTERRUPTED = 130
 #: Queue depth of echo's and hz's subscription.
 DEPTH = 100
+#: The lifecycle transitions ``lifecycle set`` takes (rcl's labels: shutdown from whichever state the node is in).
+TRANSITIONS = ("configure", "cleanup", "activate", "deactivate", "shutdown")
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -64,9 +69,17 @@ def configure(parser: argparse.ArgumentParser) -> None:
     param.add_argument("node", help="the node's full name, e.g. /cnc/servo_x")
     param.add_argument("name", help="the parameter, e.g. gains.kp")
     param.add_argument("value", nargs="?", help="set: the value, read as YAML (3.0, true, '[1, 2]', text)")
-    for tool in (nodes, topics, echo, hz, param):
+    lifecycle = sub.add_parser("lifecycle", help="a lifecycle node's state, or a transition")
+    lifecycle.add_argument("verb", choices=("get", "set"))
+    lifecycle.add_argument("node", help="the node's full name, e.g. /cnc/servo_x")
+    lifecycle.add_argument("transition", nargs="?", choices=TRANSITIONS,
+                           help="set: the transition (by its label, as ros2 lifecycle set takes it)")
+    for tool in (nodes, topics, echo, hz, param, lifecycle):
         tool.add_argument("--wait-s", type=float, default=5.0,
                           help="wall time to wait for the graph, a topic or a node's service (default 5)")
+    for tool in (nodes, topics):
+        tool.add_argument("--settle-s", type=float, default=SETTLE_S,
+                          help=f"the graph is read once unchanged this long (default {SETTLE_S}), s")
     action = sub.add_parser("action", help="RunProgram goals")
     action_sub = action.add_subparsers(dest="action_command", required=True, metavar="COMMAND")
     send = action_sub.add_parser("send", help="cnc-contour send-program: feedback printed, Ctrl-C cancels")
@@ -92,8 +105,8 @@ def ros(args: argparse.Namespace) -> int:
         rclpy.try_shutdown()
 
 
-def settled(node: Any, query: Callable[[], Any], wait_s: float) -> Any:
-    """``query()`` once it has not changed for SETTLE_S after DISCOVERY_S, or as it is after ``wait_s``."""
+def settled(node: Any, query: Callable[[], Any], wait_s: float, settle_s: float = SETTLE_S) -> Any:
+    """``query()`` once it has not changed for ``settle_s`` after DISCOVERY_S, or as it is after ``wait_s``."""
     import rclpy
 
     start_s = since_s = time.monotonic()
@@ -103,13 +116,13 @@ def settled(node: Any, query: Callable[[], Any], wait_s: float) -> Any:
         now_s, value = time.monotonic(), query()
         if value != last:
             last, since_s = value, now_s
-        elif value and now_s - since_s >= SETTLE_S and now_s - start_s >= DISCOVERY_S or now_s - start_s >= wait_s:
+        elif value and now_s - since_s >= settle_s and now_s - start_s >= DISCOVERY_S or now_s - start_s >= wait_s:
             return value
 
 
 def nodes(node: Any, args: argparse.Namespace) -> int:
-    names = settled(node, lambda: sorted(f"{ns.rstrip('/')}/{name}"
-                                         for name, ns in node.get_node_names_and_namespaces()), args.wait_s)
+    names = settled(node, lambda: sorted(f"{ns.rstrip('/')}/{name}" for name, ns in
+                                         node.get_node_names_and_namespaces()), args.wait_s, args.settle_s)
     shown = [n for n in names if args.all or not n.rsplit("/", 1)[-1].startswith("_")]
     print("\n".join(shown), flush=True)
     return 0 if shown else 1
@@ -117,7 +130,7 @@ def nodes(node: Any, args: argparse.Namespace) -> int:
 
 def topics(node: Any, args: argparse.Namespace) -> int:
     found = settled(node, lambda: sorted((name, tuple(types)) for name, types in node.get_topic_names_and_types()),
-                    args.wait_s)
+                    args.wait_s, args.settle_s)
     for name, types in found:
         print(f"{name} [{', '.join(types)}]" if args.show_types else name, flush=True)
     return 0 if found else 1
@@ -334,6 +347,23 @@ def _call(node: Any, srv_type: type, name: str, request: Any, wait_s: float) -> 
     return future.result()
 
 
+def lifecycle(node: Any, args: argparse.Namespace) -> int:
+    from lifecycle_msgs.msg import Transition
+    from lifecycle_msgs.srv import ChangeState, GetState
+
+    target = args.node if args.node.startswith("/") else f"/{args.node}"
+    if args.verb == "set":
+        if args.transition is None:
+            raise ConfigError(f"lifecycle set needs a TRANSITION, one of {', '.join(TRANSITIONS)}")
+        request = ChangeState.Request(transition=Transition(label=args.transition))
+        if not _call(node, ChangeState, f"{target}/change_state", request, args.wait_s).success:
+            print(f"{target} {args.transition}: refused (its log and /diagnostics give the reason)", flush=True)
+            return 1
+    state = _call(node, GetState, f"{target}/get_state", GetState.Request(), args.wait_s).current_state.label
+    print(f"{target}: {state}", flush=True)
+    return 0
+
+
 #: The tools by subcommand (``action`` is cnc-contour send-program's, on its own node).
 TOOLS: dict[str, Callable[[Any, argparse.Namespace], int]] = {
-    "nodes": nodes, "topics": topics, "echo": echo, "hz": hz, "param": param}
+    "nodes": nodes, "topics": topics, "echo": echo, "hz": hz, "param": param, "lifecycle": lifecycle}
