@@ -2,7 +2,8 @@
 
 Each example is a G-code program from the origin (lines; G2/G3 arcs of random
 radius, start direction and sweep up to 1.9 turns; a random G64 P blend
-tolerance, 0 to 0.5 mm) and a random box around the origin. Either the
+tolerance, 0 to 0.5 mm; a random acceleration/deceleration filter: none,
+exponential or linear, 20-200 ms) and a random box around the origin. Either the
 scenario loader refuses it (the planned path, blends and arc extremes
 included, leaves the box: the message names the line, the axis and the excess
 in mm), or the engine runs it and
@@ -74,9 +75,17 @@ def box() -> Any:
     return st.tuples(side, side, side, side).map(lambda s: {"x": [-s[0], s[1]], "y": [-s[2], s[3]]})
 
 
-def scenario(gcode: str, travel: dict[str, list[float]]) -> dict[str, Any]:
+def filters() -> Any:
+    """The interpolator's acceleration/deceleration: none, or a lag or moving average of 20-200 ms."""
+    return st.one_of(st.just({"kind": "none"}),
+                     st.builds(lambda kind, t: {"kind": kind, "time_constant_s": t},
+                               st.sampled_from(["exponential", "linear"]), st.floats(0.02, 0.2)))
+
+
+def scenario(gcode: str, travel: dict[str, list[float]], accel_decel: dict[str, Any]) -> dict[str, Any]:
     """Paper 000's feed drives under PID (as scenarios/gcode_shop.yaml), T = 10 ms."""
-    return {"name": "travel_property", "format_version": 2, "sample_time_s": 0.01, "settle_s": 0.2, "seed": 1,
+    return {"interpolator": {"accel_decel": accel_decel},
+            "name": "travel_property", "format_version": 2, "sample_time_s": 0.01, "settle_s": 0.2, "seed": 1,
             "plant": {"model": "paper000", "axes": ["x", "y"]},
             "limits": {"max_velocity_mm_min": 2000, "max_acceleration_mm_s2": 250, "travel_mm": travel},
             "servo": {"law": "pid", "law_params": {"kp": 2.4, "ki": 10.0, "kd": 0.067}},
@@ -87,6 +96,7 @@ def check_inside(record: Any, travel: dict[str, list[float]]) -> None:
     low = np.array([travel["x"][0], travel["y"][0]]) * 1e-3
     high = np.array([travel["x"][1], travel["y"][1]]) * 1e-3
     reference = record.reference.position_m
+    TALLY["reference_samples"] = TALLY.get("reference_samples", 0) + len(reference)
     outside = np.any((reference < low - TRAVEL_TOLERANCE_M) | (reference > high + TRAVEL_TOLERANCE_M), axis=1)
     TALLY["reference_outside"] += int(np.count_nonzero(outside))
     assert not np.any(outside), f"reference outside the box at {np.flatnonzero(outside)[:5]}"
@@ -105,12 +115,12 @@ def check_inside(record: Any, travel: dict[str, list[float]]) -> None:
 
 @settings(max_examples=PROGRAMS, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
-@given(gcode=moves(), travel=box())
+@given(gcode=moves(), travel=box(), accel_decel=filters())
 def test_a_random_program_is_refused_naming_line_axis_and_excess_or_stays_in_the_box(
-        gcode: str, travel: dict[str, list[float]]) -> None:
+        gcode: str, travel: dict[str, list[float]], accel_decel: dict[str, Any]) -> None:
     TALLY["programs"] += 1
     try:
-        built = build_scenario(scenario(gcode, travel))
+        built = build_scenario(scenario(gcode, travel, accel_decel))
     except ConfigError as err:
         if "travel limit" not in str(err):
             TALLY["other_refusals"] = TALLY.get("other_refusals", 0) + 1  # a degenerate draw, counted
