@@ -237,20 +237,22 @@ def harmonics_at(angle_rad: FloatArray, deviation_m: FloatArray, at_rad: FloatAr
     return design(at_rad) @ coef
 
 
-def diagnose_trace(trace: CircleTrace, steps: LostMotionFit | None = None, index: int = 0) -> TraceDiagnosis:
+def diagnose_trace(trace: CircleTrace, steps: LostMotionFit | None = None, index: int = 0,
+                   fitted: CircleTrace | None = None) -> TraceDiagnosis:
     """The per-trace diagnoses of :class:`TraceDiagnosis`.
 
     The circularity, radial deviation and centre are figures of every point. The harmonics are fitted to the
-    radial deviation about the programmed centre with the backlash steps of ``steps`` taken out, over the
-    points outside the reversal windows (``steps.kept[index]``; every point outside the default windows
-    when ``steps`` is None, no steps taken out).
+    radial deviation about the programmed centre of ``fitted`` (default: the trace; :func:`less_explained`)
+    with the backlash steps of ``steps`` taken out, over the points outside the reversal windows
+    (``steps.kept[index]``; every point outside the default windows when ``steps`` is None, no steps taken out).
     """
     points = trace.points_m
     centre, radius = fit_circle_ls(points)
     about_lsq = points - centre
-    angle, deviation = polar(trace)
+    fitted = trace if fitted is None else fitted
+    angle, deviation = polar(fitted)
     keep = outside_windows(angle, trace.direction) if steps is None else steps.kept[index]
-    corrected = deviation if steps is None else without_steps(trace, steps)
+    corrected = deviation if steps is None else without_steps(fitted, steps)
     cos_m, sin_m = harmonics(angle[keep], corrected[keep])
     nominal = np.hypot(*(points - np.asarray(trace.center_m)).T) - trace.radius_m
     offset = (centre - np.asarray(trace.center_m)) * UM_PER_M
@@ -303,13 +305,32 @@ def _flipping(traces: Sequence[CircleTrace], diags: Sequence[TraceDiagnosis]) ->
     return mismatch_um, 2.0 * mismatch_um / UM_PER_M / mean_feed, squareness_urad, ()
 
 
-def diagnose_circles(traces: Sequence[CircleTrace]) -> BallbarDiagnosis:
+def less_explained(traces: Sequence[CircleTrace], explained_m: Sequence[FloatArray] | None) -> list[CircleTrace]:
+    """The traces with a radial deviation already explained (m, one array (N,) per trace; e.g. a fitted
+    pitch error) taken out of each point's radius about the programmed centre."""
+    if explained_m is None:
+        return list(traces)
+    out = []
+    for trace, explained in zip(traces, explained_m):
+        about = trace.points_m - np.asarray(trace.center_m)
+        radius = np.hypot(*about.T)
+        points = np.asarray(trace.center_m) + about * ((radius - explained) / radius)[:, None]
+        out.append(CircleTrace(points, trace.center_m, trace.radius_m, trace.direction, trace.feed_m_s))
+    return out
+
+
+def diagnose_circles(traces: Sequence[CircleTrace],
+                     explained_m: Sequence[FloatArray] | None = None) -> BallbarDiagnosis:
     """Ballbar diagnoses of one trace or a cw/ccw pair of the same programmed circle.
 
     Parameters
     ----------
     traces
         One or two :class:`CircleTrace`; two must run in opposite directions on one circle.
+    explained_m
+        Per trace, a radial deviation already explained (m, e.g. the fitted pitch error), taken out before the
+        steps, ellipses and harmonics are fitted (:func:`less_explained`); the circularity and radial figures
+        stay those of the traces.
 
     Returns
     -------
@@ -317,8 +338,9 @@ def diagnose_circles(traces: Sequence[CircleTrace]) -> BallbarDiagnosis:
         Fields that need both directions (or feeds) are ``None`` and named in ``skipped``.
     """
     _check_pair(traces)
-    steps = fit_lost_motion(traces)
-    diags = tuple(diagnose_trace(t, steps, k) for k, t in enumerate(traces))
+    fitted = less_explained(traces, explained_m)
+    steps = fit_lost_motion(fitted)
+    diags = tuple(diagnose_trace(t, steps, k, f) for k, (t, f) in enumerate(zip(traces, fitted)))
     mismatch_um, gain_s, squareness_urad, skipped = _flipping(traces, diags)
     mean_cos = np.mean([d.harmonic_cos_um for d in diags], axis=0)
     mean_sin = np.mean([d.harmonic_sin_um for d in diags], axis=0)

@@ -108,3 +108,15 @@ def fit_cyclic_error(traces: Sequence[CircleTrace], pitch_mm: Mapping[str, float
     return CyclicFit(amplitude_um={axis: float(np.hypot(*ab[i])) * UM_PER_M for i, axis in enumerate(pitches)},
                      phase_rad={axis: float(math.atan2(ab[i, 1], ab[i, 0])) for i, axis in enumerate(pitches)},
                      pitch_mm=pitches, residual_rms_um=residual_um)
+
+
+def pitch_error_m(trace: CircleTrace, fit: CyclicFit) -> FloatArray:
+    """The radial deviation (N,) [m] the fitted pitch errors give at the trace's points (module docstring)."""
+    about = trace.points_m - np.asarray(trace.center_m)
+    unit = about / np.hypot(*about.T)[:, None]
+    total = np.zeros(trace.points_m.shape[0])
+    for axis, pitch in fit.pitch_mm.items():
+        k = PLANE_AXES[axis]
+        phase = 2.0 * math.pi * trace.points_m[:, k] / (pitch * M_PER_MM) + fit.phase_rad[axis]
+        total += unit[:, k] * fit.amplitude_um[axis] / UM_PER_M * np.sin(phase)
+    return total

@@ -55,6 +55,7 @@ from cnc_tools.analysis.ballbar import (
     FloatArray,
     fit_circle_ls,
     harmonics_at,
+    less_explained,
 )
 from cnc_tools.analysis.ballbar_model import (
     AFTER_DEG,
@@ -186,7 +187,8 @@ def _signed_largest(values: Sequence[float]) -> float:
 
 
 def diagnose_reversals(traces: Sequence[CircleTrace], before_deg: float = BEFORE_DEG,
-                       after_deg: float = AFTER_DEG) -> ReversalDiagnosis:
+                       after_deg: float = AFTER_DEG,
+                       explained_m: Sequence[FloatArray] | None = None) -> ReversalDiagnosis:
     """Spikes and steps at every axis reversal of every trace, and the per-axis summary.
 
     Parameters
@@ -196,6 +198,9 @@ def diagnose_reversals(traces: Sequence[CircleTrace], before_deg: float = BEFORE
     before_deg, after_deg
         The reversal window, degrees before and after each reversal in time (module docstring of
         :mod:`cnc_tools.analysis.ballbar_model`); left out of the fits, searched for the spike.
+    explained_m
+        Per trace, a radial deviation already explained (m, e.g. the fitted pitch error), taken out first
+        (:func:`~cnc_tools.analysis.ballbar.less_explained`).
 
     Returns
     -------
@@ -203,6 +208,7 @@ def diagnose_reversals(traces: Sequence[CircleTrace], before_deg: float = BEFORE
     """
     if not traces:
         raise ConfigError("traces must hold at least 1 circle trace, got 0")
+    traces = less_explained(traces, explained_m)
     steps = fit_lost_motion(traces, before_deg, after_deg)
     found = tuple(reversal_at(t, axis, a, steps, k) for k, t in enumerate(traces)
                   for axis, angles in REVERSAL_ANGLES_DEG.items() for a in angles)

@@ -26,7 +26,7 @@ from cnc_tools.analysis.ballbar import (
     BallbarDiagnosis,
     diagnose_circles,
 )
-from cnc_tools.analysis.ballbar_cyclic import PLANE_AXES, CyclicFit, fit_cyclic_error
+from cnc_tools.analysis.ballbar_cyclic import PLANE_AXES, CyclicFit, fit_cyclic_error, pitch_error_m
 from cnc_tools.analysis.ballbar_radius import measured_radius_loss_um, model_from_scenario, predict_radius_loss
 from cnc_tools.analysis.ballbar_reversals import FLANK_DEG, ReversalDiagnosis, diagnose_reversals, write_polar_plot
 from cnc_tools.analysis.ballbar_trace import (  # noqa: F401 - measured_positions, arc_samples: re-exported
@@ -217,12 +217,16 @@ def table_rows(diagnosis: BallbarDiagnosis, reversals: ReversalDiagnosis | None 
     return rows + (reversal_rows(reversals) if reversals is not None else [])
 
 
-def sample_lines(traces: Sequence[BagTrace], reversals: ReversalDiagnosis | None) -> list[str]:
+def sample_lines(traces: Sequence[BagTrace], reversals: ReversalDiagnosis | None,
+                 cyclic: CyclicFit | None = None) -> list[str]:
     """Which samples each trace and each group of figures uses; a warning for a non-standard test."""
     lines = [f"samples {t.trace.direction}: {t.rule}" + (f" (feed-in and feed-out arcs {t.feed_in_deg:.1f}°)"
                                                           if t.standard else "") for t in traces]
     if reversals is not None:
         lines += [line.format(before=reversals.before_deg, after=reversals.after_deg) for line in FIGURE_SAMPLES]
+    if cyclic is not None:
+        lines.append("figures: the fitted pitch error is taken out before the ellipses, harmonics, backlash and "
+                     "spikes are fitted")
     lines += [f"warning: {t.bag}: not a standard circular test: the program has no feed-in and feed-out arcs, so "
               "the start and end transients are diagnosed as if they were the machine (docs/circular_test.md)"
               for t in traces if not t.standard]
@@ -235,7 +239,7 @@ def to_table(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
     lines = [f"trace {t.trace.direction}: {t.bag} ({t.n_samples} samples, "
              f"feed {t.trace.feed_m_s * 60e3:.1f} mm/min)"  # type: ignore[operator]  # a bag's trace has its feed
              for t in traces]
-    lines += sample_lines(traces, reversals)
+    lines += sample_lines(traces, reversals, cyclic)
     lines.append(f"{'quantity':<28} {'value':>12} {'unit':<5} how")
     radius, radius_skipped = radius_rows(traces)
     for name, value, unit, how in table_rows(diagnosis, reversals, cyclic) + radius:
@@ -252,7 +256,7 @@ def to_json(traces: Sequence[BagTrace], diagnosis: BallbarDiagnosis,
     extra = {} if reversals is None else {"reversals": dataclasses.asdict(reversals)}
     if cyclic is not None:
         extra["cyclic_pitch"] = dataclasses.asdict(cyclic)
-    return {**extra, "samples": sample_lines(traces, reversals),
+    return {**extra, "samples": sample_lines(traces, reversals, cyclic),
             "traces": [{"bag": str(t.bag), "direction": t.trace.direction, "n_samples": t.n_samples,
                         "samples": t.rule, "feed_in_deg": t.feed_in_deg,
                         "feed_m_s": t.trace.feed_m_s, "center_m": list(t.circle.center_m),
@@ -266,10 +270,11 @@ def circular(args: argparse.Namespace) -> int:
     """Diagnose the recorded circle(s); a bad bag is one ``error:`` line and exit code 1."""
     try:
         traces = read_traces(args.bags)
-        diagnosis = diagnose_circles([t.trace for t in traces])
-        reversals = diagnose_reversals([t.trace for t in traces])
         pitch_mm = pitches(args.pitch_mm)
         cyclic = fit_cyclic_error([t.trace for t in traces], pitch_mm) if pitch_mm else None
+        explained = None if cyclic is None else [pitch_error_m(t.trace, cyclic) for t in traces]
+        diagnosis = diagnose_circles([t.trace for t in traces], explained)
+        reversals = diagnose_reversals([t.trace for t in traces], explained_m=explained)
     except CncError as err:
         print(f"cnc-contour circular: error: {err}", file=sys.stderr)
         return 1
