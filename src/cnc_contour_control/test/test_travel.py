@@ -14,6 +14,7 @@ from cnc_contour_control.motion.homing import HomingParams, homing_program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_contour_control.motion.program_goal import ProgramGoal
 from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
+from cnc_contour_control.motion.trajectory_motion import TrajectoryGoalError, TrajectoryMotion, TrajectoryPoints
 from cnc_contour_control.motion.trajectory_reference import JointTrajectoryReference, TrajectoryFollower
 from cnc_contour_control.motion.travel import TravelLimits, check_trajectory, segment_extent_m
 
@@ -168,3 +169,23 @@ def test_a_home_outside_the_travel_is_refused_naming_it() -> None:
     with pytest.raises(ConfigError, match=r"home_position_mm of axis x must be within its travel \[0, 10\] mm, "
                                           r"got 20"):
         session(TravelLimits.of({"x": [0.0, 10.0]}), HomingParams((20.0, 0.0)))
+
+
+def test_a_follow_trajectory_goal_is_refused_outside_the_travel_and_before_homing() -> None:
+    """FollowTrajectory's motion: a joint past its travel between points (Hermite) is an invalid goal naming the
+    point, the axis and the excess; under require_homing it waits for homing like a program."""
+    s = session(TravelLimits.of({"x": [-1.0, 1.0]}))
+    s.step(0, [0.0, 0.0])
+    points = TrajectoryPoints(("x",), (0.5, 1.5), ((0.0,), (0.0,)), ((0.01,), (0.0,)))  # reaches 1.48 mm between
+    motion = TrajectoryMotion(AXES, points, np.zeros(2), LIMITS)
+    with pytest.raises(TrajectoryGoalError, match=r"joint_trajectory between point 0 and point 1 takes axis x to "
+                                                  r"1\.\d+ mm") as refused:
+        s.start_motion("follow", motion)
+    assert refused.value.code == "invalid_goal" and not s.busy
+    s.start_motion("follow", TrajectoryMotion(AXES, TrajectoryPoints(("x",), (0.5,), ((0.0009,),)), np.zeros(2),
+                                              LIMITS))
+    assert s.busy
+    homing = session(homing=HomingParams(require_homing=True))
+    homing.step(0, [0.0, 0.0])
+    with pytest.raises(ProgramError, match="axis x is not homed; call home first"):
+        homing.start_motion("follow", motion)

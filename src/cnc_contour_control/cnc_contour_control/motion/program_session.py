@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from cnc_contour_control.core.config import require_choice
-from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.core.errors import ConfigError, FaultError, ProgramError
 from cnc_contour_control.core.lockstep import NS_PER_S, ns_to_s
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.core.units import mm_to_m
@@ -67,8 +67,8 @@ from cnc_contour_control.motion.goal_tolerances import (
 from cnc_contour_control.motion.homing import HomedState, HomingParams, homing_program
 from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig, ReferenceSample
 from cnc_contour_control.motion.program_goal import ProgramGoal, goal_program
-from cnc_contour_control.motion.trajectory_motion import TrajectoryMotion
-from cnc_contour_control.motion.travel import TravelLimits
+from cnc_contour_control.motion.trajectory_motion import TrajectoryGoalError, TrajectoryMotion
+from cnc_contour_control.motion.travel import TravelLimits, check_trajectory
 
 #: Where the interpolator's program comes from: ``file`` the ``program_file`` parameter, run once at start-up;
 #: ``action`` RunProgram goals, any number in a row, holding position in between.
@@ -396,10 +396,26 @@ class ProgramSession:
 
     def start_motion(self, name: str, motion: TrajectoryMotion, tolerances: Tolerances | None = None,
                      owner: str = "trajectory") -> None:
-        """Queue a trajectory (no contour; checked against ``tolerances``): it starts at the next tick."""
+        """Queue a trajectory (no contour; checked against ``tolerances``): it starts at the next tick.
+
+        Refused (ProgramError) until homed under ``require_homing``, and (TrajectoryGoalError ``invalid_goal``)
+        when a joint's points or Hermite extremes leave its travel.
+        """
+        self.homed.check()
+        self._check_motion_travel(motion)
         tolerances = tolerances if tolerances is not None else self.tolerances()
         self._queue(_Run(name, None, motion, LiveScores(None), ToleranceMonitor(self.axes, tolerances), owner,
                          0.0, ()))
+
+    def _check_motion_travel(self, motion: TrajectoryMotion) -> None:
+        for axis, joint in zip(motion.indices, motion.joints):
+            name = self.axes[axis]
+            if name in self.travel.travel_axes:
+                try:
+                    check_trajectory(name, self.travel.limit_mm(name), joint.times_s, joint.positions_m,
+                                     joint.velocities_m_s, motion.starts_from_hold)
+                except FaultError as err:
+                    raise TrajectoryGoalError("invalid_goal", str(err)) from None
 
     def _queue(self, run: _Run) -> None:
         if self._run is not None:

@@ -125,6 +125,7 @@ class TrajectoryMotion:
                 raise TrajectoryGoalError("invalid_goal", f"joint {names[j]}: speed {float(np.max(speeds)):.6g} m/s "
                                                           f"beyond its max_velocity_m_s {limit:g}")
         self.end_s = float(times[-1])
+        self.starts_from_hold = times[0] > 0.0  # each joint's first point is then the hold (travel messages)
         self.stamp_ns = int(stamp_ns)
         self.tau_s = 0.0
         self.rate = 1.0
