@@ -55,15 +55,16 @@ def test_require_homing_then_home_then_travel_limits_refuse_before_any_move() ->
         machine = _GOALS.Machine(probe, ns)
         probe.wait_for(lambda: machine.pub.get_subscription_count() > 0, 20.0, "the joint_states reader")
         machine.position_m = [0.004, 0.003]
+        machine.tick()  # the position known before the first goal (else that goal is refused for it)
         unhomed = _GOALS.run_goal(machine, client, RunProgram.Goal(gcode="G1 X5 F1200"))
         assert unhomed.outcome == RunProgram.Result.REJECTED
         assert unhomed.reason == "axis x is not homed; call home first"
         probe.wait_for(lambda: any(v["homed.x"] == "false" for _, v in homed_states(probe, ns)), 10.0,
                        "the homed state on /diagnostics")
         assert homed_states(probe, ns)[-1][0] == int.from_bytes(DiagnosticStatus.WARN, "little")
-        answer = probe.call(Trigger, f"{ns}/home", Trigger.Request())
+        answer = probe.call(Trigger, f"{ns}/interpolator/home", Trigger.Request())
         assert answer.success and "homing started: 2 moves" in answer.message, answer.message
-        busy = probe.call(Trigger, f"{ns}/home", Trigger.Request())
+        busy = probe.call(Trigger, f"{ns}/interpolator/home", Trigger.Request())
         assert not busy.success and "busy" in busy.message
         path = []
         for _ in range(3000):

@@ -1,4 +1,4 @@
-"""The interpolator's ``home`` service (std_srvs/Trigger) and its homed state on ``/diagnostics``.
+"""The interpolator's ``~/home`` service (std_srvs/Trigger) and its homed state on ``/diagnostics``.
 
 Only translation: :meth:`~cnc_contour_control.motion.program_session.ProgramSession.home`
 decides (motion/homing.py). The service answers at once: ``success`` with
@@ -17,8 +17,8 @@ from std_srvs.srv import Trigger
 from cnc_contour_control.core.errors import CncError
 from cnc_contour_control.motion.program_session import ProgramSession
 
-#: The service's name, in the node's namespace.
-HOME_SERVICE = "home"
+#: The service's name: the interpolator's own, as ~/reset and ~/enable on plant and servos.
+HOME_SERVICE = "~/home"
 #: Wall time between two reports of the homed state, s.
 HOMING_STATUS_PERIOD_S = 1.0
 

@@ -1,4 +1,5 @@
-"""``cnc-contour machine ACTION``: the operator's panel of a running graph: e-stop, release, reset, enable, disable.
+"""``cnc-contour machine ACTION``: the operator's panel of a running graph: e-stop, release, reset, enable, disable,
+home.
 
 ``estop`` / ``release`` publish true / false on ``<namespace>/estop``
 (std_msgs/Bool), once every reader the graph shows has matched. ``reset``,
@@ -6,7 +7,9 @@
 (std_srvs/SetBool) on every node of the namespace that offers it (the plant
 and the servos; design.md §3 Safety) and print each answer. A fresh node sees
 the graph bit by bit, so ``--nodes plant servo_x servo_y`` names the nodes to
-wait for; without it, the ones the graph shows once it settled. Exit code 0 when
+wait for; without it, the ones the graph shows once it settled. ``home`` calls
+the interpolator's ``~/home`` (std_srvs/Trigger; action mode, design.md §4):
+the axes go to the home position one at a time. Exit code 0 when
 every answer was a success, 1 when one was refused (the reason is printed),
 3 when nothing answered.
 """
@@ -39,13 +42,14 @@ ACTIONS: dict[str, PanelAction] = {
     "enable": PanelAction("~/enable true on every node (refused while latched, naming the cause)",
                           service="enable", data=True),
     "disable": PanelAction("~/enable false on every node: zero commands", service="enable", data=False),
+    "home": PanelAction("~/home on the interpolator: the axes to the home position, then homed", service="home"),
 }
 #: Wall time to wait for the readers' acknowledgement of one e-stop message before it is sent again, s.
 ACK_WAIT_S = 0.5
 #: Wall time the list of services must stay the same before it is taken as complete, s.
 DISCOVERY_SETTLE_S = 1.0
 #: Service suffix -> its type as the ROS graph names it.
-SERVICE_TYPES = {"reset": "std_srvs/srv/Trigger", "enable": "std_srvs/srv/SetBool"}
+SERVICE_TYPES = {"reset": "std_srvs/srv/Trigger", "enable": "std_srvs/srv/SetBool", "home": "std_srvs/srv/Trigger"}
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -139,7 +143,8 @@ def _discover(node: Any, namespace: str, suffix: str, wait_s: float) -> list[str
         if names != found[0]:
             found[0], stable_since[0] = names, time.monotonic()
         offered = {name.rsplit("/", 1)[0] for name in names}
-        return (bool(names) and latch_holders(node, namespace) <= offered
+        holders = latch_holders(node, namespace) if suffix != "home" else set()  # home: the interpolator's alone
+        return (bool(names) and holders <= offered
                 and time.monotonic() - stable_since[0] >= DISCOVERY_SETTLE_S)
 
     _spin_until(node, settled, wait_s)
@@ -156,7 +161,7 @@ def call_all(node: Any, namespace: str, action: PanelAction, wait_s: float, node
     if not names:
         print(f"no {namespace}/*/{action.service} service within --wait-s {wait_s} s", flush=True)
         return 3
-    srv_type = Trigger if action.service == "reset" else SetBool
+    srv_type = SetBool if action.data is not None else Trigger
     refused = 0
     for name in names:
         client = node.create_client(srv_type, name)
