@@ -189,3 +189,16 @@ def test_a_follow_trajectory_goal_is_refused_outside_the_travel_and_before_homin
     homing.step(0, [0.0, 0.0])
     with pytest.raises(ProgramError, match="axis x is not homed; call home first"):
         homing.start_motion("follow", motion)
+
+
+@pytest.mark.parametrize("bad, words", [
+    ({"home_position_mm": ("a", 0.0)}, "home_position_mm must be a list of numbers"),
+    ({"home_position_mm": (math.nan, 0.0)}, "home_position_mm must be finite"),
+    ({"homing_feed_mm_min": (0.0,)}, "homing_feed_mm_min must be > 0"),
+    ({"require_homing": 1}, "require_homing must be"),
+])
+def test_homing_params_refuse_bad_values_naming_them(bad: dict, words: str) -> None:
+    with pytest.raises(ConfigError, match=words):
+        HomingParams(**bad)
+    with pytest.raises(ConfigError, match="home_position_mm needs one value per axis"):
+        HomingParams((1.0,)).position_m(AXES)

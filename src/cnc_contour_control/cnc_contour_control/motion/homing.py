@@ -56,7 +56,11 @@ class HomingParams:
 
     def __post_init__(self) -> None:
         require_flag("require_homing", self.require_homing)
-        position = tuple(float(v) for v in self.home_position_mm)
+        try:
+            position = tuple(float(v) for v in self.home_position_mm)
+        except (TypeError, ValueError) as err:
+            raise ConfigError(f"home_position_mm must be a list of numbers (mm), "
+                              f"got {self.home_position_mm!r}") from err
         if not np.all(np.isfinite(position)):
             raise ConfigError(f"home_position_mm must be finite, got {list(position)}")
         feed = tuple(require_feed_mm_min("homing_feed_mm_min", v) for v in self.homing_feed_mm_min)
