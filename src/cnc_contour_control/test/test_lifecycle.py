@@ -144,6 +144,7 @@ def test_cleanup_lets_new_parameters_be_configured_and_a_second_program_runs_wit
         def run(gcode: str) -> Any:
             probe.wait_for(client.server_is_ready, 20.0, "the RunProgram server")
             probe.wait_for(lambda: joints.get_subscription_count() > 0, 20.0, "the joint_states reader")
+            tick()  # the node holds a joint state before the goal comes (a goal first is REJECTED: no joint_states yet)
             handle = until(client.send_goal_async(RunProgram.Goal(gcode=gcode)))
             return until(handle.get_result_async()).result
 
