@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from cnc_contour_control.axis.safety import EstopLatch, FollowingErrorLimit, check_following_error, limit_of
-from cnc_contour_control.axis.servo import ServoConfig
+from cnc_contour_control.axis.servo import NO_FERROR_TRIP, ServoConfig
 from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.core.tick_stats import TickStats
 
@@ -29,8 +29,17 @@ def test_a_trip_is_a_fault_naming_axis_error_bound_and_tick() -> None:
     assert "servo x" in text and "-0.002 m" in text and "bound 0.0006 m" in text and "t=1.230000 s" in text
 
 
-def test_the_trip_is_off_by_default_whatever_the_error() -> None:
+def test_the_trip_is_on_by_default_at_2_mm_plus_half_a_second_of_travel() -> None:
     limit = limit_of(ServoConfig(axis_name="y"))
+    assert limit.active
+    check_following_error(limit, 0.0019, 0.0, 0)  # within 2 mm at rest
+    check_following_error(limit, 0.0069, 0.01, 0)  # within 2 mm + 0.5 s * 10 mm/s
+    with pytest.raises(FaultError, match="following error 0.0071 m exceeds the bound 0.007"):
+        check_following_error(limit, 0.0071, 0.01, 0)
+
+
+def test_a_study_switches_the_trip_off_whatever_the_error() -> None:
+    limit = limit_of(ServoConfig(axis_name="y", **NO_FERROR_TRIP))
     assert not limit.active
     check_following_error(limit, 1.0, 0.0, 0)  # no fault
 

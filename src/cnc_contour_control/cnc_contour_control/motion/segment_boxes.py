@@ -22,7 +22,6 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from cnc_contour_control.motion.points import FloatArray, IntArray
 
@@ -37,6 +36,8 @@ class SegmentBoxes:
     tree: Any = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        from scipy.spatial import cKDTree  # scipy only for a program this large: a node starts without it
+
         object.__setattr__(self, "tree", cKDTree(self.vertex_m))
 
     @classmethod
