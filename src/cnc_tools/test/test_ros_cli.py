@@ -56,6 +56,11 @@ def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
         yield
 
 
+#: How long a tool waits for the graph here: a new process's reader matches in 2-3 s on a quiet machine, longer under
+#: load (the tools' own default is 5 s).
+WAIT_S = "60"
+
+
 def ros(capsys: pytest.CaptureFixture[str], *words: str) -> tuple[int, str]:
     code = cli(["ros", *words])
     return code, capsys.readouterr().out
@@ -67,13 +72,13 @@ def test_nodes_topics_echo_and_hz_read_the_running_graph(graph: None, capsys: py
     assert "_cnc_contour_ros" not in out, "the tool's own node is hidden"
     code, out = ros(capsys, "topics", "-t", "--settle-s", "3", "--wait-s", "10")
     assert code == 0 and "/cnc/joint_states [sensor_msgs/msg/JointState]" in out.splitlines(), out
-    code, out = ros(capsys, "echo", "/cnc/joint_states", "--once")
+    code, out = ros(capsys, "echo", "/cnc/joint_states", "--once", "--wait-s", WAIT_S)
     assert code == 0 and out.count("---") == 1 and "name:\n- x\n- y\n" in out, out
-    code, out = ros(capsys, "echo", "/cnc/reference", "--csv", "--count", "3")
+    code, out = ros(capsys, "echo", "/cnc/reference", "--csv", "--count", "3", "--wait-s", WAIT_S)
     rows = out.splitlines()
     assert code == 0 and len(rows) == 4 and rows[0].startswith("header.stamp.sec,header.stamp.nanosec,"), out
     assert "position_m.0" in rows[0].split(",") and all(len(r.split(",")) == len(rows[0].split(",")) for r in rows)
-    code, out = ros(capsys, "hz", "/cnc/joint_states", "--duration-s", "1.5")
+    code, out = ros(capsys, "hz", "/cnc/joint_states", "--duration-s", "1.5", "--wait-s", WAIT_S)
     rates = [float(r) for r in re.findall(r"average rate: ([0-9.]+) Hz", out)]
     assert code == 0 and rates and rates[-1] > 10.0, out
     assert cli(["ros", "echo", "/cnc/no_such_topic", "--once", "--wait-s", "0.5"]) == 2

@@ -254,6 +254,9 @@ def hz(node: Any, args: argparse.Namespace) -> int:
 
     stats = RateStats(args.window)
     subscribe(node, args.topic, args.wait_s, lambda _msg: stats.add(time.monotonic()), raw=True)
+    first_s = time.monotonic()  # the duration counts from the first message: matching a new reader takes seconds
+    while rclpy.ok() and stats.count == 0 and time.monotonic() - first_s < args.wait_s:
+        rclpy.spin_once(node, timeout_sec=0.05)
     start_s = last_s = time.monotonic()
     try:
         while rclpy.ok() and not (args.duration_s and time.monotonic() - start_s >= args.duration_s):
