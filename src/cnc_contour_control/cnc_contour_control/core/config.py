@@ -94,6 +94,19 @@ def build_config(cls: type[T], mapping: Mapping[str, Any] | None, context: str =
 MAX_INPUT_FILE_BYTES = 4 * 1024 * 1024
 
 
+def read_bounded_bytes(file: Path, what: str, error: type[CncError], limit_bytes: int) -> bytes:
+    """The bytes of ``file``, refused unread (``error`` naming ``what``, the file and the limit) past
+    ``limit_bytes``, or when it cannot be read."""
+    try:
+        size = file.stat().st_size
+        if size > limit_bytes:
+            raise error(f"{what} {str(file)!r} is {size} bytes; the limit is {limit_bytes} bytes "
+                        f"({limit_bytes / 2**20:g} MiB)")
+        return file.read_bytes()
+    except OSError as err:
+        raise error(f"{what} {str(file)!r} cannot be read: {err.strerror or err}") from err
+
+
 def read_text_file(path: str | Path, what: str, error: type[CncError] = ConfigError,
                    limit_bytes: int = MAX_INPUT_FILE_BYTES) -> str:
     """The UTF-8 text of ``path``; ``error`` naming ``what``, the file and the reason otherwise.
@@ -104,14 +117,7 @@ def read_text_file(path: str | Path, what: str, error: type[CncError] = ConfigEr
     file = Path(path)
     if not file.is_file():
         raise error(f"{what} {str(file)!r} does not exist")
-    try:
-        size = file.stat().st_size
-        if size > limit_bytes:
-            raise error(f"{what} {str(file)!r} is {size} bytes; the limit is {limit_bytes} bytes "
-                        f"({limit_bytes / 2**20:g} MiB)")
-        data = file.read_bytes()
-    except OSError as err:
-        raise error(f"{what} {str(file)!r} cannot be read: {err.strerror}") from err
+    data = read_bounded_bytes(file, what, error, limit_bytes)
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as err:

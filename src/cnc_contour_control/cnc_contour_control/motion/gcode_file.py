@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from cnc_contour_control.core.config import MAX_INPUT_FILE_BYTES
+from cnc_contour_control.core.config import MAX_INPUT_FILE_BYTES, read_bounded_bytes
 from cnc_contour_control.core.errors import CncError, ProgramError
 
 #: The code page of a G-code file that is not UTF-8 (every byte is a character).
@@ -50,12 +50,4 @@ def read_gcode_file(path: str | Path, what: str = "program_file", error: type[Cn
     reason = not_a_file(file, what)
     if reason is not None:
         raise error(reason)
-    try:
-        size = file.stat().st_size
-        if size > limit_bytes:
-            raise error(f"{what} {str(file)!r} is {size} bytes; the limit is {limit_bytes} bytes "
-                        f"({limit_bytes / 2**20:g} MiB)")
-        data = file.read_bytes()
-    except OSError as err:
-        raise error(f"{what} {str(file)!r} cannot be read: {err.strerror or err}") from err
-    return decode_gcode(data, f"{what} {str(file)!r}", error)
+    return decode_gcode(read_bounded_bytes(file, what, error, limit_bytes), f"{what} {str(file)!r}", error)
