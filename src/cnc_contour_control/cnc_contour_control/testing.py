@@ -112,7 +112,7 @@ class TopicProbe(_BackgroundNode):
         """Wait until ``condition()`` holds; raise AssertionError naming ``what`` after ``timeout_s``."""
         wait_until(condition, timeout_s, what)
 
-    def call(self, srv_type: type, name: str, request: Any, timeout_s: float = 10.0) -> Any:
+    def call(self, srv_type: type, name: str, request: Any, timeout_s: float = 30.0) -> Any:
         """Call service ``name`` from the probe's node once it is there; its answer (AssertionError after
         ``timeout_s`` without one)."""
         client = self.node.create_client(srv_type, name)

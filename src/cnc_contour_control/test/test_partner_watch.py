@@ -10,6 +10,7 @@ def test_publishers_that_all_leave_are_named_with_the_topic_and_the_stamp() -> N
     watch = PartnerWatch([TOPIC])
     assert watch.observe(TOPIC, [], 0) is None, "never had one: not a loss (start-up)"
     assert watch.observe(TOPIC, ["/cnc/r1/servo_x"], 10_000_000) is None
+    assert watch.observe(TOPIC, [], 1_220_000_000) is None, "one empty look may be a starved graph query"
     lost = watch.observe(TOPIC, [], 1_230_000_000)
     assert lost is not None
     assert "/cnc/r1/servo_x left the graph" in lost and TOPIC in lost and "t=1.230000 s" in lost
@@ -20,7 +21,8 @@ def test_one_of_two_publishers_leaving_is_no_loss() -> None:
     watch = PartnerWatch([TOPIC])
     watch.observe(TOPIC, ["/a", "/b"], 0)
     assert watch.observe(TOPIC, ["/b"], 1) is None
-    assert "/b left" in (watch.observe(TOPIC, [], 2) or "")
+    watch.observe(TOPIC, [], 2)
+    assert "/b left" in (watch.observe(TOPIC, [], 3) or "")
 
 
 def test_a_trip_latches_without_the_estop_input_and_reset_clears_it() -> None:
@@ -37,4 +39,12 @@ def test_an_endpoint_not_yet_named_keeps_the_known_name() -> None:
     assert watch.publishers(TOPIC) == ("an unnamed node",)
     watch.observe(TOPIC, ["/cnc/r1/servo_x"], 1)
     watch.observe(TOPIC, [None], 2)
-    assert "/cnc/r1/servo_x left" in (watch.observe(TOPIC, [], 3) or "")
+    watch.observe(TOPIC, [], 3)
+    assert "/cnc/r1/servo_x left" in (watch.observe(TOPIC, [], 4) or "")
+
+
+def test_a_publisher_seen_again_between_two_empty_looks_is_no_loss() -> None:
+    watch = PartnerWatch([TOPIC], confirm=2)
+    watch.observe(TOPIC, ["/a"], 0)
+    for k in range(1, 20):
+        assert watch.observe(TOPIC, [] if k % 2 else ["/a"], k) is None, "never two empty looks in a row"

@@ -17,30 +17,13 @@ from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import TopicProbe
 from cnc_contour_interfaces.action import RunProgram
-from cnc_plant_sim.nodes.plant_node import PlantNode
-from cnc_tools.runs.graph_nodes import graph_specs
 from cnc_tools.runs.scenario import load_scenario
+from cnc_tools.testing import start_graph_in_process
 
 pytestmark = pytest.mark.nodes
 SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "paper000_circle_high.yaml"
-NODE_CLASSES = {"plant": PlantNode, "interpolator": InterpolatorNode, "servo": ServoNode}
-OVERRIDES: dict[str, dict[str, Any]] = {"plant": {"duration_s": 1.0e5, "summary_file": ""},
-             "interpolator": {"program_source": "action", "program_file": "", "settle_time_s": 0.05,
-                              "feedback_period_s": 0.05}}
-
-
-def flat(mapping: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, value in mapping.items():
-        if isinstance(value, dict):
-            out.update(flat(value, f"{prefix}{key}."))
-        elif not (isinstance(value, (list, tuple)) and not value):
-            out[f"{prefix}{key}"] = value
-    return out
 
 
 def change(probe: TopicProbe, node: str, transition_id: int) -> bool:
@@ -50,14 +33,7 @@ def change(probe: TopicProbe, node: str, transition_id: int) -> bool:
 
 def start_graph(stack: ExitStack, tmp_path: Path) -> tuple[dict[str, Any], TopicProbe]:
     """The graph's nodes by name, and a probe of joint_states and /diagnostics once the plant ticks."""
-    nodes = {}
-    for spec in graph_specs(load_scenario(SCENARIO, {}), tmp_path, extra_subscribers=0):
-        params = {**flat(dict(spec.parameters)), **OVERRIDES.get(spec.name, {})}
-
-        def factory(node_class: type = NODE_CLASSES[spec.executable], name: str = spec.name, **kwargs: Any) -> Any:
-            return node_class(cli_args=["--ros-args", "-r", f"__node:={name}"], **kwargs)
-
-        nodes[spec.name] = stack.enter_context(InProcessNode(factory, params)).node
+    nodes = start_graph_in_process(stack, load_scenario(SCENARIO, {}), tmp_path)
     probe = stack.enter_context(TopicProbe({"/cnc/joint_states": JointState, "/diagnostics": DiagnosticArray}))
     probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 10, 30.0, "the graph's ticks")
     return nodes, probe

@@ -20,22 +20,17 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.action import ActionClient
 
 from cnc_contour_control.nodes.common import LATCHED_QOS, stamp_to_ns
-from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import TopicProbe
 from cnc_contour_interfaces.action import RunProgram
 from cnc_contour_interfaces.msg import Path as PathMsg
 from cnc_contour_interfaces.msg import Reference
-from cnc_plant_sim.nodes.plant_node import PlantNode
 from cnc_tools.cli import send_program
 from cnc_tools.cli.main import main as cli
-from cnc_tools.runs.graph_nodes import graph_specs
 from cnc_tools.runs.scenario import load_scenario
+from cnc_tools.testing import start_graph_in_process
 
 pytestmark = pytest.mark.nodes
 SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "paper000_circle_high.yaml"
-NODE_CLASSES = {"plant": PlantNode, "interpolator": InterpolatorNode, "servo": ServoNode}
-ACTION_MODE = {"program_source": "action", "program_file": "", "settle_time_s": 0.05, "feedback_period_s": 0.05}
 T_NS = 10_000_000
 #: Bound of the completed programs' contour error. Measured: 0.22 mm (first) and 0.30 mm (third), where the
 #: paper-000 PID (8-bit DAC, friction) still lags its reference by up to 0.48 mm when the program starts or ends.
@@ -45,31 +40,11 @@ SECOND = "G1 X-20 F1200\n"                           # 30 mm back along y = 5 mm
 THIRD = "G1 X0 Y0 F1200\n"                            # from wherever the second stopped, home
 
 
-def flat(mapping: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    """Nested parameters as dotted names; empty lists and sections left out (declared defaults)."""
-    out: dict[str, Any] = {}
-    for key, value in mapping.items():
-        if isinstance(value, dict):
-            out.update(flat(value, f"{prefix}{key}."))
-        elif not (isinstance(value, (list, tuple)) and not value):
-            out[f"{prefix}{key}"] = value
-    return out
-
-
 @contextmanager
 def action_graph(tmp_path: Path) -> Iterator[None]:
     """Plant (lockstep, no end in sight), servos and the action-mode interpolator; all stopped on exit."""
-    scenario = load_scenario(SCENARIO, {})
-    overrides = {"plant": {"duration_s": 1.0e5, "summary_file": ""}, "interpolator": ACTION_MODE}
     with ExitStack() as stack:
-        for spec in graph_specs(scenario, tmp_path, extra_subscribers=0):
-            node_class = NODE_CLASSES[spec.executable]
-            params = {**flat(dict(spec.parameters)), **overrides.get(spec.name, {})}
-
-            def factory(node_class: type = node_class, name: str = spec.name, **kwargs: Any) -> Any:
-                return node_class(cli_args=["--ros-args", "-r", f"__node:={name}"], **kwargs)
-
-            stack.enter_context(InProcessNode(factory, params))
+        start_graph_in_process(stack, load_scenario(SCENARIO, {}), tmp_path)
         yield
 
 

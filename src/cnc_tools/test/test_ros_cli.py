@@ -11,46 +11,21 @@ from typing import Any
 import pytest
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_contour_control.testing import InProcessNode, TopicProbe
-from cnc_plant_sim.nodes.plant_node import PlantNode
+from cnc_contour_control.testing import TopicProbe
 from cnc_tools.cli import send_program
 from cnc_tools.cli.main import main as cli
-from cnc_tools.runs.graph_nodes import graph_specs
 from cnc_tools.runs.scenario import load_scenario
+from cnc_tools.testing import start_graph_in_process
 
 pytestmark = pytest.mark.nodes
 SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "paper000_circle_high.yaml"
-NODE_CLASSES = {"plant": PlantNode, "interpolator": InterpolatorNode, "servo": ServoNode}
-OVERRIDES = {"plant": {"duration_s": 1.0e5, "summary_file": ""},
-             "interpolator": {"program_source": "action", "program_file": "", "settle_time_s": 0.05,
-                              "feedback_period_s": 0.05}}
-
-
-def flat(mapping: dict[str, Any], prefix: str = "") -> dict[str, Any]:
-    out: dict[str, Any] = {}
-    for key, value in mapping.items():
-        if isinstance(value, dict):
-            out.update(flat(value, f"{prefix}{key}."))
-        elif not (isinstance(value, (list, tuple)) and not value):
-            out[f"{prefix}{key}"] = value
-    return out
 
 
 @pytest.fixture(scope="module")
 def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
     """The lockstep graph, ticking for as long as the module's tests run."""
-    scenario = load_scenario(SCENARIO, {})
     with ExitStack() as stack:
-        for spec in graph_specs(scenario, tmp_path_factory.mktemp("graph"), extra_subscribers=0):
-            params = {**flat(dict(spec.parameters)), **OVERRIDES.get(spec.name, {})}
-
-            def factory(node_class: type = NODE_CLASSES[spec.executable], name: str = spec.name,
-                        **kwargs: Any) -> Any:
-                return node_class(cli_args=["--ros-args", "-r", f"__node:={name}"], **kwargs)
-
-            stack.enter_context(InProcessNode(factory, params))
+        start_graph_in_process(stack, load_scenario(SCENARIO, {}), tmp_path_factory.mktemp("graph"))
         with TopicProbe({"/cnc/joint_states": JointState}) as probe:  # running: the plant ticks
             probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 10, 30.0, "the graph's ticks")
         yield
@@ -61,8 +36,13 @@ def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
 WAIT_S = "60"
 
 
+#: The subcommands that look the graph up (each takes --wait-s).
+LOOKUPS = {"nodes", "topics", "echo", "hz", "param", "lifecycle"}
+
+
 def ros(capsys: pytest.CaptureFixture[str], *words: str) -> tuple[int, str]:
-    code = cli(["ros", *words])
+    wait = ["--wait-s", WAIT_S] if words[0] in LOOKUPS and "--wait-s" not in words else []
+    code = cli(["ros", *words, *wait])
     return code, capsys.readouterr().out
 
 

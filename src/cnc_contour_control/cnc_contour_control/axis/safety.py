@@ -257,11 +257,17 @@ class PartnerWatch:
     ----------
     topics : sequence of str
         The watched topics (resolved names, as the node subscribes them).
+    confirm : int
+        Observations in a row with no publisher before a topic counts as lost (>= 1): one graph query under a
+        starved CPU once read 0 publishers of a live servo in process (a false "left the graph"); two in a row,
+        0.25 s apart in the nodes, still find an exiting node well within a second.
     """
 
-    def __init__(self, topics: Sequence[str]) -> None:
+    def __init__(self, topics: Sequence[str], confirm: int = 2) -> None:
         self.topics = tuple(topics)
+        self.confirm = max(1, int(confirm))
         self._seen: dict[str, tuple[str, ...]] = dict.fromkeys(self.topics, ())
+        self._missing: dict[str, int] = dict.fromkeys(self.topics, 0)
 
     def publishers(self, topic: str) -> tuple[str, ...]:
         """The publishing nodes of ``topic`` last seen (empty before any)."""
@@ -276,9 +282,13 @@ class PartnerWatch:
         if nodes:
             named = tuple(sorted({node for node in nodes if node}))
             self._seen[topic] = named or self._seen[topic] or ("an unnamed node",)
+            self._missing[topic] = 0
             return None
         lost = self._seen[topic]
         if not lost:
+            return None
+        self._missing[topic] += 1
+        if self._missing[topic] < self.confirm:
             return None
         return (f"{', '.join(lost)} left the graph: {topic} has 0 publishers (had {len(lost)}) "
                 f"at t={stamp_ns / NS_PER_S:.6f} s")
