@@ -123,14 +123,15 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
         probe.wait_for(lambda: len(paths) >= 3, 10.0, "a latched path per program")
         part = tmp_path / "part.ngc"
         part.write_text("G1 X2\n")
-        assert cli(["send-program", str(part), "--feed-mm-min", "1200", "--path-tolerance-mm", "0.02"]) == 0, \
+        assert cli(["send-program", str(part), "--feed-mm-min", "1200", "--path-tolerance-mm", "0.02",
+                    "--wait-s", "60"]) == 0, \
             "the CLI client: completed"
         part_out = capsys.readouterr().out
         long = tmp_path / "long.ngc"
         long.write_bytes("(Fräser Ø 6 mm)\nG1 X-20 F1200\n".encode("latin-1"))
         with pytest.MonkeyPatch.context() as patch:  # Ctrl-C at the first feedback line
             patch.setattr(send_program.FeedbackPrinter, "__call__", ctrl_c)
-            interrupted = cli(["send-program", str(long)])
+            interrupted = cli(["send-program", str(long), "--wait-s", "60"])
         interrupted_out = capsys.readouterr().out
     assert "part: completed" in part_out
     assert interrupted == 130

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.motion.gcode_file import not_a_file, read_gcode_file
 from cnc_contour_control.motion.program_file import GCODE_SUFFIXES
 
@@ -82,14 +82,17 @@ def send_program(args: argparse.Namespace) -> int:
         if not client.wait_for_server(timeout_sec=args.wait_s):
             raise ConfigError(f"no RunProgram server on {args.action} within --wait-s {args.wait_s} s "
                               f"(is the interpolator running with program_source: action, in this ROS domain?)")
-        return _run(node, client, goal)
+        return _run(node, client, goal, args)
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
 
 
-def _run(node: Any, client: Any, goal: Any) -> int:
-    handle = _wait(node, client.send_goal_async(goal, feedback_callback=FeedbackPrinter()))
+def _run(node: Any, client: Any, goal: Any, args: argparse.Namespace) -> int:
+    handle = _wait(node, client.send_goal_async(goal, feedback_callback=FeedbackPrinter()), args.wait_s)
+    if handle is None:  # a server found but deaf to this client (its reader not matched yet): never wait for ever
+        raise FaultError(f"the RunProgram server on {args.action} did not answer the goal within --wait-s "
+                         f"{args.wait_s} s")
     if not handle.accepted:
         print("goal rejected (the interpolator's log and /diagnostics give the reason)", flush=True)
         return 1
