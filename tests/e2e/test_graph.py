@@ -106,10 +106,14 @@ def test_realtime_mode_runs_on_the_wall_clock_and_counts_late_commands(tmp_path:
     scenario = load_scenario(CIRCLE, {"mode": "realtime", "duration_s": 1.0})
     result = run_graph(scenario, tmp_path)
     summary = result.summary
-    assert result.faults == []
-    assert summary["simulated_time_s"] > 1.0
+    # A loaded machine may push the late share over its bound in the first 100 ticks: that fault is the watchdog's
+    # verdict (tested in test_safety_graph), and the late commands it counted are this test's subject too.
+    assert all("late" in fault for fault in result.faults), result.faults
     assert summary["ticks"] >= 1
-    assert summary["late_commands"] >= 0
+    if result.faults:
+        assert summary["late_commands"] > 0, "the fault counted the late commands"
+    else:
+        assert summary["simulated_time_s"] > 1.0 and summary["late_commands"] >= 0
     # Each tick advances by the measured wall period: simulated time tracks wall time.
     assert summary["wall_time_s"] >= 0.9 * summary["simulated_time_s"]
 

@@ -185,7 +185,10 @@ def test_a_trajectory_of_two_of_three_axes_moves_them_holds_the_third_and_the_st
     assert done.error_code == FollowTrajectory.Result.SUCCESSFUL, done.error_string
     assert all(r[2] == 0.0 for r in refs), "z, not named, held"
     assert refs[-1][0] == pytest.approx(0.004) and refs[-1][1] == pytest.approx(0.006)
-    assert refs[51][1] == pytest.approx(0.004, abs=1e-9), "time_from_start from the goal's first tick"
+    # time_from_start counts from the goal's first tick, whichever tick the goal reached the node on: y is at its
+    # first point (0.004 at 0.5 s) exactly 50 ticks after it left the hold
+    at_point = next(i for i, r in enumerate(refs) if abs(r[1] - 0.004) <= 1e-9)
+    assert refs[at_point - 50][1] == 0.0 and refs[at_point - 49][1] != 0.0, "time_from_start from the goal's first tick"
     assert bad_joint.error_code == FollowTrajectory.Result.INVALID_JOINTS and "'q'" in bad_joint.error_string
     assert old.error_code == FollowTrajectory.Result.OLD_HEADER_TIMESTAMP, old.error_string
     assert "before the latest tick" in old.error_string

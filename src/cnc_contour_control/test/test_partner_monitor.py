@@ -45,6 +45,8 @@ def test_names_are_read_once_while_the_count_stays_and_a_loss_names_the_last_pub
     assert graph.info_calls == 1 and not losses
     graph.publishers = []
     monitor.check()
+    assert not losses, "one empty look may be a starved graph query"
+    monitor.check()
     assert graph.info_calls == 1
     assert losses == ["/cnc/interpolator left the graph: /cnc/reference has 0 publishers (had 1) at t=2.000000 s"]
 
