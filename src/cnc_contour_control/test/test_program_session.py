@@ -5,6 +5,8 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from cnc_contour_control.core.errors import ConfigError, ProgramError
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
@@ -334,3 +336,18 @@ def test_a_goal_completes_once_every_axis_is_in_position() -> None:
     assert outcome is not None and outcome.outcome == "completed", outcome
     assert lagging > 10, "it waited for the axis, not only for the reference"
     assert "every axis within its goal tolerance (largest 0.01 mm) of the end and stopped" in outcome.reason
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.floats(-3e-5, 3e-5), st.floats(-3e-5, 3e-5))
+def test_a_goal_completes_exactly_when_every_axis_stands_within_its_goal_tolerance(dx_m: float, dy_m: float) -> None:
+    """Any steady offset of the measured axes from the end: COMPLETED iff both are within 0.01 mm, else the goal
+    tolerance is violated after goal_time_s; never "completed" out of position."""
+    assume(all(abs(abs(d) - 1e-5) > 1e-12 for d in (dx_m, dy_m)))  # not on the bound, where float sums decide
+    machine = Machine(session(in_position_tolerance_mm=0.01, goal_time_s=0.05), offset_m=(dx_m, dy_m))
+    machine.tick()
+    outcome = machine.run(ProgramGoal(gcode="G1 X1 F1200\n"))
+    inside = abs(dx_m) <= 1e-5 and abs(dy_m) <= 1e-5
+    assert (outcome.outcome == "completed") == inside, (dx_m, dy_m, outcome.reason)
+    if not inside:
+        assert outcome.outcome == "goal_tolerance_violated", outcome.reason

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
 
 from cnc_tools.analysis.verdict import END_TOLERANCE_M, judge
 from cnc_tools.bagio.synthetic import Trajectory, circle_program, circle_trajectory, write_run_bag
@@ -85,3 +87,25 @@ def test_axes_short_of_the_programs_end_make_a_partial_verdict(tmp_path: Path, s
 def test_axes_at_the_programs_end_are_complete(tmp_path: Path) -> None:
     _, verdict = judge_bag(_finished_bag(tmp_path, circle_trajectory(0.02, 3e-6, n=N)))
     assert verdict.complete, verdict.describe()
+
+
+@pytest.fixture(scope="module")
+def whole() -> RunRecord:
+    """The circle run to its end (ends by its program)."""
+    return run_engine(load_scenario(CIRCLE))
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(st.floats(-2e-3, 2e-3), min_size=2, max_size=2))
+def test_the_end_verdict_holds_exactly_when_every_axis_is_within_the_tolerance(whole: RunRecord,
+                                                                               offset_m: list[float]) -> None:
+    """Any last position: complete iff every axis ends within END_TOLERANCE_M of the program's end point."""
+    assume(all(abs(abs(o) - END_TOLERANCE_M) > 1e-12 for o in offset_m))  # not on the bound (float sums)
+    positions = whole.joint_states.position_m.copy()
+    positions[-1] = np.asarray(whole.program.end_m, float) + np.asarray(offset_m)
+    record = dataclasses.replace(whole, joint_states=dataclasses.replace(whole.joint_states, position_m=positions))
+    verdict = judge(record)
+    inside = all(abs(o) <= END_TOLERANCE_M for o in offset_m)
+    assert verdict.complete == inside, (offset_m, verdict.describe())
+    if not inside:
+        assert verdict.status == "partial" and "from the program's end point" in verdict.describe()
