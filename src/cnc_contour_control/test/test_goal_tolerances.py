@@ -19,7 +19,8 @@ from cnc_contour_control.motion.goal_tolerances import (
 )
 from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig
 from cnc_contour_control.motion.program_goal import ProgramGoal
-from cnc_contour_control.motion.program_session import OUTCOMES, ProgramOutcome, ProgramSession, ProgramSessionParams
+from cnc_contour_control.motion.program_session import OUTCOMES, ProgramSession, ProgramSessionParams
+from cnc_contour_control.motion.session_scores import ProgramOutcome
 from cnc_contour_control.motion.trajectory_motion import TrajectoryGoalError, TrajectoryMotion, TrajectoryPoints
 
 AXES = ("x", "y", "z")

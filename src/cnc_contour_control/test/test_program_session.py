@@ -13,7 +13,8 @@ from cnc_contour_control.motion.feed_override import LiveReference, OverrideConf
 from cnc_contour_control.motion.gcode import parse_gcode
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_contour_control.motion.program_goal import ProgramGoal, SegmentSpec, goal_program
-from cnc_contour_control.motion.program_session import LiveScores, ProgramOutcome, ProgramSession, ProgramSessionParams
+from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
+from cnc_contour_control.motion.session_scores import LiveScores, ProgramOutcome
 
 AXES = ("x", "y")
 LIMITS = AxisLimits((0.05, 0.05), (0.5, 0.5))

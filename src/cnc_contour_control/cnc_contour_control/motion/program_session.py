@@ -44,7 +44,6 @@ import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
@@ -67,6 +66,13 @@ from cnc_contour_control.motion.goal_tolerances import (
 from cnc_contour_control.motion.homing import HomedState, HomingParams, homing_program
 from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig, ReferenceSample
 from cnc_contour_control.motion.program_goal import ProgramGoal, goal_program
+from cnc_contour_control.motion.session_scores import (
+    CONTOUR_CHECK_BATCH,
+    SCORE_BATCH,
+    LiveScores,
+    ProgramFeedback,
+    ProgramOutcome,
+)
 from cnc_contour_control.motion.trajectory_motion import TrajectoryGoalError, TrajectoryMotion
 from cnc_contour_control.motion.travel import TravelLimits, check_trajectory
 
@@ -84,40 +90,14 @@ COMPLETED_REASON = "completed: the program's end reached, in position"
 DEACTIVATED_REASON = "aborted: the interpolator was deactivated; stopped on the path"
 #: A reference slower than this on every axis is at rest, m/s (an exponential accel_decel never reaches 0).
 STOPPED_SPEED_M_S = 1.0e-7
-#: Measured positions scored by one call of Program.contour_distance.
-SCORE_BATCH = 64
-#: The same while a contour tolerance is checked (a violation is seen at most this many ticks late).
-CONTOUR_CHECK_BATCH = 4
 
 
 @dataclass(frozen=True)
 class ProgramSessionParams:
-    """The interpolator's program source and the options of its action mode.
+    """The interpolator's program source (one of :data:`PROGRAM_SOURCES`) and the options of its action mode.
 
-    Parameters
-    ----------
-    program_source : str
-        One of :data:`PROGRAM_SOURCES`.
-    start_tolerance_mm : float
-        Largest distance of a segment path's or YAML program's start from the
-        machine, mm, in [0, 1000].
-    settle_time_s : float
-        Time scored after the reference came to rest before the goal ends, s, in [0, 60].
-    in_position_tolerance_mm : float
-        A completed goal has every axis within this of the program's end point, mm, in [1e-6, 100].
-    goal_time_s : float
-        Time after the reference came to rest within which every axis must be in position, s, in [0, 3600];
-        later, the goal ends goal_tolerance_violated naming the axis and its distance.
-    in_position_velocity_mm_s : float
-        A completed goal has every axis slower than this (measured), mm/s, in [1e-6, 1000].
-    contour_tolerance_mm : float
-        Default contour tolerance of a goal, mm, in [0, 1000] (0: not checked).
-    joint_path_tolerance_mm : float
-        Default per-axis path tolerance of a goal, mm, in [0, 1000] (0: not checked).
-    feedback_period_s : float
-        Wall time between two feedback messages, s, in [0.01, 10].
-    bag_path : str
-        Where a recorder writes the run (returned in each result; "": none).
+    Each field's unit, range and meaning are in its ``param`` declaration (they become the ROS parameters'
+    descriptors); ``goal_time_s`` past the reference's end, a goal not in position ends goal_tolerance_violated.
     """
 
     program_source: str = param("file", read_only=True,
@@ -153,102 +133,6 @@ class ProgramSessionParams:
         return ToleranceDefaults.from_mm(self.contour_tolerance_mm, self.joint_path_tolerance_mm,
                                          self.in_position_tolerance_mm, self.in_position_velocity_mm_s,
                                          self.goal_time_s)
-
-
-@dataclass(frozen=True)
-class ProgramFeedback:
-    """Progress of the running program (the RunProgram feedback; SI units)."""
-
-    line_number: int
-    segment_index: int
-    path_length_m: float
-    total_length_m: float
-    feed_m_s: float
-    feed_override_ratio: float
-    contour_error_m: float
-    following_error_m: float
-    elapsed_s: float
-
-
-@dataclass(frozen=True)
-class ProgramOutcome:
-    """How a program ended and its scores (the RunProgram result; SI units).
-
-    ``outcome`` is one of :data:`OUTCOMES`; errors are NaN for a program
-    that never ticked.
-    """
-
-    outcome: str
-    reason: str
-    program_name: str
-    max_contour_error_m: float
-    rms_contour_error_m: float
-    max_following_error_m: float
-    cycle_time_s: float
-    path_length_m: float
-    total_length_m: float
-    ticks: int
-
-
-class LiveScores:
-    """Contour and following error of the measured positions, accumulated tick by tick.
-
-    Parameters
-    ----------
-    program : Program or None
-        The program as written; the contour error is ``program.contour_distance``
-        (the scorer's), computed in batches of ``batch`` positions (None: no contour, NaN).
-    contour_limit_m : float
-        The contour tolerance, m (inf: not checked); the first tick beyond it is kept in ``beyond``.
-    """
-
-    def __init__(self, program: Program | None, batch: int = SCORE_BATCH, contour_limit_m: float = math.inf) -> None:
-        self.program, self.batch = program, int(batch)
-        self.contour_limit_m = float(contour_limit_m)
-        self.beyond: tuple[float, Any] | None = None  # (distance m, the tick's tag given to add) of the first
-        self._tags: list[Any] = []
-        self._pending: list[FloatArray] = []
-        self.ticks = 0
-        self.max_contour_m = self.max_following_m = 0.0
-        self.latest_contour_m = self.latest_following_m = math.nan
-        self._sum_square_m2 = 0.0
-        self._scored = 0
-
-    def add(self, position_m: FloatArray, reference_m: FloatArray, tag: Any = None) -> None:
-        """One tick: the measured position and the reference at the same stamp, m, shape ``(n_axes,)``; ``tag``
-        comes back in ``beyond`` if this tick's contour error is the first beyond the tolerance."""
-        self.latest_following_m = float(np.max(np.abs(reference_m - position_m)))
-        self.max_following_m = max(self.max_following_m, self.latest_following_m)
-        if self.program is None:
-            self.ticks += 1
-            return
-        self._pending.append(np.array(position_m, dtype=float))
-        self._tags.append(tag)
-        self.ticks += 1
-        if len(self._pending) >= self.batch:
-            self.flush()
-
-    def flush(self) -> None:
-        """Score the positions not yet scored."""
-        if not self._pending:
-            return
-        assert self.program is not None, "add() keeps no position without a program"
-        distance_m, _ = self.program.contour_distance(np.vstack(self._pending))
-        if self.beyond is None and float(np.max(distance_m)) > self.contour_limit_m:
-            first = int(np.argmax(distance_m > self.contour_limit_m))
-            self.beyond = (float(distance_m[first]), self._tags[first])
-        self._pending.clear()
-        self._tags.clear()
-        self.max_contour_m = max(self.max_contour_m, float(np.max(distance_m)))
-        self._sum_square_m2 += float(np.dot(distance_m, distance_m))
-        self._scored += distance_m.size
-        self.latest_contour_m = float(distance_m[-1])
-
-    @property
-    def rms_contour_m(self) -> float:
-        """Root mean square of the contour error over the scored ticks, m (NaN before any)."""
-        self.flush()
-        return math.sqrt(self._sum_square_m2 / self._scored) if self._scored else math.nan
 
 
 @dataclass

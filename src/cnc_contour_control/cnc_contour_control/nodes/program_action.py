@@ -50,7 +50,8 @@ from cnc_contour_control.motion.feed_override import LiveReference
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.goal_tolerances import AxisTolerance, GoalTolerances, Tolerances
 from cnc_contour_control.motion.program_goal import ProgramGoal, SegmentSpec
-from cnc_contour_control.motion.program_session import OUTCOMES, ProgramFeedback, ProgramOutcome, ProgramSession
+from cnc_contour_control.motion.program_session import OUTCOMES, ProgramSession
+from cnc_contour_control.motion.session_scores import ProgramFeedback, ProgramOutcome
 from cnc_contour_interfaces.action import RunProgram
 
 #: The action's name, in the node's namespace.

@@ -32,7 +32,8 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 from cnc_contour_control.core.errors import CncError
 from cnc_contour_control.motion.goal_tolerances import GoalTolerances
 from cnc_contour_control.motion.interpolation import AxisLimits
-from cnc_contour_control.motion.program_session import ProgramOutcome, ProgramSession
+from cnc_contour_control.motion.program_session import ProgramSession
+from cnc_contour_control.motion.session_scores import ProgramOutcome
 from cnc_contour_control.motion.trajectory_motion import TrajectoryGoalError, TrajectoryMotion, TrajectoryPoints
 from cnc_contour_control.nodes.common import ns_to_stamp, stamp_to_ns
 from cnc_contour_control.nodes.program_action import axis_tolerances
