@@ -17,7 +17,6 @@ This module decodes the raw messages into a :class:`RecordedRun`
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,8 +31,9 @@ from rosbags.typesys.store import Typestore
 from cnc_contour_control.core import topics
 from cnc_contour_control.core.errors import BagError, CncError
 from cnc_contour_control.core.lockstep import NS_PER_S
-from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program
+from cnc_contour_control.motion.geometry import Program
 from cnc_tools.bagio.mcap_storage import CheckedMcapStorage, with_ros_distro
+from cnc_tools.bagio.path_message import program_from_path
 from cnc_tools.bagio.raw_bag import RawBag, locate, read_raw
 from cnc_tools.bagio.recording import in_some_namespace, run_namespace
 from cnc_tools.bagio.typestore import ColumnBlock, decode_columns, project_typestore
@@ -55,7 +55,7 @@ from cnc_tools.run_record import (
 
 __all__ = [
     "PATH_TYPE", "TRANSIENT_LOCAL_QOS", "BagIntegrity", "BagWriter", "CommandSeries", "FloatArray", "IntArray",
-    "JointStateSeries", "RecordedRun", "ReferenceSeries", "TopicNames", "program_from_path", "read_bag",
+    "JointStateSeries", "RecordedRun", "ReferenceSeries", "TopicNames", "read_bag",
 ]
 
 PATH_TYPE = topics.PATH.type_name
@@ -390,42 +390,6 @@ def _stage_series(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> dict
         c = _columns(raw, topic, _Fields("name", {"position": True}), axes, names)
         out["tool_position"] = ToolPositionSeries(c["stamp_ns"], c["position"])
     return out
-
-
-# --------------------------------------------------------------------------- path -> program
-def _line(seg: Any, clockwise: bool) -> LineSegment:
-    return LineSegment(start_m=np.asarray(seg.start_m, np.float64), end_m=np.asarray(seg.end_m, np.float64),
-                       feed_m_s=float(seg.feed_m_s))
-
-
-def _arc(seg: Any, clockwise: bool) -> ArcSegment:
-    return ArcSegment(start_m=np.asarray(seg.start_m, np.float64), end_m=np.asarray(seg.end_m, np.float64),
-                      center_m=np.asarray(seg.center_m, np.float64), clockwise=clockwise,
-                      plane=tuple(int(i) for i in seg.plane_axes),  # type: ignore[arg-type]  # ArcSegment checks: 2 axes
-                      feed_m_s=float(seg.feed_m_s))
-
-
-#: PathSegment.kind -> (builder, clockwise).
-_SEGMENT_KINDS: dict[int, tuple[Callable[[object, bool], LineSegment | ArcSegment], bool]] = {
-    0: (_line, False), 1: (_arc, True), 2: (_arc, False),
-}
-
-
-def program_from_path(message: Any) -> Program:
-    """Build the program geometry from a deserialised ``cnc_contour_interfaces/msg/Path``.
-
-    Its ``path_tolerance_m`` is the message's; None when the message says NaN (not known) or was recorded
-    with a ``Path`` definition that lacks the field (the bag's own schema, before the field existed).
-    """
-    segments = []
-    for index, seg in enumerate(message.segments):
-        if seg.kind not in _SEGMENT_KINDS:
-            raise BagError(f"path segment {index}: kind {seg.kind} is not one of {sorted(_SEGMENT_KINDS)}")
-        build, clockwise = _SEGMENT_KINDS[seg.kind]
-        segments.append(build(seg, clockwise))
-    tolerance_m = float(getattr(message, "path_tolerance_m", math.nan))
-    return Program(name=message.program_name, axis_names=tuple(message.axis_names),
-                   segments=tuple(segments), path_tolerance_m=None if math.isnan(tolerance_m) else tolerance_m)
 
 
 def _program(raw: RawBag, topic: str) -> Program:
