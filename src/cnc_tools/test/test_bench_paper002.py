@@ -62,6 +62,14 @@ def test_a_case_sets_the_law_per_axis_the_inertia_and_the_spindle() -> None:
     assert case.f_d_hz == pytest.approx(55.0)
 
 
+def test_the_scenarios_periodic_share_of_the_error_is_the_papers() -> None:
+    """On the line at constant speed the P loop's floor / RMS is the paper's (a)/(b) (the amplitude's reason)."""
+    floor = run_case(Case("line/p/ref", "line", "p", periodic=False)).measure.rms_pulse
+    total = run_case(Case("line/p", "line", "p")).measure.rms_pulse
+    paper = data.PAPER_RMS_PULSE["a"] / data.PAPER_RMS_PULSE["b"]
+    assert floor / total == pytest.approx(paper, rel=0.05)
+
+
 @pytest.mark.parametrize("law", ["dob", "dob_pdc"])
 def test_the_engine_removes_what_the_design_model_predicts(law: str) -> None:
     """The law's timing matches the plant's: the f_d line removed on the line is design_report's removal."""

@@ -37,7 +37,7 @@ from cnc_contour_control.laws import law_config
 from cnc_contour_control.laws.disturbance import PdcConfig, PositionLoopConfig
 from cnc_contour_control.laws.loop_report import design_report, loop_figures
 from cnc_tools.analysis.tables import format_table, machine, write_json
-from cnc_tools.reproductions.paper002 import data, figures, online, tables
+from cnc_tools.reproductions.paper002 import data, figures, online, runs, tables
 from cnc_tools.reproductions.paper002.cases import CONTOURS, INERTIA_ERRORS, LAWS, Plan, all_cases, make_plan
 from cnc_tools.reproductions.paper002.runs import METHODS, PDC_LAWS, Result, law_params, run_case
 from cnc_tools.runs.executor import make_executor
@@ -201,7 +201,8 @@ def paper002_bench(options: argparse.Namespace) -> int:
     """The reproduction of paper 002 (see the module docstring)."""
     started = time.perf_counter()
     plan = plan_of(options)
-    print(f"paper002: engine, T = 1 ms, K_pp 40/s, A 0.15 mm/s at f_d, encoder 1/2.4 µm; {plan.workers} "
+    print(f"paper002: engine, T = 1 ms, K_pp 40/s, A {runs.disturbance_amplitude_mm_s():g} mm/s at f_d, encoder "
+          f"1/2.4 µm; {plan.workers} "
           f"process(es); files in {plan.out_dir}", flush=True)
     found = run_all(plan)
     results, design, predictions = found.results, found.design, found.predictions

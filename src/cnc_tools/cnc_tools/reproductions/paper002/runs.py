@@ -2,7 +2,8 @@
 
 Every case is ``scenarios/paper002_circle.yaml`` (P position loop, K_pp 40/s,
 over the identified loops of Eqs. 35-36 at 1 kHz, Coulomb/stiction friction,
-A = 0.15 mm/s at f_d, encoder pulse 1/2.4 µm) with, per case:
+A = 1.2 mm/s at f_d: the paper's periodic share of the error, see the scenario; encoder pulse 1/2.4 µm)
+with, per case:
 
 - the contour: the scenario's circle (r = 6 mm) or the line to (2, 2) mm, both
   at 120 mm/min with the scenario's 100 mm/s² (trapezoidal) acceleration;
@@ -120,6 +121,12 @@ def _plant_overrides(case: Case) -> dict[str, Any]:
     if case.step is not None:
         spindle.update(spindle_schedule_t_s=[case.step[0]], spindle_schedule_rpm=[case.step[1]])
     return {"plant": {"axis_overrides": axes, "velocity_loop": spindle}}
+
+
+def disturbance_amplitude_mm_s() -> float:
+    """The scenario's periodic disturbance amplitude A [mm/s] (X's; Y has the same)."""
+    base = load_scenario(project_root() / SCENARIO)
+    return float(base.plant.axis_overrides["x"]["disturbance_amplitude_mm_s"])
 
 
 def law_params(law: str, design_rpm: float = data.SPINDLE_RPM) -> dict[str, Any]:
