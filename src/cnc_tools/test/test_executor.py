@@ -115,9 +115,11 @@ def test_a_function_workers_cannot_receive_is_refused_in_process_too() -> None:
         executor.map(lambda x: x, [1])
 
 
-def test_progress_counts_on_stderr_when_asked(capsys: pytest.CaptureFixture[str]) -> None:
-    with LocalExecutor(1, progress=True) as executor:
+def test_a_labelled_map_shows_its_progress_unless_told_not(capsys: pytest.CaptureFixture[str]) -> None:
+    with LocalExecutor(1) as executor:  # stderr is not a terminal under capsys: plain lines
         executor.map(math.sqrt, [1.0, 4.0], label="roots")
-    with LocalExecutor(1) as executor:  # stderr is not a terminal under capsys: quiet
-        executor.map(math.sqrt, [1.0, 4.0], label="quiet")
-    assert capsys.readouterr().err.splitlines() == ["roots: 1/2", "roots: 2/2"]
+    with LocalExecutor(1, progress=False) as executor:
+        executor.map(math.sqrt, [1.0, 4.0], label="silent")
+    lines = capsys.readouterr().err.splitlines()
+    assert lines[0].startswith("roots 0/2 · ") and lines[-1].startswith("roots 2/2 · done in "), lines
+    assert not [line for line in lines if "silent" in line]

@@ -13,16 +13,20 @@ from collections.abc import Sequence
 
 from cnc_contour_control.core.errors import CncError, FaultError
 from cnc_tools.cli.registry import COMMANDS
+from cnc_tools.cli.version import VersionAction
+from cnc_tools.runs.progress import set_quiet
 
 
 def build_parser(argv: Sequence[str] | None = None) -> argparse.ArgumentParser:
     """The parser of ``cnc-contour``: every registered subcommand listed; configured (its module imported)
     only the one ``argv`` names, or every one when ``argv`` is None."""
     parser = argparse.ArgumentParser(prog="cnc-contour", description="CNC contour-control suite")
+    parser.add_argument("--version", action=VersionAction, help="print the suite's version (and git commit) and exit")
     sub = parser.add_subparsers(dest="command", required=True)
     chosen = None if argv is None else next((a for a in argv if not a.startswith("-")), "")
     for name, subcommand in COMMANDS.items():
         sub_parser = sub.add_parser(name, help=subcommand.help, description=subcommand.help)
+        sub_parser.add_argument("--quiet", action="store_true", help="no progress on stderr (runs, sweeps, tuning)")
         if chosen is None or name == chosen:
             configure, handler = subcommand.load()
             configure(sub_parser)
@@ -34,6 +38,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of ``cnc-contour``."""
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser(argv).parse_args(argv)
+    set_quiet(args.quiet)
     try:
         return int(args.handler(args))
     except CncError as err:

@@ -24,9 +24,10 @@ Both pickle ``fn`` and the items (so ``fn`` is a module-level function, not a
 lambda or a closure); the in-process executor checks that too, so a sweep that
 works with one worker works with many. A failure in one item raises
 :class:`ItemError` naming the item's index and the original error (chained as
-``__cause__``), and the items not yet started are cancelled. Progress
-(``label: done/total``) goes to stderr when a ``label`` is given and stderr is
-a terminal, or when the executor was made with ``progress=True``.
+``__cause__``), and the items not yet started are cancelled. A labelled map is
+a task of the process's progress reporter (:mod:`cnc_tools.runs.progress`:
+``label done/total``, elapsed and estimate on stderr; ``--quiet`` silences it),
+unless the executor was made with ``progress=False``.
 
 Use :func:`make_executor` in a ``with`` block so pools and clients are closed::
 
@@ -39,13 +40,13 @@ import multiprocessing
 import os
 import pickle
 import re
-import sys
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import Future, ProcessPoolExecutor, as_completed
 from types import TracebackType
-from typing import Any, Protocol, TextIO, TypeVar
+from typing import Any, Protocol, TypeVar
 
 from cnc_contour_control.core.errors import CncError, ConfigError
+from cnc_tools.runs.progress import task as progress_task
 
 __all__ = ["DaskExecutor", "Executor", "ItemError", "LocalExecutor", "SCHEDULER_PATTERN", "SchedulerUnreachableError",
            "check_scheduler", "make_executor"]
@@ -103,22 +104,23 @@ class Executor(Protocol):
 
 
 class _Progress:
-    """``label: done/total`` on a stream: rewritten in place on a terminal, one line per step otherwise."""
+    """A labelled map's task on the process's progress reporter; none without a label or with ``enabled=False``."""
 
-    def __init__(self, label: str, total: int, enabled: bool | None, stream: TextIO | None = None) -> None:
-        self.stream = stream if stream is not None else sys.stderr
-        tty = self.stream.isatty()
-        self.enabled = bool(label) and (tty if enabled is None else enabled)
-        self.label, self.total, self.done, self.tty = label, total, 0, tty
+    def __init__(self, label: str, total: int, enabled: bool | None) -> None:
+        self.task = progress_task(label, total) if label and enabled is not False else None
 
     def step(self) -> None:
         """One more item done."""
-        self.done += 1
-        if self.enabled:
-            line = f"{self.label}: {self.done}/{self.total}"
-            last = self.done == self.total
-            self.stream.write(("\r" + line + ("\n" if last else "")) if self.tty else line + "\n")
-            self.stream.flush()
+        if self.task is not None:
+            self.task.step()
+
+    def __enter__(self) -> _Progress:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 trace: TracebackType | None) -> None:
+        if self.task is not None:
+            self.task.close()
 
 
 class _Closing:
@@ -154,7 +156,7 @@ class LocalExecutor(_Closing):
     workers : int or None
         Processes; None: all cores (``os.cpu_count()``). Must be >= 1.
     progress : bool or None
-        Show progress for labelled maps: None when stderr is a terminal, True always, False never.
+        False: no progress; else labelled maps are tasks of the process's reporter (:mod:`cnc_tools.runs.progress`).
     """
 
     def __init__(self, workers: int | None = None, *, progress: bool | None = None) -> None:
@@ -169,10 +171,10 @@ class LocalExecutor(_Closing):
         """See :meth:`Executor.map`; the pool starts at the first map with more than one item and is reused."""
         items = list(items)
         _require_picklable(fn, items, label)
-        progress = _Progress(label, len(items), self.progress)
-        if self.workers == 1 or len(items) <= 1:
-            return [self._one(fn, index, item, label, progress) for index, item in enumerate(items)]
-        return self._pooled(fn, items, label, progress)
+        with _Progress(label, len(items), self.progress) as progress:
+            if self.workers == 1 or len(items) <= 1:
+                return [self._one(fn, index, item, label, progress) for index, item in enumerate(items)]
+            return self._pooled(fn, items, label, progress)
 
     @staticmethod
     def _one(fn: Callable[[T], R], index: int, item: T, label: str, progress: _Progress) -> R:
@@ -261,16 +263,16 @@ class DaskExecutor(_Closing):
         from distributed import as_completed as dask_completed
 
         items = list(items)
-        progress = _Progress(label, len(items), self.progress)
         if not items:
             return []
         futures = self._client.map(fn, items, pure=False)
         index = {future.key: i for i, future in enumerate(futures)}
         try:
-            for future in dask_completed(futures, loop=self._client.loop):
-                if future.status != "finished":
-                    _raise_item_error(future, index[future.key], label)
-                progress.step()
+            with _Progress(label, len(items), self.progress) as progress:
+                for future in dask_completed(futures, loop=self._client.loop):
+                    if future.status != "finished":
+                        _raise_item_error(future, index[future.key], label)
+                    progress.step()
             return list(self._client.gather(futures))
         finally:
             self._client.cancel(futures)
@@ -293,7 +295,7 @@ def make_executor(workers: int | None = None, scheduler: str | None = None, *,
     scheduler : str or None
         A Dask scheduler address ``tcp://host:port``.
     progress : bool or None
-        Progress on stderr for labelled maps (None: when stderr is a terminal).
+        False: no progress; else labelled maps show on stderr (:mod:`cnc_tools.runs.progress`).
     timeout_s : float
         How long to wait for the scheduler when connecting [s] (:class:`SchedulerUnreachableError` after it).
     """

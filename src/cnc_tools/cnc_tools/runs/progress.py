@@ -1,0 +1,221 @@
+"""Progress of long commands on stderr: one status line on a terminal, plain lines elsewhere, nothing when quiet.
+
+A command opens *tasks* (``with task("paper002 runs", total=12) as runs: ... runs.step()``); tasks nest
+(a bench, inside it a sweep, inside that a generation's members) and the status line shows the open ones::
+
+    bench paper002 › paper002 runs 5/12 · 41 s elapsed · ~57 s left
+
+The elapsed time counts from the outermost task's start; the estimate is the outermost task with a total
+and at least one step done, at its mean rate so far. Where the line goes depends on the stream:
+
+- a terminal: the line is redrawn in place (``\\r``, cleared to its end, cut to the terminal's width) at
+  every start and step; an inner task's end clears it (so a table printed between sweeps starts on a clean
+  line), the outermost task's end leaves its last line with ``done``;
+- not a terminal (a pipe, a file, a CI log): plain lines, only when the outermost task starts or ends, when
+  a task with a total reaches another tenth of it, or when :attr:`Reporter.interval_s` has passed since the
+  last line; a few lines a minute at most, whatever the step rate;
+- quiet (``cnc-contour --quiet``, :func:`set_quiet`), or a worker process of a pool: nothing.
+
+Progress goes to stderr so stdout stays the command's parseable output. The process has one reporter
+(:func:`reporter`); the CLI sets it quiet once, and the executors, the tuner and the benches open tasks on
+it without passing it around. Time comes from a clock given to the reporter (``time.monotonic`` unless a
+test gives another).
+"""
+from __future__ import annotations
+
+import multiprocessing
+import shutil
+import sys
+import time
+from collections.abc import Callable, Iterable, Iterator, Sized
+from types import TracebackType
+from typing import Literal, TextIO, TypeVar
+
+__all__ = ["Reporter", "Task", "format_duration", "reporter", "set_quiet", "task", "track"]
+
+T = TypeVar("T")
+#: How a reporter writes: ``auto`` (``terminal`` when the stream is a terminal, else ``lines``) or ``quiet``.
+Mode = Literal["auto", "terminal", "lines", "quiet"]
+#: Seconds between two plain lines when no tenth was reached meanwhile.
+LINE_INTERVAL_S = 5.0
+#: Width of the status line when the terminal's cannot be read [characters].
+FALLBACK_WIDTH = 100
+
+
+def format_duration(seconds: float) -> str:
+    """``42 s``, ``3 min 05 s`` or ``2 h 07 min`` (whole seconds, rounded)."""
+    whole = max(0, round(seconds))
+    if whole < 60:
+        return f"{whole} s"
+    if whole < 3600:
+        return f"{whole // 60} min {whole % 60:02d} s"
+    return f"{whole // 3600} h {whole % 3600 // 60:02d} min"
+
+
+class Task:
+    """One piece of long work on a :class:`Reporter`: a label, steps done and, when known, a total."""
+
+    def __init__(self, owner: Reporter, label: str, total: int | None) -> None:
+        if total is not None and (isinstance(total, bool) or not isinstance(total, int) or total < 0):
+            raise ValueError(f"total must be None or an integer >= 0, got {total!r}")
+        self.owner, self.label, self.total = owner, label, total
+        self.done = 0
+        self.note = ""
+        self.started_s = owner.clock()
+        self.tenths_shown = 0
+
+    def step(self, count: int = 1, note: str | None = None) -> None:
+        """``count`` more steps done; ``note`` (when given) replaces the text shown after the count."""
+        self.done += count
+        if note is not None:
+            self.note = note
+        self.owner.changed(self)
+
+    def text(self) -> str:
+        """``label done/total (note)``: this task's part of the status line."""
+        count = f" {self.done}/{self.total}" if self.total is not None else (f" {self.done}" if self.done else "")
+        return f"{self.label}{count}" + (f" ({self.note})" if self.note else "")
+
+    def remaining_s(self, now_s: float) -> float | None:
+        """Seconds left at the mean step time so far; None without a total or a step."""
+        if self.total is None or self.done <= 0:
+            return None
+        return (now_s - self.started_s) / self.done * max(0, self.total - self.done)
+
+    def tenths(self) -> int:
+        """Tenths of the total done (0 without a total)."""
+        return 0 if not self.total else min(10, self.done * 10 // self.total)
+
+    def close(self) -> None:
+        """End the task (idempotent)."""
+        self.owner.closed(self)
+
+    def __enter__(self) -> Task:
+        return self
+
+    def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
+                 trace: TracebackType | None) -> None:
+        self.close()
+
+
+class Reporter:
+    """Writes the open tasks' status to ``stream`` (None: ``sys.stderr`` at each write) as ``mode`` says.
+
+    Parameters
+    ----------
+    stream : text stream or None
+        Where to write; None looks ``sys.stderr`` up at each write (so a redirection made later holds).
+    mode : {"auto", "terminal", "lines", "quiet"}
+        ``auto``: ``terminal`` when the stream is a terminal, else ``lines``.
+    clock : callable
+        Seconds, monotonic (``time.monotonic``).
+    interval_s : float
+        Seconds between two plain lines when no task reached another tenth of its total.
+    """
+
+    def __init__(self, stream: TextIO | None = None, *, mode: Mode = "auto",
+                 clock: Callable[[], float] = time.monotonic, interval_s: float = LINE_INTERVAL_S) -> None:
+        if mode not in ("auto", "terminal", "lines", "quiet"):
+            raise ValueError(f"mode must be one of auto, terminal, lines, quiet, got {mode!r}")
+        if not interval_s > 0:
+            raise ValueError(f"interval_s must be > 0, got {interval_s!r}")
+        self._stream, self.mode, self.clock, self.interval_s = stream, mode, clock, interval_s
+        self.tasks: list[Task] = []
+        self._last_line_s = float("-inf")
+
+    @property
+    def stream(self) -> TextIO:
+        """The stream written to."""
+        return self._stream if self._stream is not None else sys.stderr
+
+    def style(self) -> Literal["terminal", "lines", "quiet"]:
+        """How this reporter writes now (``auto`` resolved against the stream; quiet in a pool's worker)."""
+        if self.mode == "quiet" or multiprocessing.parent_process() is not None:
+            return "quiet"
+        if self.mode == "auto":
+            isatty = getattr(self.stream, "isatty", None)
+            return "terminal" if callable(isatty) and isatty() else "lines"
+        return self.mode
+
+    def task(self, label: str, total: int | None = None) -> Task:
+        """Open a task (use it in a ``with`` block); it nests inside the tasks open now."""
+        opened = Task(self, label, total)
+        self.tasks.append(opened)
+        self._show(first=len(self.tasks) == 1)
+        return opened
+
+    def changed(self, changed: Task) -> None:
+        """A task stepped: redraw, or write a line when its tenth or the interval says so."""
+        if changed in self.tasks:
+            self._show(tenth=changed.tenths() > changed.tenths_shown)
+
+    def closed(self, task: Task) -> None:
+        """A task ended: its line ends with ``done`` when it was the outermost; an inner one clears the line."""
+        if task not in self.tasks:
+            return
+        style = self.style()
+        outermost = self.tasks[0] is task
+        if outermost and style != "quiet":
+            line = self.status(self.clock(), ending=True)
+            self._write(f"\r{line}\x1b[K\n" if style == "terminal" else f"{line}\n")
+        elif style == "terminal":
+            self._write("\r\x1b[K")
+        self.tasks = self.tasks[:self.tasks.index(task)]
+
+    def status(self, now_s: float, *, ending: bool = False) -> str:
+        """The status line of the open tasks at ``now_s``."""
+        if not self.tasks:
+            return ""
+        elapsed = format_duration(now_s - self.tasks[0].started_s)
+        parts = [" › ".join(t.text() for t in self.tasks),
+                 f"done in {elapsed}" if ending else f"{elapsed} elapsed"]
+        left = next((r for r in (t.remaining_s(now_s) for t in self.tasks) if r is not None), None)
+        if left is not None and not ending:
+            parts.append(f"~{format_duration(left)} left")
+        return " · ".join(parts)
+
+    def _show(self, *, first: bool = False, tenth: bool = False) -> None:
+        style = self.style()
+        if style == "quiet":
+            return
+        now_s = self.clock()
+        if style == "terminal":
+            width = shutil.get_terminal_size((FALLBACK_WIDTH, 24)).columns
+            self._write(f"\r{self.status(now_s)[:max(10, width - 1)]}\x1b[K")
+            return
+        if first or tenth or now_s - self._last_line_s >= self.interval_s:
+            for open_task in self.tasks:
+                open_task.tenths_shown = open_task.tenths()
+            self._last_line_s = now_s
+            self._write(self.status(now_s) + "\n")
+
+    def _write(self, text: str) -> None:
+        self.stream.write(text)
+        self.stream.flush()
+
+
+_REPORTER = Reporter()
+
+
+def reporter() -> Reporter:
+    """The process's reporter (stderr; quiet after ``set_quiet(True)``)."""
+    return _REPORTER
+
+
+def set_quiet(quiet: bool) -> None:
+    """Silence (True) or restore (False: ``auto``) the process's reporter (``cnc-contour --quiet``)."""
+    _REPORTER.mode = "quiet" if quiet else "auto"
+
+
+def task(label: str, total: int | None = None) -> Task:
+    """Open a task on the process's reporter."""
+    return _REPORTER.task(label, total)
+
+
+def track(items: Iterable[T], label: str, total: int | None = None) -> Iterator[T]:
+    """Yield ``items``, one step of a task ``label`` after each (total: ``len(items)`` when it has one)."""
+    count = total if total is not None else (len(items) if isinstance(items, Sized) else None)
+    with task(label, count) as opened:
+        for item in items:
+            yield item
+            opened.step()
