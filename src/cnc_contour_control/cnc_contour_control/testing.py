@@ -122,9 +122,16 @@ class TopicProbe(_BackgroundNode):
         return future.result()
 
 
+#: The least any condition wait waits before it fails, s. A wait's bound only ends a hang: a passing test
+#: returns as soon as its condition holds, so the bound costs nothing, while DDS discovery, a service's first
+#: answer or a process's start can take tens of seconds beside CPU-bound processes on two cores.
+WAIT_FLOOR_S = 90.0
+
+
 def wait_until(condition: Callable[[], bool], timeout_s: float, what: str, poll_s: float = 0.01) -> None:
     """Wait until ``condition()`` holds, looking every ``poll_s``; AssertionError naming ``what`` after
-    ``timeout_s``."""
+    ``timeout_s`` (at least :data:`WAIT_FLOOR_S`)."""
+    timeout_s = max(timeout_s, WAIT_FLOOR_S)
     deadline = time.monotonic() + timeout_s
     while not condition():
         if time.monotonic() > deadline:

@@ -11,7 +11,7 @@ from rclpy.parameter_client import AsyncParameterClient
 
 from cnc_contour_control.laws import law_config
 from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import WAIT_FLOOR_S, InProcessNode, TopicProbe
 
 pytestmark = pytest.mark.nodes
 PARAMS = {"axis": "x", "sample_time_s": 0.001, "law": "pdc", "input_timeout_s": 30.0, "gains.spindle_rpm": 1500.0}
@@ -31,7 +31,7 @@ def _warnings(probe: TopicProbe) -> list[DiagnosticStatus]:
 def test_a_live_spindle_rpm_redesigns_the_pdc_and_one_it_cannot_follow_is_refused_on_diagnostics() -> None:
     with TopicProbe({"/diagnostics": DiagnosticArray}) as probe, InProcessNode(ServoNode, PARAMS) as servo:
         client = AsyncParameterClient(probe.node, "/cnc/servo")
-        assert client.wait_for_services(10.0)
+        assert client.wait_for_services(WAIT_FLOOR_S)
         law = servo.node.controller.law
         assert law.design.f_d_hz == pytest.approx(50.0)
         assert _set(probe, client, Parameter("spindle_rpm", value=1800.0)).successful

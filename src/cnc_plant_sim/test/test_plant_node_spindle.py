@@ -9,7 +9,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 
-from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import WAIT_FLOOR_S, InProcessNode, TopicProbe
 from cnc_plant_sim.nodes.plant_node import PlantNode
 
 pytestmark = pytest.mark.nodes
@@ -27,7 +27,7 @@ def _set(probe: TopicProbe, client: AsyncParameterClient, parameter: Parameter) 
 def test_a_live_spindle_rpm_moves_the_periodic_load_and_one_at_nyquist_is_refused_on_diagnostics() -> None:
     with TopicProbe({"/diagnostics": DiagnosticArray}) as probe, InProcessNode(PlantNode, PARAMS) as plant:
         client = AsyncParameterClient(probe.node, "/cnc/plant")
-        assert client.wait_for_services(10.0)
+        assert client.wait_for_services(WAIT_FLOOR_S)
         load = plant.node.plant
         assert load.schedule.frequencies_hz == (5.0,)
         assert _set(probe, client, Parameter("spindle_rpm", value=450.0)).successful

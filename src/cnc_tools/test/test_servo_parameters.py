@@ -16,7 +16,7 @@ from std_msgs.msg import Header
 from cnc_contour_control.axis.servo import ServoConfig, ServoController
 from cnc_contour_control.nodes.common import ns_to_stamp
 from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import WAIT_FLOOR_S, InProcessNode, TopicProbe
 from cnc_contour_interfaces.msg import AxisCommand, Reference
 from cnc_tools.runs.dds import loopback_env
 from cnc_tools.runs.graph import find_executable
@@ -58,7 +58,7 @@ def test_a_gain_set_at_run_time_is_applied_keeping_the_laws_state_and_a_bad_one_
         pubs = {t: probe.publisher(m, f"/cnc/{t}") for t, m in (("joint_states", JointState), ("reference", Reference))}
         probe.wait_for(lambda: all(p.get_subscription_count() for p in pubs.values()), 10.0, "the servo's inputs")
         client = AsyncParameterClient(probe.node, "/cnc/servo")
-        assert client.wait_for_services(10.0)
+        assert client.wait_for_services(WAIT_FLOOR_S)
         expected, restarted = [], []
         for k in range(12):
             if k == 6:
@@ -92,7 +92,7 @@ def test_a_servo_process_started_with_p_axis_y_drives_axis_y(tmp_path: Path, axi
                            or probe.node.count_publishers(f"{namespace}/servo/{axis}/command") > 0, 60.0, "the servo")
             assert process.poll() is None, (tmp_path / "servo.log").read_text()
             client = AsyncParameterClient(probe.node, f"{namespace}/servo")
-            assert client.wait_for_services(30.0)
+            assert client.wait_for_services(WAIT_FLOOR_S)
             future = client.get_parameters(["axis"])
             probe.wait_for(future.done, 10.0, "the axis parameter")
         value = future.result().values[0]
