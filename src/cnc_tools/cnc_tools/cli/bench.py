@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from cnc_tools.bench.registry import TARGETS, get_bench
+from cnc_tools.runs.progress import task as progress_task
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -32,5 +33,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
 
 
 def bench(args: argparse.Namespace) -> int:
-    """Run one benchmark and print its table."""
-    return get_bench(args.name)(args)
+    """Run one benchmark and print its table; its progress (the runs of its sweeps) on stderr."""
+    chosen = get_bench(args.name)
+    with progress_task(f"bench {args.name}"):
+        return chosen(args)

@@ -12,8 +12,8 @@ and at least one step done, at its mean rate so far. Where the line goes depends
   every start and step; an inner task's end clears it (so a table printed between sweeps starts on a clean
   line), the outermost task's end leaves its last line with ``done``;
 - not a terminal (a pipe, a file, a CI log): plain lines, only when the outermost task starts or ends, when
-  a task with a total reaches another tenth of it, or when :attr:`Reporter.interval_s` has passed since the
-  last line; a few lines a minute at most, whatever the step rate;
+  the outermost task with a total reaches another tenth of it, or at a step once :attr:`Reporter.interval_s`
+  has passed since the last line; a dozen lines plus a few a minute at most, whatever the step rate;
 - quiet (``cnc-contour --quiet``, :func:`set_quiet`), or a worker process of a pool: nothing.
 
 Progress goes to stderr so stdout stays the command's parseable output. The process has one reporter
@@ -145,9 +145,11 @@ class Reporter:
         return opened
 
     def changed(self, changed: Task) -> None:
-        """A task stepped: redraw, or write a line when its tenth or the interval says so."""
+        """A task stepped: redraw, or write a line when the outermost task with a total reached another tenth
+        of it, or when the interval says so."""
         if changed in self.tasks:
-            self._show(tenth=changed.tenths() > changed.tenths_shown)
+            leading = next((t for t in self.tasks if t.total is not None), None)
+            self._show(tenth=changed is leading and changed.tenths() > changed.tenths_shown)
 
     def closed(self, task: Task) -> None:
         """A task ended: its line ends with ``done`` when it was the outermost; an inner one clears the line."""

@@ -19,6 +19,8 @@ from scipy.optimize import Bounds, NonlinearConstraint, differential_evolution
 from cnc_contour_control.core.config import require_positive
 from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.runs.executor import Executor
+from cnc_tools.runs.progress import Task
+from cnc_tools.runs.progress import task as progress_task
 from cnc_tools.tuning.problem import Constraint, DesignVariable, check_unique
 
 #: Constraint values of a point, in the order of the constraints.
@@ -74,12 +76,20 @@ def _nonlinear(constraints: Sequence[Constraint], values_of: ConstraintFunction)
 
 @dataclass
 class _Tracker:
-    """Keeps the best objective of each generation (DE's callback)."""
+    """Keeps the best objective of each generation (DE's callback) and shows it as a step of ``generations``:
+    the best and whether it meets the constraints (DE's ``maxcv``, its largest violation, when it has some)."""
 
     history: list[float] = field(default_factory=list)
+    generations: Task | None = None
+    unit: str = ""
 
     def __call__(self, intermediate_result: Any) -> None:
         self.history.append(float(intermediate_result.fun))
+        if self.generations is not None:
+            violation = getattr(intermediate_result, "maxcv", None)
+            verdict = "" if violation is None else (
+                ", meets the constraints" if violation <= 0 else f", violates a constraint by {violation:.3g}")
+            self.generations.step(note=f"best {self.history[-1]:.6g}{' ' + self.unit if self.unit else ''}{verdict}")
 
 
 def solve(objective: Callable[[np.ndarray], float], variables: Sequence[DesignVariable],
@@ -105,12 +115,13 @@ def solve(objective: Callable[[np.ndarray], float], variables: Sequence[DesignVa
     if constraints and values_of is None:
         raise ConfigError("constraints given without a function of their values (values_of)")
     values = values_of or (lambda x: [])
-    tracker = _Tracker()
     workers: Any = 1 if executor is None else (lambda fn, xs: executor.map(fn, list(xs), label="tune"))
     box = Bounds([v.low for v in variables], [v.high for v in variables])
-    found = differential_evolution(objective, box, constraints=_nonlinear(constraints, values), seed=seed,
-                                   maxiter=int(maxiter), popsize=int(popsize), polish=False, updating="deferred",
-                                   workers=workers, callback=tracker, tol=1e-8)
+    with progress_task("tune generation", int(maxiter)) as generations:  # DE may converge before maxiter
+        tracker = _Tracker(generations=generations, unit=unit)
+        found = differential_evolution(objective, box, constraints=_nonlinear(constraints, values), seed=seed,
+                                       maxiter=int(maxiter), popsize=int(popsize), polish=False,
+                                       updating="deferred", workers=workers, callback=tracker, tol=1e-8)
     return _result(found, variables, constraints, values, tracker, unit)
 
 
