@@ -48,6 +48,10 @@ DOB_Q_VARIANTS: tuple[tuple[int, int, float], ...] = ((3, 1, 0.005), (3, 1, 0.01
                                                       (6, 3, 0.005))
 
 
+#: The axes of the f_d sweep's design figures (each its own model: Eqs. 35, 36).
+SWEEP_AXES = ("x", "y")
+
+
 @dataclass(frozen=True)
 class Found:
     """Everything the bench computed: runs by case key, design per law and axis, sweep predictions, Q study."""
@@ -81,11 +85,11 @@ def design_entry(item: tuple[str, str, int]) -> dict[str, Any]:
     return design_report({law: design_config(law, axis)}, data.F_D_HZ, INERTIA_ERRORS, points)[law]
 
 
-def sweep_prediction(item: tuple[str, float, int]) -> dict[str, Any]:
-    """The design's figures of ``law`` designed for ``f_hz`` (X axis): removal, worst peaks over ±20 %, stability."""
-    law, f_hz, points = item
+def sweep_prediction(item: tuple[str, float, str, int]) -> dict[str, Any]:
+    """The design's figures of ``law`` designed for ``f_hz`` on ``axis``: removal, worst peaks over ±20 %, stability."""
+    law, f_hz, axis, points = item
     try:
-        config = design_config(law, "x", f_hz * 60.0 / data.FLUTES)
+        config = design_config(law, axis, f_hz * 60.0 / data.FLUTES)
         loops = [loop_figures(config, f_hz, eps, points) for eps in INERTIA_ERRORS]
     except ConfigError as err:
         return {"error": str(err)}
@@ -138,8 +142,8 @@ def run_all(plan: Plan) -> Found:
     """Every run, the design per law and axis, the sweep's predictions, the Q study (one executor for all)."""
     cases = all_cases(plan)
     design_items = [(law, axis, plan.grid_points) for law in LAWS for axis in plan.design_axes]
-    sweep_items = [(law, f, min(plan.grid_points, 300)) for law in plan.sweep_laws if law != "p"
-                   for f in plan.prediction_hz]
+    sweep_items = [(law, f, axis, min(plan.grid_points, 300)) for law in plan.sweep_laws if law != "p"
+                   for f in plan.prediction_hz for axis in SWEEP_AXES]
     with make_executor(workers=plan.workers) as executor:
         results = executor.map(run_case, cases, label="paper002 runs")
         entries = executor.map(design_entry, design_items, label="paper002 design")
@@ -148,9 +152,12 @@ def run_all(plan: Plan) -> Found:
     design: dict[str, Any] = {law: {} for law in LAWS}
     for (law, axis, _), entry in zip(design_items, entries):
         design[law][axis] = entry
+    per_axis: dict[tuple[str, float], dict[str, Any]] = {}
+    for (law, f, axis, _), figure in zip(sweep_items, predicted):
+        per_axis.setdefault((law, f), {})[axis] = figure
     predictions: dict[str, dict[float, Any]] = {law: {} for law in plan.sweep_laws if law != "p"}
-    for (law, f, _), figure in zip(sweep_items, predicted):
-        predictions[law][f] = figure
+    for (law, f), figures_by_axis in per_axis.items():
+        predictions[law][f] = tables.worst_of_axes(figures_by_axis)
     return Found({r.case.key: r for r in results}, design, predictions, dob_q)
 
 

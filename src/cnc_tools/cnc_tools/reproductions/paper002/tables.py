@@ -207,36 +207,60 @@ def print_sweep(rows: Sequence[Mapping[str, Any]], plan: Plan) -> None:
     """The f_d sweep: measured removal (engine) and the design's disturbance peak per law."""
     laws = [law for law in plan.sweep_laws if law != "p"]
     print(f"\nbeyond the paper: f_d sweep (circle, {plan.side_s:g} s, no encoder; each law designed for the f_d; "
-          "A the same); removal of the f_d line measured [the design's disturbance peak, worst of ±20 % inertia]; "
+          "A the same); removal of the f_d line measured [the design's disturbance peak per axis, worst of ±20 % "
+          "inertia]; "
           "floor: the P loop's f_d line with the encoder and no disturbance")
     cells = []
     for r in rows:
         entries = []
         for law in laws:
             figure = r["design"].get(law)
-            peak = "-" if figure is None else "refused" if "error" in figure else f"{figure['disturbance_peak']:.2f}"
+            peak = "-" if figure is None else "refused" if "error" in figure else " / ".join(
+                f"{fig['disturbance_peak']:.2f} {axis}" for axis, fig in figure["axes"].items())
             entries.append(f"{_pct(r['removal'][law])} [{peak}]")
         cells.append([f"{r['f_d_hz']:g}", _num(r["bare_fd_pulse"]), _num(r["floor_fd_pulse"]), *entries])
     print(format_table(["f_d Hz", "P f_d line", "floor", *[METHODS[law] for law in laws]], cells))
 
 
-def works_summary(predictions: Mapping[str, Mapping[float, Mapping[str, Any]]]) -> dict[str, list[float]]:
-    """Per law, the f_d [Hz] of the design grid where it works: removal >= 50 %, peak <= 2, stable at ±20 %."""
-    out = {}
+def worst_of_axes(per_axis: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+    """One law's design figures at one f_d over its axes: the worst of each figure, and each axis's own.
+
+    ``per_axis`` maps an axis to :func:`.bench.sweep_prediction`'s figures (or ``{"error": ...}``: refused).
+    """
+    refused = {axis: fig["error"] for axis, fig in per_axis.items() if "error" in fig}
+    if refused:
+        return {"error": "; ".join(f"{axis}: {text}" for axis, text in refused.items()), "axes": dict(per_axis)}
+    peak_axis = max(per_axis, key=lambda axis: per_axis[axis]["disturbance_peak"])
+    return {"removal_at_fd": min(fig["removal_at_fd"] for fig in per_axis.values()),
+            "disturbance_peak": per_axis[peak_axis]["disturbance_peak"], "disturbance_peak_axis": peak_axis,
+            "sensitivity_peak": max(fig["sensitivity_peak"] for fig in per_axis.values()),
+            "stable": all(bool(fig["stable"]) for fig in per_axis.values()), "axes": dict(per_axis)}
+
+
+def _works(fig: Mapping[str, Any] | None) -> bool:
+    """Removal >= 50 % at f_d, disturbance peak <= 2, stable at ±20 % inertia (a refused design does not work)."""
+    return (fig is not None and "error" not in fig and fig["removal_at_fd"] >= WORKS_REMOVAL
+            and fig["disturbance_peak"] <= data.GOAL_PEAK and bool(fig["stable"]))
+
+
+def works_summary(predictions: Mapping[str, Mapping[float, Mapping[str, Any]]]) -> dict[str, dict[str, list[float]]]:
+    """Per law and axis (and ``"both"``), the f_d [Hz] of the design grid where it works (:func:`_works`)."""
+    out: dict[str, dict[str, list[float]]] = {}
     for law, per_f in predictions.items():
-        out[law] = [f for f, fig in per_f.items() if fig is not None and "error" not in fig
-                    and fig["removal_at_fd"] >= WORKS_REMOVAL and fig["disturbance_peak"] <= data.GOAL_PEAK
-                    and fig["stable"]]
+        axes = sorted({axis for fig in per_f.values() for axis in fig.get("axes", {})})
+        out[law] = {axis: [f for f, fig in per_f.items() if _works(fig.get("axes", {}).get(axis))] for axis in axes}
+        out[law]["both"] = [f for f, fig in per_f.items() if _works(fig)]
     return out
 
 
-def print_works(summary: Mapping[str, Sequence[float]], grid: Sequence[float]) -> None:
-    """Where each law works on the design grid."""
+def print_works(summary: Mapping[str, Mapping[str, Sequence[float]]], grid: Sequence[float]) -> None:
+    """Where each law works on the design grid, per axis and on both."""
     print(f"  where each law works (design grid {grid[0]:g}-{grid[-1]:g} Hz: removes >= {100 * WORKS_REMOVAL:.0f} % "
-          f"at f_d, no band amplified by > 6 dB, stable with ±20 % inertia):")
-    for law, freqs in summary.items():
-        span = "nowhere" if not freqs else ", ".join(f"{f:g}" for f in freqs)
-        print(f"    {METHODS[law]:18s} {span}")
+          f"at f_d, no band amplified by > 6 dB, stable with ±20 % inertia; each axis with its own model):")
+    for law, by_axis in summary.items():
+        for axis, freqs in by_axis.items():
+            span = "nowhere" if not freqs else ", ".join(f"{f:g}" for f in freqs)
+            print(f"    {METHODS[law]:18s} {axis:4s} {span}")
 
 
 def step_rows(results: Results, plan: Plan) -> list[dict[str, Any]]:
