@@ -23,6 +23,7 @@ from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.executor import DaskExecutor, Executor, LocalExecutor
 from cnc_tools.runs.folders import project_root
+from cnc_tools.runs.progress import track
 from cnc_tools.runs.scenario import Scenario, load_scenario
 
 SCENARIO = "scenarios/paper001_circle_neural.yaml"
@@ -82,7 +83,7 @@ def sweep_bench(options: argparse.Namespace) -> int:
         f"pool, {WORKERS} workers": lambda: _in(LocalExecutor(WORKERS), items),
         f"Dask LocalCluster, {WORKERS} workers": lambda: _dask(items)}
     figures: dict[str, dict[str, Any]] = {}
-    for name, measure in configurations.items():
+    for name, measure in track(configurations.items(), "sweep configurations"):
         print(f"  {name} ...", flush=True)
         warm_s, wall_s, results = measure()
         figures[name] = {"wall_s": wall_s, "start_s": warm_s, "results": results}

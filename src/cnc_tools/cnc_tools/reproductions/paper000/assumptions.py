@@ -18,6 +18,7 @@ from typing import Any
 from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.reproductions.paper000.runs import CONTROLLERS, VIEWS, Controller
 from cnc_tools.reproductions.paper000.sweep import Case, Settings, Sweep, run_sweep, settings_of, table5_cases
+from cnc_tools.runs.progress import track
 
 #: Seeds when ``--seeds`` is not given.
 DEFAULT_SEEDS = 3
@@ -140,7 +141,7 @@ def paper000_assumptions_bench(options: argparse.Namespace) -> int:
     cases = [c.name for c in table5_cases(settings.quick)]
     print(f"paper000-assumptions: {len(VARIANTS)} variants x {len(cases)} cases x PID, FLC x seeds "
           f"{list(settings.seeds)}, engine", flush=True)
-    rows = [variant_rows(v, run_variant(v, settings), cases) for v in VARIANTS]
+    rows = [variant_rows(v, run_variant(v, settings), cases) for v in track(VARIANTS, "paper000 variants")]
     print_variants(rows, cases)
     wall_s = time.perf_counter() - started
     print(f"\nwall time: {wall_s:.1f} s")

@@ -29,6 +29,7 @@ from cnc_tools.reproductions.paper000.runs import (
 )
 from cnc_tools.run_record import RecordedRun
 from cnc_tools.runs.folders import project_root, timestamp
+from cnc_tools.runs.progress import task as progress_task
 
 
 @dataclass(frozen=True)
@@ -77,14 +78,16 @@ def run_sweep(cases: Sequence[Case], controllers: Sequence[str], plan: SweepPlan
     Controllers are looked up by name in ``lookup`` (default ``CONTROLLERS``).
     """
     sweep = sweep if sweep is not None else Sweep()
-    for case in cases:
-        for name in controllers:
-            controller = lookup[name] if lookup is not None else get_controller(name)
-            for k, seed in enumerate(plan.seeds):
-                graph = k < plan.graph_seeds
-                if graph:
-                    print(f"  node graph: {case.name} {name} seed {seed} ...", flush=True)
-                _one(sweep, case, controller, seed, graph, plan.out_dir)
+    with progress_task("paper000 runs", len(cases) * len(controllers) * len(plan.seeds)) as runs:
+        for case in cases:
+            for name in controllers:
+                controller = lookup[name] if lookup is not None else get_controller(name)
+                for k, seed in enumerate(plan.seeds):
+                    graph = k < plan.graph_seeds
+                    if graph:
+                        print(f"  node graph: {case.name} {name} seed {seed} ...", flush=True)
+                    _one(sweep, case, controller, seed, graph, plan.out_dir)
+                    runs.step(note=f"{case.name} {name} seed {seed}")
     return sweep
 
 

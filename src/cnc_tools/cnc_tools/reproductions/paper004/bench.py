@@ -44,6 +44,7 @@ from cnc_tools.reproductions.paper004.runs import (
     switch,
 )
 from cnc_tools.runs.folders import project_root, timestamp
+from cnc_tools.runs.progress import track
 
 #: The depth steps of the scenario.
 STEPS: tuple[tuple[float, float], ...] = ((1.0, 2.0), (2.0, 3.0))
@@ -193,7 +194,7 @@ def _run_all(quick: bool) -> dict[str, Result]:
     duration = 6.0 if quick else data.DURATION_S
     preview = PreviewConfig()
     cases = MAIN_CASES + REST_CASES + (PREVIEW_CASES[:2] if quick else EPSILON_CASES + PREVIEW_CASES)
-    return {c.key: run_case(c, duration, preview) for c in cases}
+    return {c.key: run_case(c, duration, preview) for c in track(cases, "paper004 runs")}
 
 
 def _figures(out: Path, results: dict[str, Result]) -> list[str]:

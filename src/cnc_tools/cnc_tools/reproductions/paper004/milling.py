@@ -32,6 +32,7 @@ from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.folders import project_root
+from cnc_tools.runs.progress import track
 from cnc_tools.runs.scenario import Scenario, load_scenario
 
 SCENARIO = "scenarios/paper004_milling.yaml"
@@ -118,7 +119,7 @@ def run_rows(quick: bool) -> dict[str, Row]:
     """Every case in order, in the engine."""
     base, rows = base_scenario(quick), dict[str, Row]()
     assert base.force_regulator is not None, "the milling scenario regulates"
-    for name, variant in CASES:
+    for name, variant in track(CASES, "paper004-milling runs"):
         print(f"  {name} ...", flush=True)
         rows[name] = measure(name, run_engine(variant(base, rows)), base.force_regulator.setpoint.reference_n)
     return rows
