@@ -88,6 +88,11 @@ class BlendTable:
         order = np.argsort(joined["junction"], kind="stable")
         return BlendTable(**{name: values[order] for name, values in joined.items()})
 
+    def subset(self, keep: NDArray[np.bool_]) -> BlendTable:
+        """The rows where ``keep`` (``(M,)`` bool) is True, in order."""
+        names = [f.name for f in self.__dataclass_fields__.values()]
+        return BlendTable(**{name: getattr(self, name)[keep] for name in names})
+
     def rows(self) -> tuple[Blend, ...]:
         """One :class:`Blend` per row."""
         columns = zip(self.junction.tolist(), self.radius_m.tolist(), self.trim_m.tolist(), self.deviation_m.tolist(),

@@ -5,14 +5,16 @@ A line-line corner at point ``P`` between unit directions ``u1`` (in) and
 tangent to both lines at ``P - d u1`` and ``P + d u2``, with
 
     d = R tan(θ/2)                   (trim of each neighbour, m)
-    e = R (1/cos(θ/2) - 1)           (distance from P to the arc's midpoint, m)
+    e = R (1 - cos(θ/2))             (largest distance of the arc from the two lines, m)
 
 ``R`` is the largest radius with ``e <= tolerance`` and ``d <= length / 2`` of
-both neighbours. ``e`` bounds the arc's distance from the programmed path
-(which is ``R (1 - cos(θ/2)) <= e``), so the planned path stays within the
-tolerance everywhere. A line-arc or arc-arc corner in one coordinate plane
+both neighbours: the tolerance is measured to the programmed path (at the
+arc's midpoint, the farthest point, which lies ``R (1/cos(θ/2) - 1)`` from
+``P``), so a sharp corner gets the whole tolerance. A line-arc or arc-arc corner in one coordinate plane
 gets the fillet circle tangent to both curves (:mod:`cnc_contour_control.motion.blend_fillet`),
-its deviation measured exactly and kept within the tolerance. A corner is left
+its deviation measured exactly and kept within the tolerance. Given the planner's
+limits (:class:`~cnc_contour_control.motion.blend_choice.CornerLimits`), a blend is kept only where it is
+quicker than an exact stop (:func:`~cnc_contour_control.motion.blend_choice.faster_than_stop`). A corner is left
 as it is (an exact stop for the planner, unless already tangent) when: a dwell
 (G4) sits at the junction, the turn is below ``min_angle_rad`` or within 1e-6
 rad of a reversal, the arc's chord would be under 2 µm (``2 POSITION_TOLERANCE_M``;
@@ -33,6 +35,7 @@ from numpy.typing import ArrayLike
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.blend_assembly import planned_segments
+from cnc_contour_control.motion.blend_choice import CornerLimits, faster_than_stop
 from cnc_contour_control.motion.blend_fillet import lift, plan_fillet
 from cnc_contour_control.motion.blend_table import Blend, BlendTable
 from cnc_contour_control.motion.geometry import Dwell, LineSegment, Program, Segment
@@ -99,12 +102,12 @@ def corner_trim_m(turn_rad: ArrayLike, tolerance_m: float, max_trim_m: ArrayLike
     turn_rad : float or ndarray
         Angle between the incoming and outgoing directions, rad, in (0, π).
     tolerance_m : float
-        Largest distance of the arc from the corner point, m, > 0.
+        Largest distance of the arc from the two lines of the corner, m, > 0.
     max_trim_m : float or ndarray
         Largest length the blend may take from each neighbour, m.
     """
     half = 0.5 * np.asarray(turn_rad, dtype=float)
-    radius = np.minimum(tolerance_m / (1.0 / np.cos(half) - 1.0), np.asarray(max_trim_m) / np.tan(half))
+    radius = np.minimum(tolerance_m / (1.0 - np.cos(half)), np.asarray(max_trim_m) / np.tan(half))
     return radius, radius * np.tan(half)
 
 
@@ -128,7 +131,7 @@ def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, 
     normal /= np.maximum(np.linalg.norm(normal, axis=1), 1e-300)[:, None]
     corner = np.array([segments[k].start_m for k in junctions]).reshape(u1.shape)
     start, end = corner - trim[:, None] * u1, corner + trim[:, None] * u2
-    center, deviation = start + radius[:, None] * normal, radius * (1.0 / np.cos(0.5 * turns_rad) - 1.0)
+    center, deviation = start + radius[:, None] * normal, radius * (1.0 - np.cos(0.5 * turns_rad))
     return BlendTable(junctions[keep], radius[keep], trim[keep], deviation[keep], trim[keep], start[keep], end[keep],
                       center[keep], np.c_[first, second][keep], clockwise[keep])
 
@@ -146,8 +149,9 @@ def _curve_corner(k: int, before: Segment, after: Segment, turn: float, toleranc
                  lift(shape.center, planned.plane, corner), planned.plane, planned.side < 0.0)
 
 
-def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float) -> BlendTable:
-    """The blends of every corner that gets one, in junction order."""
+def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float,
+                  limits: CornerLimits | None) -> BlendTable:
+    """The blends of every corner that gets one (with ``limits``: only where quicker than a stop), in junction order."""
     segments = program.segments
     turns = junction_turns_rad(segments)
     lines = np.array([isinstance(segment, LineSegment) for segment in segments])
@@ -159,10 +163,12 @@ def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float) ->
         else BlendTable.empty(program.n_axes)
     curves = [_curve_corner(int(k), segments[k - 1], segments[k], float(turns[k - 1]), tolerance_m)
               for k in np.flatnonzero(corner & ~line_pair) + 1]
-    return by_line_table.merged(BlendTable.from_blends([b for b in curves if b is not None], program.n_axes))
+    table = by_line_table.merged(BlendTable.from_blends([b for b in curves if b is not None], program.n_axes))
+    return table if limits is None else table.subset(faster_than_stop(segments, table, limits))
 
 
-def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0.0) -> BlendedProgram:
+def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0.0,
+                  limits: CornerLimits | None = None) -> BlendedProgram:
     """Round every blendable corner of ``program`` within ``tolerance_m`` (m, >= 0).
 
     Parameters
@@ -173,6 +179,9 @@ def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0
         Path tolerance, m; 0 leaves the program unchanged.
     min_angle_rad : float
         Corners turning by at most this angle (rad) are passed as tangent and not blended.
+    limits : CornerLimits, optional
+        The planner's limits: a corner keeps its blend only where that is quicker than an exact stop
+        (:func:`~cnc_contour_control.motion.blend_choice.faster_than_stop`). None: every blend is kept.
 
     Returns
     -------
@@ -183,7 +192,7 @@ def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0
         raise ConfigError(f"path tolerance_m must be finite and >= 0, got {tolerance_m}")
     if tolerance_m == 0.0:
         return BlendedProgram(program, program, BlendTable.empty(program.n_axes), 0.0)
-    blends = _plan_corners(program, tolerance_m, min_angle_rad)
+    blends = _plan_corners(program, tolerance_m, min_angle_rad, limits)
     if not len(blends):
         return BlendedProgram(program, program, blends, tolerance_m)
     segments, first_after, sources = planned_segments(program, blends)

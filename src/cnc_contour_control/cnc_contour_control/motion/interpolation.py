@@ -49,6 +49,7 @@ from cnc_contour_control.core.config import build_config, require_non_negative, 
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.motion.accel_decel import AccelDecelConfig, ReferenceFilter
+from cnc_contour_control.motion.blend_choice import CornerLimits
 from cnc_contour_control.motion.blending import blend_program
 from cnc_contour_control.motion.geometry import Program, Segment
 from cnc_contour_control.motion.plan_arrays import (
@@ -237,6 +238,12 @@ def _plan_limits(segments: Sequence[Segment], limits: AxisLimits, config: Interp
                               first_index, config.arc_speed_bands)
 
 
+def corner_limits(limits: AxisLimits, config: InterpolatorConfig) -> CornerLimits:
+    """What the blending needs of the limits and options to choose a blend or a stop per corner."""
+    return CornerLimits(np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
+                        config.arc_centripetal_fraction)
+
+
 def planning_tolerance_m(program: Program, config: InterpolatorConfig) -> float:
     """The blend tolerance, m: the program's (G64 P / G61) if it sets one, else ``config.path_tolerance_mm``."""
     if program.path_tolerance_m is not None:
@@ -298,7 +305,7 @@ class Interpolator:
         self._stream = start_stream(self, program, limits, tolerance_m)
         if self._stream is not None:
             return
-        self.blended = blend_program(program, tolerance_m, tolerance_rad)
+        self.blended = blend_program(program, tolerance_m, tolerance_rad, corner_limits(limits, self.config))
         self.program = self._view = program = self.blended.planned
         self.cruise_speed_m_s, self.tangential_acceleration_m_s2, self.speed_bands = _plan_limits(
             program.segments, limits, self.config)

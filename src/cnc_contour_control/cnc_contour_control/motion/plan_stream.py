@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from cnc_contour_control.motion.blend_choice import CornerLimits
 from cnc_contour_control.motion.blending import blend_program
 from cnc_contour_control.motion.geometry import Dwell, Program, Segment
 from cnc_contour_control.motion.plan_arrays import (
@@ -73,6 +74,11 @@ class StreamSettings:
     tolerance_m: float
     corner_rad: float
 
+    @property
+    def corner_limits(self) -> CornerLimits:
+        """The limits with which blending chooses a blend or a stop per corner."""
+        return CornerLimits(self.max_velocity_m_s, self.max_acceleration_m_s2, self.centripetal_fraction)
+
 
 class _Blocks:
     """The planned program, blended and limited block by block as far as asked; per planned segment arrays."""
@@ -107,7 +113,9 @@ class _Blocks:
     def _add(self, begin: int, end: int) -> None:
         """Plan the pieces of programmed segments ``begin .. end - 1``."""
         first, stop = max(begin - 2, 0), min(end + 1, len(self.program.segments))
-        blended = blend_program(self._sub_program(first, stop), self.settings.tolerance_m, self.settings.corner_rad)
+        settings = self.settings
+        blended = blend_program(self._sub_program(first, stop), settings.tolerance_m, settings.corner_rad,
+                                settings.corner_limits)
         sources = np.asarray(blended.source_segment or range(len(blended.planned.segments)), dtype=np.intp) + first
         rows = np.flatnonzero((sources >= begin) & (sources < end))
         new = [blended.planned.segments[i] for i in rows.tolist()]
@@ -309,7 +317,8 @@ def whole_plan(interpolator: Any, name: str) -> dict[str, object]:
     stream: StreamPlan = interpolator.__dict__["_stream"]
     if name in ("program", "blended"):
         settings = stream.settings
-        blended = blend_program(interpolator.programmed_program, settings.tolerance_m, settings.corner_rad)
+        blended = blend_program(interpolator.programmed_program, settings.tolerance_m, settings.corner_rad,
+                                settings.corner_limits)
         return {"blended": blended, "program": blended.planned}
     if name in ("duration_s", "_phases", "_end_point_m", "junction_speeds_m_s", "cruise_speed_m_s",
                 "tangential_acceleration_m_s2", "speed_bands"):

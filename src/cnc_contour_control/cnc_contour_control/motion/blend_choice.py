@@ -1,0 +1,109 @@
+"""Per corner, a blend or an exact stop: whichever the planner runs faster.
+
+Without jerk limits a blend is not always quicker than stopping. A blend arc
+of radius ``R`` trims ``d`` from each neighbour and is run at most at
+``v_b = sqrt(f amax R)``; a stop reaches ``sqrt(2 a x)`` at distance ``x``
+from the corner. Where ``v_b² < 2 a d`` (sharp turns: ``d = R tan(θ/2)``) the
+blend brakes further ahead than the stop does and can take longer, and more so
+the larger ``R``.
+
+Each corner is judged on its own (so that a streaming plan, which blends the
+program in chunks, chooses as the whole plan does): the region from the middle
+of the segment before to the middle of the segment after, entered and left at
+the same speeds in both cases (the fastest both allow), is timed with the
+trapezoidal profile of each case (each piece from its entry to its exit speed
+under its cruise speed and tangential acceleration; the blend arc at a constant
+``v_b``, a lower bound of the planner's speed there). The blend is kept where
+it is faster.
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cnc_contour_control.motion.blend_table import BlendTable
+from cnc_contour_control.motion.geometry import Segment
+from cnc_contour_control.motion.plan_arrays import plan_banded_limits
+from cnc_contour_control.motion.points import FloatArray
+
+
+@dataclass(frozen=True)
+class CornerLimits:
+    """What the choice between a blend and a stop needs of the planner.
+
+    ``max_velocity_m_s`` and ``max_acceleration_m_s2``: per axis, m/s and m/s², shape ``(n_axes,)``;
+    ``centripetal_fraction``: the share of each axis's acceleration given to centripetal use on arcs.
+    """
+
+    max_velocity_m_s: FloatArray
+    max_acceleration_m_s2: FloatArray
+    centripetal_fraction: float
+
+
+def piece_time_s(length_m: FloatArray, entry_m_s: FloatArray, exit_m_s: FloatArray, cruise_m_s: FloatArray,
+                 accel_m_s2: FloatArray) -> FloatArray:
+    """Time (s) of the trapezoidal profile over each piece, from entry to exit speed under the cruise speed.
+
+    All arrays ``(M,)``: length (m, >= 0), speeds (m/s; entry and exit reachable from each other over the
+    length), acceleration (m/s², > 0).
+    """
+    length = np.maximum(length_m, 0.0)
+    peak = np.sqrt(np.minimum(cruise_m_s ** 2, accel_m_s2 * length + 0.5 * (entry_m_s ** 2 + exit_m_s ** 2)))
+    peak = np.maximum(np.maximum(peak, entry_m_s), exit_m_s)
+    ramps = (2.0 * peak * peak - entry_m_s ** 2 - exit_m_s ** 2) / (2.0 * accel_m_s2)
+    cruise = np.divide(np.maximum(length - ramps, 0.0), peak, out=np.zeros_like(peak), where=peak > 0.0)
+    return (2.0 * peak - entry_m_s - exit_m_s) / accel_m_s2 + cruise
+
+
+def _neighbour_limits(segments: Sequence[Segment], limits: CornerLimits) -> tuple[FloatArray, FloatArray]:
+    """Cruise speed (m/s) and tangential acceleration (m/s²) of ``segments`` as the planner sets them."""
+    speed, accel, _ = plan_banded_limits(segments, limits.max_velocity_m_s, limits.max_acceleration_m_s2,
+                                         limits.centripetal_fraction, False, True)
+    return speed, accel
+
+
+def blend_speed_m_s(table: BlendTable, feed_m_s: FloatArray, limits: CornerLimits) -> FloatArray:
+    """A lower bound of the planner's cruise speed on each blend arc, m/s, ``(M,)``.
+
+    The arc's feed (the smaller of its neighbours'), the velocity limits of its plane's axes, and
+    ``v² / R <= f amax_j`` on both of them (an axis's curvature never exceeds ``1 / R``).
+    """
+    plane = table.plane
+    vmax = np.asarray(limits.max_velocity_m_s, dtype=float)[plane].min(axis=1)
+    amax = np.asarray(limits.max_acceleration_m_s2, dtype=float)[plane].min(axis=1)
+    return np.minimum(np.minimum(feed_m_s, vmax), np.sqrt(limits.centripetal_fraction * amax * table.radius_m))
+
+
+def faster_than_stop(segments: Sequence[Segment], table: BlendTable, limits: CornerLimits) -> NDArray[np.bool_]:
+    """Whether each blend of ``table`` (corners of ``segments``) is quicker than an exact stop there, ``(M,)``."""
+    if not len(table):
+        return np.zeros(0, dtype=bool)
+    k = table.junction
+    speed, accel = _neighbour_limits([segments[i] for i in (k - 1).tolist()] + [segments[i] for i in k.tolist()],
+                                     limits)
+    v1, v2, a1, a2 = speed[:len(k)], speed[len(k):], accel[:len(k)], accel[len(k):]
+    h1 = 0.5 * np.array([segments[i].length_m for i in (k - 1).tolist()])
+    h2 = 0.5 * np.array([segments[i].length_m for i in k.tolist()])
+    l1, l2 = np.maximum(h1 - table.trim_m, 0.0), np.maximum(h2 - table.trim_after_m, 0.0)
+    feed = np.minimum([segments[i].feed_m_s for i in (k - 1).tolist()], [segments[i].feed_m_s for i in k.tolist()])
+    u1, u2 = np.minimum(v1, np.sqrt(2.0 * a1 * h1)), np.minimum(v2, np.sqrt(2.0 * a2 * h2))
+    vb = np.minimum(blend_speed_m_s(table, feed, limits),
+                    np.minimum(np.sqrt(u1 * u1 + 2.0 * a1 * l1), np.sqrt(u2 * u2 + 2.0 * a2 * l2)))
+    u1, u2 = np.minimum(u1, np.sqrt(vb * vb + 2.0 * a1 * l1)), np.minimum(u2, np.sqrt(vb * vb + 2.0 * a2 * l2))
+    zero = np.zeros_like(u1)
+    stop_s = piece_time_s(h1, u1, zero, v1, a1) + piece_time_s(h2, zero, u2, v2, a2)
+    arc_m = table.radius_m * _arc_sweep_rad(table)
+    blend_s = (piece_time_s(l1, u1, vb, v1, a1) + piece_time_s(l2, vb, u2, v2, a2)
+               + np.divide(arc_m, vb, out=np.full_like(vb, np.inf), where=vb > 0.0))
+    return np.asarray(blend_s < stop_s, dtype=bool)
+
+
+def _arc_sweep_rad(table: BlendTable) -> FloatArray:
+    """Each blend arc's sweep, rad (the angle between its ends seen from its centre; < π for a corner's fillet)."""
+    a, b = table.start_m - table.center_m, table.end_m - table.center_m
+    cross = np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)
+    cos = np.clip(np.einsum("ij,ij->i", a, b) / np.maximum(cross, 1e-300), -1.0, 1.0)
+    return np.arccos(cos)
