@@ -96,7 +96,8 @@ def test_the_graphs_parameters_are_the_configs_values(scenario: Scenario, tmp_pa
     given = scenario.force_regulator
     assert given is not None and settings.setpoint == given.setpoint
     assert settings.values() == given.values(), "the law's config completed with its defaults, nothing renamed"
-    assert force_law_config("smc", settings.regulator.law_params) == force_law_config("smc", given.regulator.law_params)
+    assert force_law_config(settings.regulator.law, settings.regulator.law_params) == force_law_config(
+        given.regulator.law, given.regulator.law_params)
     assert specs["interpolator"]["feed_override_source"] == "previous_tick"
 
 

@@ -10,6 +10,7 @@ from cnc_contour_control.force.adaptive import AdaptiveConfig, AdaptiveLaw
 from cnc_contour_control.force.base import ForceLaw
 from cnc_contour_control.force.pi import PiConfig, PiLaw
 from cnc_contour_control.force.smc import SmcConfig, SmcLaw
+from cnc_contour_control.force.smc_integral import SmcIntegralConfig, SmcIntegralLaw
 
 
 @dataclass(frozen=True)
@@ -23,6 +24,7 @@ class ForceLawEntry:
 #: Force laws by name.
 FORCE_LAWS: dict[str, ForceLawEntry] = {
     "smc": ForceLawEntry(SmcConfig, SmcLaw),
+    "smc_integral": ForceLawEntry(SmcIntegralConfig, SmcIntegralLaw),
     "adaptive": ForceLawEntry(AdaptiveConfig, AdaptiveLaw),
     "pi": ForceLawEntry(PiConfig, PiLaw),
 }

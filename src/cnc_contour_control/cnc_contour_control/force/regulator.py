@@ -37,12 +37,17 @@ class ForceRegulatorConfig:
         The override switch.
     update_period_s : float
         Period of the override updates [s], in [1e-4, 10].
+    hysteresis_fraction : float
+        Outside a preview plan, the applied level holds while the request stays within (½ + h) of a level of
+        it, h in [0, 5] (0: plain rounding).
     """
 
     law: str = param("smc", description="force law (registry name)", read_only=True)
     law_params: Mapping[str, Any] = param(default_factory=dict, description="parameters of the law")
     quantiser: QuantiserConfig = param(default_factory=QuantiserConfig, description="the override switch")
     update_period_s: float = param(0.01, unit="s", low=1.0e-4, high=10.0, description="override update period")
+    hysteresis_fraction: float = param(0.0, low=0.0, high=5.0,
+                                       description="hold the level while the request is within (0.5 + h) levels")
 
     def __post_init__(self) -> None:
         check_ranges(self, "force_regulator")
@@ -87,9 +92,20 @@ class ForceRegulator:
         self._plan = plan
         return None if plan is None else plan.ratio_at(self.t_s + 1e-9)
 
-    def _request(self, force_n: float, reference_n: float) -> float:
+    def _request(self, force_n: float, reference_n: float) -> tuple[float, bool]:
+        """The requested ratio and whether a plan gave it."""
         planned = self._planned() if self.plans else None
-        return self.law.step(self._since_s, force_n, reference_n) if planned is None else planned
+        if planned is None:
+            return self.law.step(self._since_s, force_n, reference_n), False
+        return planned, True
+
+    def _apply(self, requested: float, planned: bool) -> float:
+        """The switch's level for ``requested``: the last one while within the hysteresis (not in a plan)."""
+        switch, held = self.config.quantiser, self.last.applied_ratio
+        band = (0.5 + self.config.hysteresis_fraction) * switch.step_ratio
+        if not planned and self.config.hysteresis_fraction > 0.0 and abs(requested - held) < band:
+            return held
+        return self.quantiser(requested)
 
     def step(self, dt_s: float, force_n: float, reference_n: float) -> OverrideSample:
         """The force ``force_n`` [N] measured now, ``dt_s`` [s] after the previous sample -> the override."""
@@ -99,8 +115,8 @@ class ForceRegulator:
         if self._since_s < self.config.update_period_s - 1.0e-9:
             self.last = self.last._replace(updated=False)
             return self.last
-        requested = self._request(force_n, reference_n)
-        applied = self.quantiser(requested)
+        requested, planned = self._request(force_n, reference_n)
+        applied = self._apply(requested, planned)
         self.law.note_applied(applied)
         self._since_s = 0.0
         self.last = OverrideSample(requested, applied, True)
