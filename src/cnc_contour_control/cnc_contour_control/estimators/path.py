@@ -11,9 +11,13 @@ Per sample the segment index ``i`` moves forward (then, if it did not,
 backward) while the neighbouring segment is nearer; a neighbour whose bounding
 box is already farther than the current distance is not evaluated (the
 scorer's own skip). So a sample costs one or two ``nearest`` calls whatever
-the program's length. Ties keep the current segment (the scorer keeps the
-first). :func:`signed_contour_error` is the same signed distance against the
-whole program (the exact reference of the fidelity bench).
+the program's length. On a closed program (its end on its start, within
+``POSITION_TOLERANCE_M``) the last segment's forward neighbour is the first
+and the first's backward neighbour the last, so a tool past the closing
+point is measured against the contour it runs on, not the program's end.
+Ties keep the current segment (the scorer keeps the first).
+:func:`signed_contour_error` is the same signed distance against the whole
+program (the exact reference of the fidelity bench).
 """
 from __future__ import annotations
 
@@ -152,6 +156,7 @@ class PathEstimator:
         self.program = check_program(program)
         self._plane = check_plane(config.plane, program.n_axes, "path")
         self._boxes = [tuple(map(tuple, segment.bounding_box_m())) for segment in program.segments]
+        self._closed = float(np.linalg.norm(program.end_m - program.start_m)) <= POSITION_TOLERANCE_M
         self._index = 0
 
     def reset(self) -> None:
@@ -171,20 +176,27 @@ class PathEstimator:
         i, found = self._index, self._evaluate(self._index, point)
         evaluated, steps = 1, 0
         for direction in (1, -1):
-            while steps < self.config.max_steps and 0 <= i + direction < len(program.segments):
-                if self._box_gap(i + direction, pos) >= abs(found[0]):
+            while steps < self.config.max_steps and (step := self._neighbour(i, direction)) is not None:
+                if self._box_gap(step, pos) >= abs(found[0]):
                     break
-                candidate = self._evaluate(i + direction, point)
+                candidate = self._evaluate(step, point)
                 evaluated += 1
                 if abs(candidate[0]) >= abs(found[0]):
                     break
-                i, found, steps = i + direction, candidate, steps + 1
+                i, found, steps = step, candidate, steps + 1
             if steps:
                 break
         self._index = i
         error, nearest, angle = found
         return ContourEstimate(error, tuple(r - p for r, p in zip(ref, pos)), angle, i, nearest,
                                tuple(program.segments[i].start_m.tolist()), evaluated, steps)
+
+    def _neighbour(self, index: int, direction: int) -> int | None:
+        """The segment after (``direction`` 1) or before (−1) ``index``; around the end of a closed program."""
+        step, count = index + direction, len(self.program.segments)
+        if 0 <= step < count:
+            return step
+        return step % count if self._closed and count > 1 else None
 
     def _evaluate(self, index: int, point: FloatArray) -> tuple[float, tuple[float, ...], float]:
         """Signed distance to segment ``index`` (m), its nearest point (m) and the travel angle there (rad).

@@ -7,6 +7,17 @@ One sample (``k`` the index of the nearest stored point found last time)::
     else walk k backward while ‖P*(k−1) − P‖ < ‖P*(k) − P‖   the paper walks from k+1 backward only)
     P2* = P*(k); P1* = the nearer of P*(k−1), P*(k+1)      (steps 4–6)
     ε_c = signed distance from P to the line through P1*, P2*   (Eq. 2 with atan2; sign in :mod:`.base`)
+    ahead: P2* the newest point and P past it along the last chord  →  ε_c = signed distance from P to the
+           circle through the three newest stored points, continued past P2* (:func:`ahead_error`)
+
+Ahead of the reference (paper 001's own loop leads in about three moving
+samples of four) no stored point lies beyond the position, and the last
+chord's extension leaves an arc of radius ρ by about d²/2ρ after a lead d
+(20 µm at 0.6 mm on r = 10 mm). The circle through the three newest points is
+the arc itself on an arc and the line on a line, so the estimate stays exact
+on both while the program goes on; past an open program's end (or an exact
+stop's vertex) the exact error is the distance to that point, which no
+estimator built on past references sees.
 
 In steady state the nearest point advances one stored point per sample, so a
 sample walks one step and computes about four distances, whatever the
@@ -128,6 +139,11 @@ class WindowEstimator:
         memory, capacity = self._memory, self._capacity
         near, other = memory[nearest % capacity], memory[second % capacity]
         earlier, later = (other, near) if second < nearest else (near, other)
+        if nearest == self._count - 1 and nearest >= max(2, self._count - capacity + 2):
+            first = memory[(nearest - 2) % capacity]
+            if sum(map(mul, map(sub, pos, near), map(sub, near, other))) > 0.0:  # past the newest point
+                error, angle = ahead_error(pos, first, other, near, self._plane)
+                return ContourEstimate(error, tracking, angle, nearest, other, near, window_size, steps)
         error, angle = self._line(pos, near, earlier, later, self._plane)
         return ContourEstimate(error, tracking, angle, nearest, other, near, window_size, steps)
 
@@ -192,3 +208,56 @@ def line_error_2(pos: Sequence[float], near: Sequence[float], earlier: Sequence[
     ua, ub = later[a] - earlier[a], later[b] - earlier[b]
     side = ua * (pos[b] - near[b]) - ub * (pos[a] - near[a])
     return side / math.hypot(ua, ub) + 0.0, math.atan2(ub, ua)
+
+
+def ahead_error(pos: Sequence[float], first: Sequence[float], middle: Sequence[float], newest: Sequence[float],
+                plane: tuple[int, int]) -> tuple[float, float]:
+    """Signed distance (m) from ``pos`` to the circle through three stored points, continued past ``newest``.
+
+    The circle is taken in ``plane`` with signed curvature κ (> 0 turning
+    left) through ``first`` → ``middle`` → ``newest``. With ``u``, ``v`` the
+    position's offset from ``newest`` along the circle's tangent there and
+    its left normal, the signed distance is, without the centre (so a line,
+    κ = 0, gives ``v`` and a nearly straight path loses no digits)::
+
+        ε = (2v − κ(u² + v²)) / (1 + √((κu)² + (1 − κv)²))
+
+    Further axes are continued along the arc length at the last chord's
+    slope; their offset counts in the distance, not in the sign (as
+    :func:`line_error`). The angle is the direction of travel at the circle's
+    point nearest ``pos`` (rad, atan2). A chord with no extent in the plane
+    falls back to :func:`line_error` through ``middle`` → ``newest``.
+    """
+    a, b = plane
+    ca, cb = newest[a] - middle[a], newest[b] - middle[b]
+    pa, pb = middle[a] - first[a], middle[b] - first[b]
+    chord, previous = math.hypot(ca, cb), math.hypot(pa, pb)
+    span = math.hypot(newest[a] - first[a], newest[b] - first[b])
+    if chord * previous * span == 0.0:
+        return line_error(pos, newest, middle, newest, plane)
+    kappa = 2.0 * (pa * cb - pb * ca) / (chord * previous * span)
+    tangent = math.atan2(cb, ca) + math.asin(max(-1.0, min(1.0, 0.5 * kappa * chord)))
+    ta, tb = math.cos(tangent), math.sin(tangent)
+    da, db = pos[a] - newest[a], pos[b] - newest[b]
+    u, v = da * ta + db * tb, db * ta - da * tb
+    turned = math.atan2(kappa * u, 1.0 - kappa * v)
+    error = (2.0 * v - kappa * (u * u + v * v)) / (1.0 + math.hypot(kappa * u, 1.0 - kappa * v)) + 0.0
+    if len(pos) == 2:
+        return error, tangent + turned
+    return _out_of_plane(error, pos, middle, newest, plane, chord, turned / kappa if kappa else u), tangent + turned
+
+
+def _out_of_plane(error: float, pos: Sequence[float], middle: Sequence[float], newest: Sequence[float],
+                  plane: tuple[int, int], chord: float, along: float) -> float:
+    """``error`` with the other axes' offsets from the continued path (slope of the last chord) in the distance.
+
+    The offset ``w`` at ``along`` (m of in-plane arc past ``newest``) counts by its part normal to the path,
+    ``w / √(1 + slope²)``; the sign stays ``error``'s.
+    """
+    squares, slope2 = 0.0, 0.0
+    for axis, (p, m, n) in enumerate(zip(pos, middle, newest)):
+        if axis not in plane:
+            slope = (n - m) / chord
+            squares += (p - n - slope * along) ** 2
+            slope2 += slope * slope
+    return math.copysign(math.sqrt(error * error + squares / (1.0 + slope2)), error)
