@@ -24,12 +24,14 @@ test gives another).
 from __future__ import annotations
 
 import multiprocessing
-import shutil
+import os
 import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Sized
 from types import TracebackType
 from typing import Literal, TextIO, TypeVar
+
+from cnc_contour_control.core.errors import ConfigError
 
 __all__ = ["Reporter", "Task", "format_duration", "reporter", "set_quiet", "task", "track"]
 
@@ -57,7 +59,7 @@ class Task:
 
     def __init__(self, owner: Reporter, label: str, total: int | None) -> None:
         if total is not None and (isinstance(total, bool) or not isinstance(total, int) or total < 0):
-            raise ValueError(f"total must be None or an integer >= 0, got {total!r}")
+            raise ConfigError(f"total must be None or an integer >= 0, got {total!r}")
         self.owner, self.label, self.total = owner, label, total
         self.done = 0
         self.note = ""
@@ -116,9 +118,9 @@ class Reporter:
     def __init__(self, stream: TextIO | None = None, *, mode: Mode = "auto",
                  clock: Callable[[], float] = time.monotonic, interval_s: float = LINE_INTERVAL_S) -> None:
         if mode not in ("auto", "terminal", "lines", "quiet"):
-            raise ValueError(f"mode must be one of auto, terminal, lines, quiet, got {mode!r}")
+            raise ConfigError(f"mode must be one of auto, terminal, lines, quiet, got {mode!r}")
         if not interval_s > 0:
-            raise ValueError(f"interval_s must be > 0, got {interval_s!r}")
+            raise ConfigError(f"interval_s must be > 0, got {interval_s!r}")
         self._stream, self.mode, self.clock, self.interval_s = stream, mode, clock, interval_s
         self.tasks: list[Task] = []
         self._last_line_s = float("-inf")
@@ -159,7 +161,7 @@ class Reporter:
         outermost = self.tasks[0] is task
         if outermost and style != "quiet":
             line = self.status(self.clock(), ending=True)
-            self._write(f"\r{line}\x1b[K\n" if style == "terminal" else f"{line}\n")
+            self._write(f"\r{line[:max(10, self._width() - 1)]}\x1b[K\n" if style == "terminal" else f"{line}\n")
         elif style == "terminal":
             self._write("\r\x1b[K")
         self.tasks = self.tasks[:self.tasks.index(task)]
@@ -182,14 +184,21 @@ class Reporter:
             return
         now_s = self.clock()
         if style == "terminal":
-            width = shutil.get_terminal_size((FALLBACK_WIDTH, 24)).columns
-            self._write(f"\r{self.status(now_s)[:max(10, width - 1)]}\x1b[K")
+            self._write(f"\r{self.status(now_s)[:max(10, self._width() - 1)]}\x1b[K")
             return
         if first or tenth or now_s - self._last_line_s >= self.interval_s:
             for open_task in self.tasks:
                 open_task.tenths_shown = open_task.tenths()
             self._last_line_s = now_s
             self._write(self.status(now_s) + "\n")
+
+    def _width(self) -> int:
+        """The columns of the stream's terminal (:data:`FALLBACK_WIDTH` when it does not say)."""
+        try:
+            columns = os.get_terminal_size(self.stream.fileno()).columns
+        except (OSError, ValueError, AttributeError):
+            return FALLBACK_WIDTH
+        return columns or FALLBACK_WIDTH
 
     def _write(self, text: str) -> None:
         self.stream.write(text)
