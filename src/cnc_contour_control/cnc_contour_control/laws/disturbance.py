@@ -24,7 +24,7 @@ speed it commands (:class:`~cnc_contour_control.laws.base.SpindleFollowing`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from cnc_contour_control.core.config import require_choice, require_finite
 from cnc_contour_control.core.errors import ConfigError, FaultError
@@ -41,6 +41,7 @@ from cnc_contour_control.disturbance.design import (
     strip_delay,
 )
 from cnc_contour_control.disturbance.filters import FirFilter, IirFilter
+from cnc_contour_control.disturbance.tracking import FrequencyTracker, TrackerConfig, tracked_rpm
 from cnc_contour_control.laws.base import LawOutput, LawSample, require_config, spindle_redesign
 
 #: Relative tolerance on a sample period against the model's.
@@ -141,6 +142,15 @@ class PdcConfig(PositionLoopConfig):
         R(0) = I/δ, in [1e-12, 1e-2].
     rls_samples : int
         Samples of s(n) for the RLS, in [100, 1e5].
+    track_fd : bool
+        Estimate f_d on line from the residual y − P_n v and redesign for it
+        (``disturbance/tracking.py``), within ``track_band`` of the commanded speed.
+    track_band : float
+        Half-width of the tracked band, a fraction of the commanded f_d, in [0.01, 0.5].
+    track_averaging_s : float
+        Averaging time of the estimate [s], in [T, 10].
+    track_min_amplitude : float
+        Smallest f_d line of the residual that is tracked [counts/s], >= 0.
     """
 
     spindle_rpm: float = param(1500.0, unit="rpm", low=1.0, high=9000.0, description="spindle speed")
@@ -154,6 +164,11 @@ class PdcConfig(PositionLoopConfig):
     include_ml: bool = param(True, description="fit W against M_L z^-D_L P_n (False: z^-D_L P_n, the paper's W)")
     rls_delta: float = param(1.0e-5, low=1.0e-12, high=1.0e-2, description="RLS start R(0) = I/delta")
     rls_samples: int = param(2000, low=100, high=100000, description="samples of the RLS fit")
+    track_fd: bool = param(False, description="estimate f_d on line from the residual and redesign for it")
+    track_band: float = param(0.1, low=0.01, high=0.5, description="tracked band, fraction of the commanded f_d")
+    track_averaging_s: float = param(0.1, unit="s", low=1.0e-3, high=10.0, description="averaging of the f_d estimate")
+    track_min_amplitude: float = param(0.0, unit="count/s", low=0.0, high=1.0e9,
+                                       description="smallest residual line at f_d that is tracked")
 
     def __post_init__(self) -> None:
         self._validate("pdc")
@@ -164,6 +179,16 @@ class PdcConfig(PositionLoopConfig):
             checked = tuple(require_finite(f"{name}[{i}]", v, "pdc") for i, v in enumerate(values))
             object.__setattr__(self, name, checked)
         self.pdc_design()
+        if self.track_fd:
+            self.tracker_config()
+
+    def tracker_config(self) -> TrackerConfig:
+        """The f_d tracker around the commanded f_d (validated: a band reaching Nyquist is refused)."""
+        try:
+            return TrackerConfig(self.f_d_hz(), self.nominal().sample_time_s, self.track_band,
+                                 self.track_averaging_s, min_amplitude=self.track_min_amplitude)
+        except ConfigError as err:
+            raise ConfigError(f"pdc.track_band: {err}") from err
 
     def f_d_hz(self) -> float:
         """The disturbance frequency f_d [Hz] (Eq. 2)."""
@@ -229,6 +254,8 @@ class DisturbanceLaw:
         self.output = LawOutput()
         self._key: dict[str, object] = {}
         self._h: FirFilter | None = None
+        self._tracker: FrequencyTracker | None = None
+        self.tracked_redesigns = self.tracking_refusals = 0
         self.retune(config)
         self.reset()
 
@@ -243,6 +270,7 @@ class DisturbanceLaw:
         model = config.nominal()
         self._dt_s = self.sample_time_s = model.sample_time_s  # the design's period: the law runs at no other
         self._retune_pdc(config, model)
+        self._retune_tracker(config)
         self._retune_dob(config, model)
         self._retune_mbda(config, model)
 
@@ -271,12 +299,38 @@ class DisturbanceLaw:
         if not isinstance(config, PdcConfig):
             return
         self.design = config.pdc_design()
+        self.design_rpm = config.spindle_rpm
         if self._changed("pdc_model", model):
             self._pdc_model = _delayed_model(model)
         if self._h is None:
             self._h = FirFilter(self.design.h)
         else:
             self._h.set_taps(self.design.h)
+
+    def _retune_tracker(self, config: PositionLoopConfig) -> None:
+        """A tracker around the commanded f_d (a new one when the commanded speed or its settings change)."""
+        if not isinstance(config, PdcConfig) or not config.track_fd:
+            self._tracker = None
+            return
+        tracker = config.tracker_config()
+        if self._tracker is None or self._tracker.config != tracker:
+            self._tracker = FrequencyTracker(tracker)
+
+    def _track(self, residual: float) -> None:
+        """Step the tracker; redesign H for the estimated speed when it leaves the design (tracking.tracked_rpm)."""
+        assert self._tracker is not None and isinstance(self.config, PdcConfig)
+        estimate = self._tracker.step(residual)
+        if estimate is None:
+            return
+        rpm = tracked_rpm(self.config.spindle_rpm, self._tracker.config.center_hz, estimate, self.design_rpm)
+        if rpm is None:
+            return
+        try:
+            self._retune_pdc(replace(self.config, spindle_rpm=rpm, track_fd=False), self.config.nominal())
+        except ConfigError:
+            self.tracking_refusals += 1  # no design for that speed: the law keeps its last one
+            return
+        self.tracked_redesigns += 1
 
     def _retune_dob(self, config: PositionLoopConfig, model: DiscreteVelocityModel) -> None:
         self._dob = isinstance(config, DobConfig)
@@ -304,7 +358,12 @@ class DisturbanceLaw:
             raise FaultError(f"{self.NAME}: dt_s must be the model's sample time {self._dt_s:g} s, got {sample.dt_s!r}")
         y, v = sample.velocity_counts_s, sample.applied_command
         u_nom = v + self._te + self._dh - self._c
-        te = self._h.step(y - self._pdc_model.step(v)) if self._h is not None else 0.0
+        te = 0.0
+        if self._h is not None:
+            residual = y - self._pdc_model.step(v)
+            te = self._h.step(residual)
+            if self._tracker is not None:
+                self._track(residual)
         dh = self._q_inverse.step(y) - self._q_command.step(v + self._te) if self._dob else 0.0
         c = self._m.step(self._mbda_model.step(u_nom) - y) if self._mbda else 0.0
         self._te, self._dh, self._c = te, dh, c
