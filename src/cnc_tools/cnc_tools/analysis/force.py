@@ -1,11 +1,12 @@
 """Force figures of a run that cut: per depth-of-cut segment, peak, overshoot and settling against the reference.
 
 Segments run from one depth change to the next (the first from the run's
-start), taken from the plant as drawn (``summary["plant"]["cutting"]
+first sample), taken from the plant as drawn (``summary["plant"]["cutting"]
 ["depth_schedule"]``; the whole run is one segment without it). Per segment,
 on the recorded ``cutting_force`` (``force.x``, F_c [N]):
 
-- peak [N] and overshoot [%] = 100 (peak / F_ref − 1);
+- peak [N] and overshoot [%] = 100 (peak / F_ref − 1), from every sample of the
+  segment (a segment of one sample is a row: every sample is in exactly one);
 - settling [s]: from the segment's start to the last sample outside
   ±``band_fraction`` F_ref (None: still outside at the segment's end);
 - over the segment's last third: mean [N], ripple (peak to peak) [N] and
@@ -96,7 +97,7 @@ def _segment(run: RunRecord, window: np.ndarray, start_s: float, depth_mm: float
     t, f = t_s[window], force_n[window]
     steady = t >= t[0] + 2.0 * (t[-1] - t[0]) / 3.0
     changes = 0.0
-    if run.feed_override is not None and run.feed_override.applied_ratio.size == t_s.size:
+    if run.feed_override is not None and run.feed_override.applied_ratio.size == t_s.size and t[-1] > t[0]:
         applied = run.feed_override.applied_ratio[window][steady]
         changes = np.count_nonzero(np.diff(applied)) / max(float(t[steady][-1] - t[steady][0]), 1e-9)
     peak = float(f.max())
@@ -112,10 +113,11 @@ def force_figures(run: RunRecord, reference_n: float | None = None,
         return None
     t_s = run.cutting_force.stamp_ns * 1e-9
     schedule = [(s, d) for s, d in _schedule(run) if s <= t_s[-1]] or [(0.0, None)]
+    schedule[0] = (min(schedule[0][0], float(t_s[0])), schedule[0][1])
     ends = [s for s, _ in schedule[1:]] + [np.inf]
     segments = []
     for (start_s, depth_mm), end_s in zip(schedule, ends):
         window = (t_s >= start_s) & (t_s < end_s)
-        if np.count_nonzero(window) >= 2:
+        if np.count_nonzero(window) >= 1:
             segments.append(_segment(run, window, start_s, depth_mm, reference_n, band_fraction))
     return ForceFigures(reference_n, band_fraction, tuple(segments))
