@@ -96,6 +96,8 @@ class ReferenceSeries:
 
     ``feed_override_ratio`` is the override the interpolator applied (1 at the
     programmed feed); None only for a record built without it.
+    ``programmed_feed_m_s`` is the current segment's programmed feed, before
+    the override; None for a record built without it.
     """
 
     stamp_ns: IntArray
@@ -107,6 +109,7 @@ class ReferenceSeries:
     feed_m_s: FloatArray
     done: NDArray[np.bool_]
     feed_override_ratio: FloatArray | None = None
+    programmed_feed_m_s: FloatArray | None = None
 
 
 @dataclass(frozen=True, eq=False)

@@ -84,6 +84,19 @@ def test_the_force_and_override_go_to_a_bag_and_come_back(run: RunRecord, tmp_pa
     assert_allclose(back.feed_override.applied_ratio, run.feed_override.applied_ratio, rtol=0, atol=0)
 
 
+def test_the_programmed_feed_is_the_programs_before_the_override(run: RunRecord, tmp_path: Path) -> None:
+    from cnc_tools.bagio.bag import read_bag
+    from cnc_tools.bagio.record_bag import write_record_bag
+
+    ref = run.reference
+    assert ref is not None and ref.programmed_feed_m_s is not None and ref.feed_override_ratio is not None
+    assert set(ref.programmed_feed_m_s.tolist()) == {0.12 / 60.0}, "120 mm/min, whatever the override"
+    assert (ref.feed_override_ratio != 1.0).any() and (ref.feed_m_s != ref.programmed_feed_m_s).any()
+    back = read_bag(write_record_bag(run, tmp_path / "bag")).reference
+    assert back is not None and back.programmed_feed_m_s is not None
+    assert back.programmed_feed_m_s.tolist() == ref.programmed_feed_m_s.tolist()
+
+
 def test_the_graphs_parameters_are_the_configs_values(scenario: Scenario, tmp_path: Path) -> None:
     specs = {spec.name: spec.parameters for spec in graph_specs(scenario, tmp_path, extra_subscribers=1)}
     plant, regulator = specs["plant"], specs["force_regulator"]

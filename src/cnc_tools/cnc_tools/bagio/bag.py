@@ -325,7 +325,8 @@ def _joint_states(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> Join
 
 
 _REFERENCE = _Fields("axis_names", {"position_m": True, "velocity_m_s": False, "acceleration_m_s2": False},
-                     ("path_length_m", "segment_index", "feed_m_s", "done", "feed_override_ratio"))
+                     ("path_length_m", "segment_index", "feed_m_s", "done", "feed_override_ratio",
+                      "programmed_feed_m_s"))
 
 
 def _reference(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> ReferenceSeries | None:
@@ -335,7 +336,7 @@ def _reference(raw: RawBag, names: TopicNames, axes: tuple[str, ...]) -> Referen
     c = _columns(raw, topic, _REFERENCE, axes, names)
     return ReferenceSeries(c["stamp_ns"], c["position_m"], c["velocity_m_s"], c["acceleration_m_s2"],
                            c["path_length_m"], c["segment_index"].astype(np.int64), c["feed_m_s"],
-                           c["done"].astype(bool), c["feed_override_ratio"])
+                           c["done"].astype(bool), c["feed_override_ratio"], c["programmed_feed_m_s"])
 
 
 _COMMAND = _Fields(scalars=("command", "feedback", "feedforward", "compensation", "disturbance_estimate",

@@ -45,11 +45,12 @@ def _references(record: RunRecord) -> Iterator[tuple[int, Any]]:
     if ref is None:
         return
     ratio = ref.feed_override_ratio
+    programmed = ref.feed_m_s if ref.programmed_feed_m_s is None else ref.programmed_feed_m_s
     for k, stamp in enumerate(ref.stamp_ns.tolist()):
         yield stamp, make(header=_header(stamp), axis_names=names, position_m=ref.position_m[k].copy(),
                           velocity_m_s=ref.velocity_m_s[k].copy(), acceleration_m_s2=ref.acceleration_m_s2[k].copy(),
                           path_length_m=float(ref.path_length_m[k]), segment_index=int(ref.segment_index[k]),
-                          feed_m_s=float(ref.feed_m_s[k]), programmed_feed_m_s=float(ref.feed_m_s[k]),
+                          feed_m_s=float(ref.feed_m_s[k]), programmed_feed_m_s=float(programmed[k]),
                           feed_override_ratio=1.0 if ratio is None else float(ratio[k]),
                           done=bool(ref.done[k]))
 

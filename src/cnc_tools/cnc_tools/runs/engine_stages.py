@@ -217,7 +217,8 @@ class SampledInterpolatorStage:
             self._stamps_ns[:len(s)], np.array([x.position_m for x in s]), np.array([x.velocity_m_s for x in s]),
             np.array([x.acceleration_m_s2 for x in s]), np.array([x.path_length_m for x in s]),
             np.array([x.segment_index for x in s], np.int64), np.array([x.feed_m_s for x in s]),
-            np.array([x.done for x in s], bool), np.array([x.feed_override_ratio for x in s], float))}
+            np.array([x.done for x in s], bool), np.array([x.feed_override_ratio for x in s], float),
+            np.array([x.programmed_feed_m_s for x in s], float))}
 
 
 class VectorisedInterpolatorStage:
