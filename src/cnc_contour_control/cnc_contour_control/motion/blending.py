@@ -64,6 +64,11 @@ class BlendedProgram:
     #: Per planned segment, the programmed segment it comes from (a blend arc: the one after its corner).
     source_segment: tuple[int, ...] = ()
 
+    @classmethod
+    def unblended(cls, program: Program, tolerance_m: float) -> BlendedProgram:
+        """``program`` planned as written (exact stop at every corner) under ``tolerance_m``."""
+        return cls(program, program, BlendTable.empty(program.n_axes), tolerance_m)
+
     @functools.cached_property
     def blends(self) -> tuple[Blend, ...]:
         """The blends, one :class:`Blend` per rounded corner, in junction order."""
@@ -191,7 +196,7 @@ def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0
     if not (math.isfinite(tolerance_m) and tolerance_m >= 0.0):
         raise ConfigError(f"path tolerance_m must be finite and >= 0, got {tolerance_m}")
     if tolerance_m == 0.0:
-        return BlendedProgram(program, program, BlendTable.empty(program.n_axes), 0.0)
+        return BlendedProgram.unblended(program, 0.0)
     blends = _plan_corners(program, tolerance_m, min_angle_rad, limits)
     if not len(blends):
         return BlendedProgram(program, program, blends, tolerance_m)

@@ -27,10 +27,9 @@ decelerate phases are one constant-acceleration phase per band crossed.
 ``look_ahead_segments`` caps each junction's speed so that the segments in
 that window can brake to rest (:func:`~cnc_contour_control.motion.plan_arrays.look_ahead_caps_m_s`).
 
-With a path tolerance (``path_tolerance_mm``, or the program's G64 P) the
-profile is planned over the blended program (:mod:`cnc_contour_control.motion.blending`:
-line-line corners rounded by tangent arcs): :attr:`Interpolator.program` is
-that planned program, :attr:`Interpolator.programmed_program` the one written.
+With a path tolerance (``path_tolerance_mm``, or G64 P) the profile is planned over the blended program
+(:mod:`cnc_contour_control.motion.blending`; :attr:`Interpolator.program`; the one written:
+:attr:`Interpolator.programmed_program`), or as written if that is quicker (never slower than exact stop).
 """
 from __future__ import annotations
 
@@ -50,7 +49,7 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.motion.accel_decel import AccelDecelConfig, ReferenceFilter
 from cnc_contour_control.motion.blend_choice import CornerLimits
-from cnc_contour_control.motion.blending import blend_program
+from cnc_contour_control.motion.blending import BlendedProgram, blend_program
 from cnc_contour_control.motion.geometry import Program, Segment
 from cnc_contour_control.motion.plan_arrays import (
     SpeedBands,
@@ -238,12 +237,6 @@ def _plan_limits(segments: Sequence[Segment], limits: AxisLimits, config: Interp
                               first_index, config.arc_speed_bands)
 
 
-def corner_limits(limits: AxisLimits, config: InterpolatorConfig) -> CornerLimits:
-    """What the blending needs of the limits and options to choose a blend or a stop per corner."""
-    return CornerLimits(np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
-                        config.arc_centripetal_fraction)
-
-
 def planning_tolerance_m(program: Program, config: InterpolatorConfig) -> float:
     """The blend tolerance, m: the program's (G64 P / G61) if it sets one, else ``config.path_tolerance_mm``."""
     if program.path_tolerance_m is not None:
@@ -305,13 +298,12 @@ class Interpolator:
         self._stream = start_stream(self, program, limits, tolerance_m)
         if self._stream is not None:
             return
-        self.blended = blend_program(program, tolerance_m, tolerance_rad, corner_limits(limits, self.config))
-        self.program = self._view = program = self.blended.planned
-        self.cruise_speed_m_s, self.tangential_acceleration_m_s2, self.speed_bands = _plan_limits(
-            program.segments, limits, self.config)
-        self.junction_speeds_m_s = program_junction_speeds_m_s(program, self.cruise_speed_m_s, self.speed_bands,
-                                                               tolerance_rad, self.config.look_ahead_segments)
-        self._build_phases()
+        self.blended = blend_program(program, tolerance_m, tolerance_rad, CornerLimits(
+            np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
+            self.config.arc_centripetal_fraction))
+        self._plan(self.blended.planned)
+        if len(self.blended.table):
+            self._keep_the_quicker(program)
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
 
     def __getattr__(self, name: str) -> Any:
@@ -334,7 +326,13 @@ class Interpolator:
         return [SegmentLimits(v, a) for v, a in zip(self.cruise_speed_m_s.tolist(),
                                                      self.tangential_acceleration_m_s2.tolist())]
 
-    def _build_phases(self) -> None:
+    def _plan(self, program: Program) -> None:
+        tolerance_rad = math.radians(self.config.corner_angle_tolerance_deg)
+        self.program = self._view = program
+        self.cruise_speed_m_s, self.tangential_acceleration_m_s2, self.speed_bands = _plan_limits(
+            program.segments, self.limits, self.config)
+        self.junction_speeds_m_s = program_junction_speeds_m_s(program, self.cruise_speed_m_s, self.speed_bands,
+                                                               tolerance_rad, self.config.look_ahead_segments)
         speeds = self.junction_speeds_m_s
         lengths = np.array([segment.length_m for segment in self.program.segments])
         self._phases = phases = banded_phases(lengths, speeds[:-1], speeds[1:], self.cruise_speed_m_s,
@@ -343,6 +341,16 @@ class Interpolator:
         self._phase_s0_m, self._phase_v0_m_s = phases.s0_m.tolist(), phases.v0_m_s.tolist()
         self._phase_accel_m_s2, self._phase_segment = phases.accel_m_s2.tolist(), phases.segment.tolist()
         self.duration_s = float(phases.start_s[-1])
+
+    def _keep_the_quicker(self, programmed: Program) -> None:
+        """Keep the exact-stop plan of ``programmed`` instead if it is quicker (``blend_choice`` judges corners
+        alone; this makes the whole plan never slower than exact stop)."""
+        blended_plan = dict(self.__dict__)
+        self._plan(programmed)
+        if self.duration_s < blended_plan["duration_s"]:
+            self.blended = BlendedProgram.unblended(programmed, self.blended.tolerance_m)
+        else:
+            self.__dict__.update(blended_plan)
 
     @property
     def phase_count(self) -> int:
