@@ -28,6 +28,7 @@ TARGETS: dict[str, str] = {
     "scoring": "cnc_tools.bench.scoring:scoring",
     "sweep": "cnc_tools.bench.sweep:sweep_bench",
     "tune": "cnc_tools.bench.tune:tune_bench",
+    "best": "cnc_tools.bench.best:best_bench",
     "blending": "cnc_tools.bench.blending:blending_bench",
     "laws": "cnc_tools.bench.laws:laws",
     "compensator": "cnc_tools.bench.compensator:compensator_bench",
