@@ -143,8 +143,8 @@ def run_contender(contender: Contender) -> Outcome:
     made, last = 0, None
     with tempfile.TemporaryDirectory(prefix="bench_best_") as folder:
         try:
-            for made, (_, record) in enumerate(learning_runs(scenario, contender.runs, Path(folder)), start=1):
-                last = record  # only the last run is measured (a session's records are not all kept)
+            for _, record in learning_runs(scenario, contender.runs, Path(folder)):
+                made, last = made + 1, record  # only the last run is measured (a session's records are not kept)
         except CncError as err:
             return Outcome(math.nan, math.nan, math.nan, made + 1, f"{type(err).__name__}: {err}")
     if last is None:
