@@ -88,6 +88,26 @@ def test_a_terminal_gets_one_line_redrawn_in_place(terminal: tuple[TextIO, int])
     assert draws[-1].startswith("bench demo · done in 4 s")
 
 
+def test_output_on_the_same_terminal_clears_the_line_and_redraws_it_below(
+        terminal: tuple[TextIO, int], monkeypatch: pytest.MonkeyPatch) -> None:
+    stream, reader = terminal
+    screen_stdout = os.fdopen(os.dup(stream.fileno()), "w")
+    monkeypatch.setattr(sys, "stdout", screen_stdout)
+    clock = Clock()
+    reporter = Reporter(stream, clock=clock)
+    with reporter.task("bench demo", 2) as bench:
+        bench.step()
+        print("table row", end="")  # a line begun: no drawing until it ends
+        bench.step()
+        print(" ends here")
+    assert sys.stdout is screen_stdout, "the guard is taken off when the outermost task ends"
+    screen_stdout.close()
+    shown = _read_all(reader)
+    assert shown == ("\rbench demo 0/2 · 0 s elapsed\x1b[K\rbench demo 1/2 · 0 s elapsed · ~0 s left\x1b[K"
+                     "\r\x1b[Ktable row ends here\r\n\rbench demo 2/2 · 0 s elapsed · ~0 s left\x1b[K"
+                     "\rbench demo 2/2 · done in 0 s\x1b[K\r\n"), repr(shown)
+
+
 def test_a_narrow_terminal_gets_the_line_cut_to_its_width(terminal: tuple[TextIO, int]) -> None:
     stream, reader = terminal
     _set_columns(stream.fileno(), 40)

@@ -9,8 +9,9 @@ The elapsed time counts from the outermost task's start; the estimate is the out
 and at least one step done, at its mean rate so far. Where the line goes depends on the stream:
 
 - a terminal: the line is redrawn in place (``\\r``, cleared to its end, cut to the terminal's width) at
-  every start and step; an inner task's end clears it (so a table printed between sweeps starts on a clean
-  line), the outermost task's end leaves its last line with ``done``;
+  every start and step; an inner task's end clears it, the outermost task's end leaves its last line with
+  ``done``. When stdout is the same terminal, the command's own output clears the line and the line is drawn
+  again below it, so a table printed mid-sweep does not run into it (output of child processes can);
 - not a terminal (a pipe, a file, a CI log): plain lines, only when the outermost task starts or ends, when
   the outermost task with a total reaches another tenth of it, or at a step once :attr:`Reporter.interval_s`
   has passed since the last line; a dozen lines plus a few a minute at most, whatever the step rate;
@@ -29,7 +30,7 @@ import sys
 import time
 from collections.abc import Callable, Iterable, Iterator, Sized
 from types import TracebackType
-from typing import Literal, TextIO, TypeVar
+from typing import Any, Literal, TextIO, TypeVar, cast
 
 from cnc_contour_control.core.errors import ConfigError
 
@@ -124,6 +125,8 @@ class Reporter:
         self._stream, self.mode, self.clock, self.interval_s = stream, mode, clock, interval_s
         self.tasks: list[Task] = []
         self._last_line_s = float("-inf")
+        self._drawn = False  # a status line is on the terminal
+        self._held = False  # the command's stdout has begun a line on the terminal: no drawing until it ends it
 
     @property
     def stream(self) -> TextIO:
@@ -143,6 +146,8 @@ class Reporter:
         """Open a task (use it in a ``with`` block); it nests inside the tasks open now."""
         opened = Task(self, label, total)
         self.tasks.append(opened)
+        if len(self.tasks) == 1 and self.style() == "terminal":
+            _guard_stdout(self)
         self._show(first=len(self.tasks) == 1)
         return opened
 
@@ -159,12 +164,28 @@ class Reporter:
             return
         style = self.style()
         outermost = self.tasks[0] is task
-        if outermost and style != "quiet":
-            line = self.status(self.clock(), ending=True)
-            self._write(f"\r{line[:max(10, self._width() - 1)]}\x1b[K\n" if style == "terminal" else f"{line}\n")
+        if outermost and style == "terminal":
+            line = self.status(self.clock(), ending=True)[:max(10, self._width() - 1)]
+            self._write(("\n" if self._held else "") + f"\r{line}\x1b[K\n")
+            self._drawn = self._held = False
+            _unguard_stdout(self)
+        elif outermost and style == "lines":
+            self._write(self.status(self.clock(), ending=True) + "\n")
         elif style == "terminal":
-            self._write("\r\x1b[K")
+            self.before_output()
         self.tasks = self.tasks[:self.tasks.index(task)]
+
+    def before_output(self) -> None:
+        """The command writes to the terminal: clear the status line if one is drawn."""
+        if self._drawn:
+            self._write("\r\x1b[K")
+            self._drawn = False
+
+    def after_output(self, line_ended: bool) -> None:
+        """The command wrote to the terminal: draw the status line again once its output ended a line."""
+        self._held = not line_ended
+        if line_ended and self.tasks and self.style() == "terminal":
+            self._show()
 
     def status(self, now_s: float, *, ending: bool = False) -> str:
         """The status line of the open tasks at ``now_s``."""
@@ -184,7 +205,9 @@ class Reporter:
             return
         now_s = self.clock()
         if style == "terminal":
-            self._write(f"\r{self.status(now_s)[:max(10, self._width() - 1)]}\x1b[K")
+            if not self._held:
+                self._write(f"\r{self.status(now_s)[:max(10, self._width() - 1)]}\x1b[K")
+                self._drawn = True
             return
         if first or tenth or now_s - self._last_line_s >= self.interval_s:
             for open_task in self.tasks:
@@ -203,6 +226,50 @@ class Reporter:
     def _write(self, text: str) -> None:
         self.stream.write(text)
         self.stream.flush()
+
+
+class _StdoutGuard:
+    """``sys.stdout`` while a status line is drawn on the same terminal: the line is cleared before the
+    command's own output and drawn again below it once that output ends a line (a table printed during a
+    sweep does not run into the status line)."""
+
+    def __init__(self, wrapped: TextIO, owner: Reporter) -> None:
+        self.wrapped, self.owner = wrapped, owner
+
+    def write(self, text: str) -> int:
+        """Write ``text`` to the terminal around the status line."""
+        self.owner.before_output()
+        written = self.wrapped.write(text)
+        if text:
+            if text.endswith("\n"):
+                self.wrapped.flush()
+            self.owner.after_output(text.endswith("\n"))
+        return written
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.wrapped, name)
+
+
+def _same_terminal(one: TextIO, other: TextIO) -> bool:
+    """Both streams are the same terminal device."""
+    try:
+        return one.isatty() and other.isatty() and os.ttyname(one.fileno()) == os.ttyname(other.fileno())
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def _guard_stdout(owner: Reporter) -> None:
+    """Put a :class:`_StdoutGuard` on ``sys.stdout`` when it is the terminal the status line is drawn on."""
+    if not isinstance(sys.stdout, _StdoutGuard) and _same_terminal(sys.stdout, owner.stream):
+        sys.stdout = cast(TextIO, _StdoutGuard(sys.stdout, owner))
+
+
+def _unguard_stdout(owner: Reporter) -> None:
+    """Take ``owner``'s guard off ``sys.stdout`` (flushing what the command wrote)."""
+    guard = sys.stdout
+    if isinstance(guard, _StdoutGuard) and guard.owner is owner:
+        guard.wrapped.flush()
+        sys.stdout = guard.wrapped
 
 
 _REPORTER = Reporter()
