@@ -1,0 +1,54 @@
+"""Bench ``best``: the contenders' files run the paper's own case, the goals are judged right, paper 000's are met."""
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+import yaml
+
+from cnc_tools.bench.best import CONTOURS, Contour, Outcome, judge, run_contender
+from cnc_tools.runs.folders import project_root
+from cnc_tools.runs.scenario import load_scenario
+
+#: Keys a contender may change against the paper's PID scenario: the stack, its name and description.
+STACK_KEYS = frozenset({"name", "description", "servo", "estimator", "compensator", "interpolator"})
+#: Plant keys of a stack: the velocity loop's gains (paper 003's K1, K2).
+STACK_PLANT_GAINS = frozenset({"ki", "kp"})
+
+
+def case_of(path: str) -> dict[str, Any]:
+    """The scenario file's mapping without its stack: the plant (gains aside), program, limits, timing, seed."""
+    raw = yaml.safe_load((project_root() / path).read_text())
+    case = {key: value for key, value in raw.items() if key not in STACK_KEYS}
+    overrides = case.get("plant", {}).pop("axis_overrides", {})
+    kept = {axis: {k: v for k, v in values.items() if k not in STACK_PLANT_GAINS} for axis, values in overrides.items()}
+    if any(kept.values()):
+        case["plant"]["axis_overrides"] = kept
+    return case
+
+
+@pytest.mark.parametrize("contour", CONTOURS, ids=lambda c: c.key[:3])
+def test_every_contender_runs_the_paper_case_of_its_pid(contour: Contour) -> None:
+    """A best file copies its paper's plant, disturbance, program and limits: if they change there, it must follow."""
+    for contender in (contour.paper, contour.ours):
+        assert case_of(contender.scenario) == case_of(contour.pid.scenario), contender.scenario
+        assert load_scenario(project_root() / contender.scenario).name == contender.scenario.rsplit("/")[-1][:-5]
+
+
+@pytest.mark.parametrize("ours, met", [
+    (Outcome(10.0, 5.0, 3.0, 1), (True, True, True, True)),
+    (Outcome(25.1, 5.0, 3.0, 1), (False, True, False, True)),   # max 50 / 25.1 < 2x; 1 - 25.1/100 < 80 %
+    (Outcome(20.0, 10.1, 15.1, 1), (True, False, True, False)),  # RMS 30 / 10.1 < 3x; 1 - 15.1/100 < 85 %
+])
+def test_goals_are_judged_against_their_bounds(ours: Outcome, met: tuple[bool, ...]) -> None:
+    pid, paper = Outcome(100.0, 60.0, 100.0, 1), Outcome(50.0, 30.0, 25.0, 1)
+    assert tuple(goal.met for goal in judge(pid, paper, ours)) == met
+
+
+def test_paper000_our_stack_meets_every_goal() -> None:
+    """Paper 000's circle on the engine: PID, FLC, then 20 runs of PID + feedforward + ILC (about 1 s)."""
+    contour = CONTOURS[0]
+    pid, paper, ours = (run_contender(contender) for contender in contour.contenders)
+    assert ours.runs == contour.ours.runs == 20 and not ours.fault
+    goals = judge(pid, paper, ours)
+    assert all(goal.met for goal in goals), goals
