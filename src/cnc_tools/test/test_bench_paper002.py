@@ -138,6 +138,10 @@ def test_quick_bench_checks_the_goals_with_measured_figures(quick_bench: tuple[s
     for row in figures["spindle"]:
         assert row["met"] == (row["worst"] >= data.GOAL_SPINDLE_REMOVAL)
         assert all(v > row["worst"] - 1e-12 for v in row["held"].values())
+    for row in figures["tracked"]:  # f_d estimated on line, no schedule: the ±7 % goal, and not met without it
+        assert row["met"] and row["worst_tracked"] >= 0.9 and row["sensitivity_peak"] <= 2.0, row
+        assert min(row["held"].values()) < 0.9 < min(row["tracked"].values()), row
+    assert "WITHOUT a schedule" in printed
     assert "best stack:" in printed and "spindle step" in printed
     step = {r["law"]: r for r in figures["steps"]}
     assert 0.0 < step["mbda_pdc"]["removal"] < 0.95  # the old design after a 10 % step: part of the line only

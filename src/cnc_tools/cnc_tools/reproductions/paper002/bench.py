@@ -15,9 +15,12 @@ f_d 50 Hz, each axis's own model). Printed:
    spindle speed (met or NOT met, with the measured figures), at the design
    and with the PDC redesigned on line (the servo follows the spindle speed
    it commands, :mod:`.online`);
-5. beyond the paper: the f_d sweep 20-200 Hz and a ±10 % spindle step, at
-   the design and redesigned on line, with the recovery time;
-6. the plots (png) and the wall time.
+5. beyond the paper: the f_d sweep 20-200 Hz (design figures on both axes)
+   and a ±10 % spindle step, at the design and redesigned on line, with the
+   recovery time;
+6. the PDC estimating f_d on line without a schedule (:mod:`.tracked`):
+   ≥ 90 % at spindle deviations −7 … +7 %, |S|∞ over the tracked band;
+7. the plots (png) and the wall time.
 
 ``--quick``: 3-s circles, fewer laws in the goal, sweep and step sections, one
 process (the test's reduced bench).
@@ -37,7 +40,7 @@ from cnc_contour_control.laws import law_config
 from cnc_contour_control.laws.disturbance import PdcConfig, PositionLoopConfig
 from cnc_contour_control.laws.loop_report import design_report, loop_figures
 from cnc_tools.analysis.tables import format_table, machine, write_json
-from cnc_tools.reproductions.paper002 import data, figures, online, runs, tables
+from cnc_tools.reproductions.paper002 import data, figures, online, runs, tables, tracked
 from cnc_tools.reproductions.paper002.cases import CONTOURS, INERTIA_ERRORS, LAWS, Plan, all_cases, make_plan
 from cnc_tools.reproductions.paper002.runs import METHODS, PDC_LAWS, Result, law_params, run_case
 from cnc_tools.runs.executor import make_executor
@@ -60,6 +63,7 @@ class Found:
     design: dict[str, Any]
     predictions: dict[str, dict[float, Any]]
     dob_q: list[dict[str, Any]]
+    band: list[dict[str, Any]]
 
 
 def plan_of(options: argparse.Namespace) -> Plan:
@@ -96,6 +100,18 @@ def sweep_prediction(item: tuple[str, float, str, int]) -> dict[str, Any]:
     return {"removal_at_fd": next(loop["removal_at_fd"] for loop in loops if loop["inertia_error"] == 0.0),
             "disturbance_peak": max(loop["disturbance_peak"] for loop in loops),
             "sensitivity_peak": max(loop["sensitivity_peak"] for loop in loops),
+            "stable": all(bool(loop["stable"]) for loop in loops)}
+
+
+def band_entry(item: tuple[str, float, str, int]) -> dict[str, Any]:
+    """One stack designed for 1500 rpm · (1 + ``deviation``) on ``axis`` (:mod:`.tracked`): worst |S|∞ and
+    disturbance peak over the inertia errors, and stability."""
+    law, deviation, axis, points = item
+    config = design_config(law, axis, data.SPINDLE_RPM * (1.0 + deviation))
+    loops = [loop_figures(config, data.F_D_HZ * (1.0 + deviation), eps, points) for eps in INERTIA_ERRORS]
+    return {"law": law, "deviation": deviation, "axis": axis,
+            "sensitivity_peak": max(loop["sensitivity_peak"] for loop in loops),
+            "disturbance_peak": max(loop["disturbance_peak"] for loop in loops),
             "stable": all(bool(loop["stable"]) for loop in loops)}
 
 
@@ -149,6 +165,8 @@ def run_all(plan: Plan) -> Found:
         entries = executor.map(design_entry, design_items, label="paper002 design")
         predicted = executor.map(sweep_prediction, sweep_items, label="paper002 sweep design")
         dob_q = executor.map(dob_q_entry, [(*q, plan.grid_points) for q in DOB_Q_VARIANTS], label="paper002 Q")
+        band = executor.map(band_entry, tracked.band_items(plan, min(plan.grid_points, 300)),
+                            label="paper002 tracked band")
     design: dict[str, Any] = {law: {} for law in LAWS}
     for (law, axis, _), entry in zip(design_items, entries):
         design[law][axis] = entry
@@ -158,7 +176,7 @@ def run_all(plan: Plan) -> Found:
     predictions: dict[str, dict[float, Any]] = {law: {} for law in plan.sweep_laws if law != "p"}
     for (law, f), figures_by_axis in per_axis.items():
         predictions[law][f] = tables.worst_of_axes(figures_by_axis)
-    return Found({r.case.key: r for r in results}, design, predictions, dob_q)
+    return Found({r.case.key: r for r in results}, design, predictions, dob_q, band)
 
 
 def write_figures(plan: Plan, results: Mapping[str, Result], sweep: Sequence[Mapping[str, Any]],
@@ -191,7 +209,8 @@ def print_sections(found: Found, plan: Plan) -> tuple[dict[str, Any], dict[str, 
     rows: dict[str, Any] = {"shares": tables.share_rows(results), "inertia": tables.inertia_rows(results, design, plan),
             "spindle": tables.spindle_rows(results, plan), "sweep": tables.sweep_rows(results, predictions, plan),
             "steps": tables.step_rows(results, plan), "works": tables.works_summary(predictions),
-            "spindle_online": online.held_rows(results, plan), "steps_online": online.step_rows(results, plan)}
+            "spindle_online": online.held_rows(results, plan), "steps_online": online.step_rows(results, plan),
+            "tracked": tracked.rows(results, found.band, plan)}
     tables.print_shares(rows["shares"])
     print_dob_q(found.dob_q)
     tables.print_inertia(rows["inertia"])
@@ -201,6 +220,7 @@ def print_sections(found: Found, plan: Plan) -> tuple[dict[str, Any], dict[str, 
     tables.print_works(rows["works"], plan.prediction_hz)
     tables.print_steps(rows["steps"], plan)
     online.print_steps(rows["steps_online"], plan)
+    tracked.print_rows(rows["tracked"], plan)
     return main, rows
 
 

@@ -3,7 +3,8 @@
 Keys: ``<group>/<law>`` (``/ref``: the same without the periodic disturbance;
 ``/noenc``: without the encoder; ``/redesigned``: the PDC designed for the
 plant's spindle speed; ``/online``: the servo follows the spindle speed it
-commands and the PDC redesigns on line). Every removal is ``1 − f_d line / the P loop's f_d
+commands and the PDC redesigns on line; ``/tracked``: the PDC estimates f_d on
+line without a schedule). Every removal is ``1 − f_d line / the P loop's f_d
 line`` within one group.
 """
 from __future__ import annotations
@@ -22,6 +23,8 @@ CONTOURS = ("line", "circle")
 INERTIA_ERRORS = (-data.GOAL_INERTIA_ERROR, 0.0, data.GOAL_INERTIA_ERROR)
 #: Spindle offsets of the goal runs (fraction of the design's 1500 rpm).
 SPINDLE_OFFSETS = (-data.GOAL_SPINDLE_TOLERANCE, data.GOAL_SPINDLE_TOLERANCE)
+#: Spindle deviations of the tracking runs (fraction of the commanded 1500 rpm; the goal holds within ±7 %).
+TRACK_GOAL_DEVIATIONS = (-0.07, -0.04, 0.0, 0.04, 0.07)
 
 
 @dataclass(frozen=True)
@@ -39,6 +42,8 @@ class Plan:
     step_offsets: tuple[float, ...]
     grid_points: int
     design_axes: tuple[str, ...]
+    track_deviations: tuple[float, ...] = ()
+    track_band: tuple[float, ...] = ()
 
     @property
     def goal_laws(self) -> tuple[str, ...]:
@@ -56,6 +61,11 @@ class Plan:
         return ("p", "mbda_pdc") if self.quick else ("p", *PDC_LAWS)
 
     @property
+    def track_laws(self) -> tuple[str, ...]:
+        """PDC stacks of the tracking runs (f_d estimated on line)."""
+        return ("mbda_pdc",) if self.quick else PDC_LAWS
+
+    @property
     def step_at_s(self) -> float:
         """When the spindle steps [s]."""
         return 0.4 * self.side_s
@@ -65,11 +75,13 @@ def make_plan(quick: bool, out_dir: Path, json: Path | None, workers: int) -> Pl
     """The full bench, or the quick one (2.5-s circles, fewer laws, one sweep frequency, X's design only)."""
     if quick:
         return Plan(True, out_dir, json, workers, circle_s=2.5, side_s=2.5, sweep_hz=(100.0,),
-                    prediction_hz=(100.0,), step_offsets=(0.1,), grid_points=100, design_axes=("x",))
+                    prediction_hz=(100.0,), step_offsets=(0.1,), grid_points=100, design_axes=("x",),
+                    track_deviations=TRACK_GOAL_DEVIATIONS[::4], track_band=TRACK_GOAL_DEVIATIONS[::4])
     sweep_hz = (20.0, 35.0, 50.0, 75.0, 100.0, 150.0, 200.0)
     return Plan(False, out_dir, json, workers, circle_s=None, side_s=10.0, sweep_hz=sweep_hz,
                 prediction_hz=tuple(sorted({*sweep_hz, *(float(f) for f in range(20, 201, 10))})),
-                step_offsets=(-0.1, 0.1), grid_points=1000, design_axes=("x", "y"))
+                step_offsets=(-0.1, 0.1), grid_points=1000, design_axes=("x", "y"),
+                track_deviations=TRACK_GOAL_DEVIATIONS, track_band=tuple(k / 100 for k in range(-10, 11)))
 
 
 def main_cases(plan: Plan) -> list[Case]:
@@ -141,6 +153,20 @@ def step_cases(plan: Plan) -> list[Case]:
     return cases
 
 
+def track_cases(plan: Plan) -> list[Case]:
+    """The circle with the plant's spindle held off the commanded 1500 rpm and no schedule: the P loop, each PDC
+    stack at its 1500 rpm design, and the same estimating f_d on line (``/tracked``)."""
+    cases = []
+    for deviation in plan.track_deviations:
+        rpm, group = data.SPINDLE_RPM * (1.0 + deviation), f"tracked{100 * deviation:+.0f}%"
+        cases.append(Case(f"{group}/p", "circle", "p", plant_rpm=rpm, duration_s=plan.side_s))
+        for law in plan.track_laws:
+            cases += [Case(f"{group}/{law}", "circle", law, plant_rpm=rpm, duration_s=plan.side_s),
+                      Case(f"{group}/{law}/tracked", "circle", law, plant_rpm=rpm, duration_s=plan.side_s, track=True)]
+    return cases
+
+
 def all_cases(plan: Plan) -> list[Case]:
     """Every case of the plan, in section order."""
-    return main_cases(plan) + inertia_cases(plan) + spindle_cases(plan) + sweep_cases(plan) + step_cases(plan)
+    return (main_cases(plan) + inertia_cases(plan) + spindle_cases(plan) + sweep_cases(plan) + step_cases(plan)
+            + track_cases(plan))

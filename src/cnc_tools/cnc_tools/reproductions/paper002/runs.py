@@ -16,6 +16,8 @@ with, per case:
   through the plant's spindle schedule); ``follow``: the servo knows the
   speed it commands (the scenario's ``servo.follow_spindle``) and the PDC
   redesigns on line, else the law keeps its ``design_rpm`` design;
+  ``track``: the PDC estimates f_d from its residual and redesigns for it
+  (``track_fd``), with no schedule: the servo commands ``design_rpm``;
 - ``encoder`` off: positions not quantised (what the law removes without the
   encoder's floor);
 - ``inertia_error`` ε: None keeps the identified discrete loops; a number
@@ -77,6 +79,7 @@ class Case:
     keep_trace: bool = False
     encoder: bool = True
     follow: bool = False
+    track: bool = False
 
     @property
     def f_d_hz(self) -> float:
@@ -139,7 +142,8 @@ def law_params(law: str, design_rpm: float = data.SPINDLE_RPM) -> dict[str, Any]
 
 def _servo(base: Scenario, case: Case) -> dict[str, Any]:
     servo = {k: v for k, v in base.raw["servo"].items() if k not in ("law", "law_params", "axes")}
-    servo.update(law=case.law, law_params=law_params(case.law, case.design_rpm), follow_spindle=case.follow)
+    params = {**law_params(case.law, case.design_rpm), **({"track_fd": True} if case.track else {})}
+    servo.update(law=case.law, law_params=params, follow_spindle=case.follow)
     if case.law != "p":
         servo["axes"] = {"y": {"law_params": {"model": "y"}}}  # each axis its own P_n (Eq. 36 for Y)
     return servo
