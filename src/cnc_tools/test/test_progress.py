@@ -77,7 +77,7 @@ def _sweep(reporter: Reporter, clock: Clock, runs: int) -> None:
 def test_a_terminal_gets_one_line_redrawn_in_place(terminal: tuple[TextIO, int]) -> None:
     stream, reader = terminal
     clock = Clock()
-    reporter = Reporter(stream, clock=clock)
+    reporter = Reporter(stream, clock=clock, redraw_s=0.0)
     assert reporter.style() == "terminal"
     _sweep(reporter, clock, runs=4)
     shown = _read_all(reader)
@@ -94,7 +94,7 @@ def test_output_on_the_same_terminal_clears_the_line_and_redraws_it_below(
     screen_stdout = os.fdopen(os.dup(stream.fileno()), "w")
     monkeypatch.setattr(sys, "stdout", screen_stdout)
     clock = Clock()
-    reporter = Reporter(stream, clock=clock)
+    reporter = Reporter(stream, clock=clock, redraw_s=0.0)
     with reporter.task("bench demo", 2) as bench:
         bench.step()
         print("table row", end="")  # a line begun: no drawing until it ends
@@ -112,9 +112,20 @@ def test_a_narrow_terminal_gets_the_line_cut_to_its_width(terminal: tuple[TextIO
     stream, reader = terminal
     _set_columns(stream.fileno(), 40)
     clock = Clock()
-    _sweep(Reporter(stream, clock=clock), clock, runs=2)
+    _sweep(Reporter(stream, clock=clock, redraw_s=0.0), clock, runs=2)
     draws = [d.removesuffix("\x1b[K") for d in _read_all(reader).split("\r") if d.strip()]
     assert max(len(d) for d in draws) == 39 and draws[-1] == "bench demo · done in 2 s", draws
+
+
+def test_a_terminal_is_redrawn_ten_times_a_second_at_most(terminal: tuple[TextIO, int]) -> None:
+    stream, reader = terminal
+    clock = Clock()
+    with Reporter(stream, clock=clock).task("fuzz inputs", 1000) as inputs:  # 1000 steps in 1 s
+        for _ in range(1000):
+            clock.now_s += 0.001
+            inputs.step()
+    draws = [d for d in _read_all(reader).split("\r") if d.strip()]
+    assert 10 <= len(draws) <= 12, draws  # the start, one per 0.1 s, the end
 
 
 def test_a_pipe_gets_plain_lines_at_tenths_and_intervals() -> None:
@@ -151,6 +162,8 @@ def test_quiet_writes_nothing() -> None:
 def test_bad_options_are_refused_naming_them() -> None:
     with pytest.raises(ConfigError, match="interval_s must be > 0, got 0"):
         Reporter(interval_s=0)
+    with pytest.raises(ConfigError, match="redraw_s must be >= 0, got -1"):
+        Reporter(redraw_s=-1)
     with pytest.raises(ConfigError, match="total must be None or an integer >= 0, got -1"):
         Reporter(mode="quiet").task("runs", -1)
     assert [format_duration(s) for s in (4.6, 125, 7620)] == ["5 s", "2 min 05 s", "2 h 07 min"]

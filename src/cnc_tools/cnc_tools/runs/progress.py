@@ -41,6 +41,8 @@ T = TypeVar("T")
 Mode = Literal["auto", "terminal", "lines", "quiet"]
 #: Seconds between two plain lines when no tenth was reached meanwhile.
 LINE_INTERVAL_S = 5.0
+#: Least time between two redraws of a terminal's status line by steps [s] (a task's start always draws).
+REDRAW_S = 0.1
 #: Width of the status line when the terminal's cannot be read [characters].
 FALLBACK_WIDTH = 100
 
@@ -114,15 +116,22 @@ class Reporter:
         Seconds, monotonic (``time.monotonic``).
     interval_s : float
         Seconds between two plain lines when no task reached another tenth of its total.
+    redraw_s : float
+        Least seconds between two redraws of the terminal line by steps (>= 0).
     """
 
     def __init__(self, stream: TextIO | None = None, *, mode: Mode = "auto",
-                 clock: Callable[[], float] = time.monotonic, interval_s: float = LINE_INTERVAL_S) -> None:
+                 clock: Callable[[], float] = time.monotonic, interval_s: float = LINE_INTERVAL_S,
+                 redraw_s: float = REDRAW_S) -> None:
         if mode not in ("auto", "terminal", "lines", "quiet"):
             raise ConfigError(f"mode must be one of auto, terminal, lines, quiet, got {mode!r}")
         if not interval_s > 0:
             raise ConfigError(f"interval_s must be > 0, got {interval_s!r}")
+        if not redraw_s >= 0:
+            raise ConfigError(f"redraw_s must be >= 0, got {redraw_s!r}")
         self._stream, self.mode, self.clock, self.interval_s = stream, mode, clock, interval_s
+        self.redraw_s = redraw_s
+        self._drawn_s = float("-inf")
         self.tasks: list[Task] = []
         self._last_line_s = float("-inf")
         self._drawn = False  # a status line is on the terminal
@@ -148,7 +157,7 @@ class Reporter:
         self.tasks.append(opened)
         if len(self.tasks) == 1 and self.style() == "terminal":
             _guard_stdout(self)
-        self._show(first=len(self.tasks) == 1)
+        self._show(first=True)
         return opened
 
     def changed(self, changed: Task) -> None:
@@ -205,11 +214,11 @@ class Reporter:
             return
         now_s = self.clock()
         if style == "terminal":
-            if not self._held:
+            if not self._held and (first or not self._drawn or now_s - self._drawn_s >= self.redraw_s):
                 self._write(f"\r{self.status(now_s)[:max(10, self._width() - 1)]}\x1b[K")
-                self._drawn = True
+                self._drawn, self._drawn_s = True, now_s
             return
-        if first or tenth or now_s - self._last_line_s >= self.interval_s:
+        if (first and len(self.tasks) == 1) or tenth or now_s - self._last_line_s >= self.interval_s:
             for open_task in self.tasks:
                 open_task.tenths_shown = open_task.tenths()
             self._last_line_s = now_s
