@@ -8,7 +8,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test"]),
-    package_data={PACKAGE: ["py.typed"]},  # typed (PEP 561): mypy.ini checks it strict
+    package_data={PACKAGE: ["py.typed", "live/layout.json"]},  # typed (PEP 561): mypy.ini checks it strict
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -29,6 +29,7 @@ setup(
             "composed = cnc_tools.nodes.composed_host:main",
             "replay = cnc_tools.nodes.replay_node:main",
             "lifecycle_manager = cnc_tools.nodes.lifecycle_manager:main",
+            "live = cnc_tools.live.ros:main",
         ],
     },
 )

@@ -7,6 +7,7 @@ from pathlib import Path
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.topics import CLOCK, DIAGNOSTICS
 from cnc_tools.bagio.replay import Recording, ReplayConfig, ReplaySchedule, load_recording
+from cnc_tools.live.options import add_live_arguments, replay_live
 
 #: Types of the topics a replay does not wait for readers of unless named by --topics: the run's clock and
 #: statuses, which no stage of a graph reads (nothing may ever read them).
@@ -31,6 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--wait-timeout", type=float, default=WAIT_TIMEOUT_S, metavar="S",
                         help=f"give up (exit 3) when the readers are not there within S seconds "
                              f"(default {WAIT_TIMEOUT_S:g})")
+    add_live_arguments(parser, rate=False)
 
 
 def replay(args: argparse.Namespace) -> int:
@@ -48,7 +50,8 @@ def replay(args: argparse.Namespace) -> int:
     if args.wait_for_subscribers:
         print(f"waiting up to {args.wait_timeout:g} s for {args.wait_for_subscribers} reader(s) of each of "
               f"{', '.join(awaited)}", flush=True)
-    code = _spin(recording, config, args.wait_for_subscribers, awaited, args.wait_timeout)
+    with replay_live(args, list(recording.topics)) as readers:
+        code = _spin(recording, config, readers, awaited, args.wait_timeout)
     if code == 0 and not recording.integrity.complete:
         return 1
     return code

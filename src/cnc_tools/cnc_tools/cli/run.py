@@ -9,6 +9,7 @@ from typing import Any
 
 from cnc_contour_control.core.errors import CncError
 from cnc_tools.cli.common import parse_overrides
+from cnc_tools.live.options import add_live_arguments, engine_live, graph_live
 from cnc_tools.runs.backends import run_on_engine
 from cnc_tools.runs.compose import COMPOSE_MODES
 from cnc_tools.runs.engine import EngineFault
@@ -35,6 +36,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         "configure and activate them (default: they autostart)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a scenario key, e.g. --set servo.law_params.kp=3 --set mode=realtime")
+    add_live_arguments(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -47,7 +49,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"running {scenario.name} in-process (engine, T = {scenario.sample_time_s} s, "
               f"{scenario.duration_s:.2f} s simulated) into {run_dir}", flush=True)
         try:
-            record = run_on_engine(scenario, run_dir)
+            with engine_live(args, scenario) as live:
+                record = run_on_engine(scenario, run_dir, **live)
         except EngineFault as fault:  # the folder holds every tick before the fault: scored, verdict faulted
             record = fault.record
         print_summary(scenario.name, "engine", record.summary)
@@ -57,8 +60,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"running {scenario.name} through the node graph ({scenario.mode}, T = {scenario.sample_time_s} s, "
           f"{scenario.duration_s:.2f} s simulated, compose {args.compose}) in namespace {namespace}, "
           f"recording to {run_dir / 'bag'}", flush=True)
-    result = run_graph(scenario, run_dir, record=True, on_poll=Progress(run_dir / "summary.json", scenario.duration_s),
-                       namespace=namespace, compose=args.compose, managed=args.managed)
+    with graph_live(args, namespace) as live_readers:
+        result = run_graph(scenario, run_dir, record=True, on_poll=Progress(run_dir / "summary.json",
+                                                                            scenario.duration_s),
+                           namespace=namespace, compose=args.compose, managed=args.managed,
+                           extra_subscribers=live_readers)
     print_summary(scenario.name, "node graph", result.summary)
     if result.faults or result.bag_path is None:
         return 1

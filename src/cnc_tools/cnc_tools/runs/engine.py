@@ -99,12 +99,17 @@ def build_stages(scenario: Scenario, pipeline: Pipeline, stamps_ns: IntArray) ->
     return stages
 
 
+#: Called after the stages answered tick k, before the plant closes it: (the board, the stages). A live view.
+TickObserver = Callable[[Board, list[EngineStage]], None]
+
+
 def run_engine(scenario: Scenario, clock: Callable[[], float] | None = None,
-               run_dir: Path | None = None) -> RunRecord:
+               run_dir: Path | None = None, on_tick: TickObserver | None = None) -> RunRecord:
     """Simulate ``scenario`` in-process and return its run record.
 
     ``clock`` (wall seconds) only times the run; ``run_dir`` becomes the
-    record's ``source`` (where a run folder is written).
+    record's ``source`` (where a run folder is written); ``on_tick`` sees every
+    tick (``cnc_tools.live.engine`` paces the run and streams it).
     """
     wall = clock or time.perf_counter
     pipeline = scenario.pipeline()
@@ -114,7 +119,7 @@ def run_engine(scenario: Scenario, clock: Callable[[], float] | None = None,
     started = wall()
     fault: FaultError | None = None
     try:
-        _tick_loop(stages, stamps_ns, sample_ns)
+        _tick_loop(stages, stamps_ns, sample_ns, on_tick)
     except FaultError as err:
         fault = err
     wall_time_s = wall() - started
@@ -127,7 +132,8 @@ def run_engine(scenario: Scenario, clock: Callable[[], float] | None = None,
     return record
 
 
-def _tick_loop(stages: list[EngineStage], stamps_ns: IntArray, sample_ns: int) -> None:
+def _tick_loop(stages: list[EngineStage], stamps_ns: IntArray, sample_ns: int,
+               on_tick: TickObserver | None = None) -> None:
     """Every tick: the plant's state opens it, the other stages answer in order, the plant closes it.
 
     The plant's :meth:`PlantStage.advance` closes tick k and opens tick k+1
@@ -139,6 +145,8 @@ def _tick_loop(stages: list[EngineStage], stamps_ns: IntArray, sample_ns: int) -
     board = Board(dt_s=sample_ns / NS_PER_S)
     plant.observe(board)
     answers, advance = [stage.step for stage in stages[1:]], plant.advance
+    if on_tick is not None:
+        answers.append(lambda board: on_tick(board, stages))
     if len(answers) == 2:  # the core pipeline (interpolator, servos): the same calls, no inner loop
         first, second = answers
         for k, stamp_ns in enumerate(stamps_ns.tolist()):

@@ -207,6 +207,11 @@ class SampledInterpolatorStage:
         board.ref_velocity_m_s = sample.velocity_m_s.tolist()
         board.ref_acceleration_m_s2 = sample.acceleration_m_s2.tolist()
 
+    def path_fields(self, tick: int) -> tuple[float, int, float, bool]:
+        """Tick ``tick``'s path length [m], segment, feed [m/s] and done (the rest of ``reference``; a live view)."""
+        x = self._samples[tick]
+        return float(x.path_length_m), int(x.segment_index), float(x.feed_m_s), bool(x.done)
+
     def finish(self) -> None:
         """Nothing to do after the run."""
 
@@ -237,6 +242,12 @@ class VectorisedInterpolatorStage:
     def step(self, board: Board) -> None:
         """Put the next tick's reference on the board."""
         board.ref_position_m, board.ref_velocity_m_s, board.ref_acceleration_m_s2 = next(self._rows)
+
+    def path_fields(self, tick: int) -> tuple[float, int, float, bool]:
+        """Tick ``tick``'s path length [m], segment, feed [m/s] and done (the rest of ``reference``; a live view)."""
+        t = self._trajectory
+        return (float(t.path_length_m[tick]), int(t.segment_index[tick]), float(t.feed_m_s[tick]),
+                bool(t.done[tick]))
 
     def finish(self) -> None:
         """Nothing to do after the run."""
@@ -295,6 +306,12 @@ class ServoStage:
             commands.append(row[0])
         if self._trips:
             self._check_trips(board)
+
+    def latest_parts(self) -> list[dict[str, float]]:
+        """The last tick's command parts per axis (:class:`ServoOutput`'s fields; a live view)."""
+        width = len(_PARTS)
+        rows = self._flat[-width * len(self.servos):]
+        return [dict(zip(_PARTS, rows[k * width:(k + 1) * width])) for k in range(len(self.servos))]
 
     def finish(self) -> None:
         """Nothing to do after the run."""
