@@ -193,9 +193,9 @@ def write_figures(plan: Plan, results: Mapping[str, Result], sweep: Sequence[Map
                                                     out / "disturbance_responses_x.png", plan.grid_points))
     paths.append(figures.plot_sweep(sweep, predictions, out / "fd_sweep.png"))
     step_keys = [f"step{100 * o:+.0f}%/{law}{suffix}" for o in plan.step_offsets for law in plan.step_laws
-                 for suffix in (("", "/online") if law in PDC_LAWS else ("",))]
+                 for suffix in (("", "/online", "/tracked") if law in PDC_LAWS else ("",))]
     paths.append(figures.plot_traces(results, step_keys, f"spindle step at {plan.step_at_s:g} s, PDC at its "
-                                     "1500 rpm design and redesigned on line", out / "spindle_step.png"))
+                                     "1500 rpm design, redesigned on line and tracking f_d", out / "spindle_step.png"))
     return paths
 
 

@@ -139,17 +139,17 @@ def sweep_cases(plan: Plan) -> list[Case]:
 
 def step_cases(plan: Plan) -> list[Case]:
     """A spindle step of ±10 % at :attr:`Plan.step_at_s`: the laws at their 1500 rpm design, and the PDC laws
-    redesigned on line (``/online``); each also without the encoder (``/noenc``: the recovery time's runs)."""
+    redesigned on line (``/online``: following the schedule; ``/tracked``: estimating f_d, no schedule); each
+    also without the encoder (``/noenc``: the recovery time's runs)."""
     cases = []
     for offset in plan.step_offsets:
         step, group = (plan.step_at_s, data.SPINDLE_RPM * (1.0 + offset)), f"step{100 * offset:+.0f}%"
         for law in plan.step_laws:
-            for follow in (False, True) if law in PDC_LAWS else (False,):
-                key = f"{group}/{law}" + ("/online" if follow else "")
-                cases += [Case(key, "circle", law, step=step, duration_s=plan.side_s, keep_trace=True,
-                               follow=follow),
+            for suffix in ("", "/online", "/tracked") if law in PDC_LAWS else ("",):
+                key, how = f"{group}/{law}{suffix}", {"follow": suffix == "/online", "track": suffix == "/tracked"}
+                cases += [Case(key, "circle", law, step=step, duration_s=plan.side_s, keep_trace=True, **how),
                           Case(f"{key}/noenc", "circle", law, step=step, duration_s=plan.side_s, keep_trace=True,
-                               follow=follow, encoder=False)]
+                               encoder=False, **how)]
     return cases
 
 

@@ -1,5 +1,6 @@
 """The PDC redesigned on line (the servo follows the spindle speed it commands): the held ±5 % goal and the
-±10 % step with its recovery time, beside the figures without redesign.
+±10 % step with its recovery time, beside the figures without redesign and with f_d tracked (no schedule,
+``track_fd``: :mod:`.tracked`).
 
 - held: the circle with the spindle held ±5 % off the 1500 rpm design; removal of the f_d line against the
   P loop, the law at its design (``/``), and following the spindle (``/online``: it redesigns at tick 0);
@@ -94,7 +95,7 @@ def step_rows(results: Results, plan: Plan) -> list[dict[str, Any]]:
         group = f"step{100 * offset:+.0f}%"
         for law in (name for name in plan.step_laws if name in PDC_LAWS):
             row: dict[str, Any] = {"step": offset, "law": law, "label": METHODS[law]}
-            for reading, suffix in (("design", ""), ("online", "/online")):
+            for reading, suffix in (("design", ""), ("online", "/online"), ("tracked", "/tracked")):
                 row[f"removal_{reading}"] = _removal(results, f"{group}/{law}{suffix}", f"{group}/p")
                 row[f"recovery_s_{reading}"] = step_recovery_s(results, f"{group}/{law}{suffix}/noenc",
                                                                f"{group}/p/noenc", plan.step_at_s)
@@ -110,8 +111,10 @@ def print_steps(rows: Sequence[Mapping[str, Any]], plan: Plan) -> None:
           f"redesigned on line; removal at the new f_d from the step + 0.3 s; recovery: back to >= "
           f"{100 * data.GOAL_SPINDLE_REMOVAL:.0f} % for good (sliding {1e3 * RECOVERY_WINDOW_S:g} ms lock-in, "
           f"no encoder; goal <= {RECOVERY_GOAL_S:g} s)")
+    print("  tracked: no schedule, the PDC estimates f_d from its residual (track_fd, .tracked)")
     print(format_table(["step", "stack", "removed (design)", "recovery (design)", "removed (on line)",
-                        "recovery (on line)", "goal"],
+                        "recovery (on line)", "removed (tracked)", "recovery (tracked)", "goal"],
                        [[f"{100 * r['step']:+.0f} %", r["label"], _pct(r["removal_design"]),
                          _seconds(r["recovery_s_design"]), _pct(r["removal_online"]),
-                         _seconds(r["recovery_s_online"]), goal_text(r["met"])] for r in rows]))
+                         _seconds(r["recovery_s_online"]), _pct(r["removal_tracked"]),
+                         _seconds(r["recovery_s_tracked"]), goal_text(r["met"])] for r in rows]))
