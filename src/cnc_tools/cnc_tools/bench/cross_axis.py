@@ -29,6 +29,7 @@ from typing import Any
 from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.bench.lockstep import GraphFigures, graph_run, measure_graph
 from cnc_tools.runs.folders import project_root, timestamp
+from cnc_tools.runs.progress import track
 from cnc_tools.runs.scenario import Scenario, load_scenario
 
 SCENARIO = "scenarios/paper000_circle_high.yaml"
@@ -102,7 +103,7 @@ def cross_axis_bench(options: argparse.Namespace) -> int:
     startup = {name: _startup_cpu_s(s, run_dir / f"{name}-startup") for name, s in cases.items()}
     figures: dict[str, list[GraphFigures]] = {name: [] for name in cases}
     per_node: dict[str, list[dict[str, float]]] = {name: [] for name in cases}
-    for k in range(rounds):
+    for k in track(range(rounds), "cross-axis rounds"):
         order = list(cases) if k % 2 == 0 else list(reversed(cases))
         print(f"  round {k + 1}/{rounds}: {' then '.join(order)}", flush=True)
         for name in order:

@@ -27,6 +27,7 @@ from typing import Any
 from cnc_contour_control.core.errors import CncError
 from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.runs.folders import project_root
+from cnc_tools.runs.progress import track
 
 #: ``--against``'s default in a repository without a tag before HEAD: the commit before this one.
 PREVIOUS_COMMIT = "HEAD~1"
@@ -146,7 +147,7 @@ def engine_bench(options: argparse.Namespace) -> int:
         ours_src = root / "src"
         ours: list[float] = []
         theirs: list[float] = []
-        for index in range(rounds):
+        for index in track(range(rounds), "engine rounds"):
             print(f"  round {index + 1}/{rounds} ...", flush=True)
             theirs += time_engine(theirs_src, theirs_src.parent / SCENARIO, sample_time_s, repeats)
             ours += time_engine(ours_src, root / SCENARIO, sample_time_s, repeats)

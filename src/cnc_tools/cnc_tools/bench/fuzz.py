@@ -23,6 +23,7 @@ from typing import Any
 from cnc_contour_control.core.config import require_choice
 from cnc_tools.analysis.tables import format_table, machine, write_json
 from cnc_tools.bench import fuzz_inputs as inputs
+from cnc_tools.runs.progress import track
 
 #: An input running longer than this is a hang [s].
 HANG_BOUND_S = 2.0
@@ -109,7 +110,7 @@ def fuzz_kind(kind: Kind, count: int, seed: int) -> Tally:
     previous = signal.signal(signal.SIGALRM, _alarm)
     start_s = time.perf_counter()
     try:
-        for _ in range(count):
+        for _ in track(range(count), "fuzz inputs"):
             run_one(kind, kind.generate(rng), tally)
     finally:
         signal.signal(signal.SIGALRM, previous)
@@ -143,7 +144,7 @@ def _plan(options: argparse.Namespace) -> dict[str, int]:
 def fuzz_bench(options: argparse.Namespace) -> int:
     """Fuzz each chosen kind; print the table and the first findings; 1 when the goal is not met."""
     plan, seed = _plan(options), int(getattr(options, "seed", 0) or 0)
-    tallies = {name: fuzz_kind(KINDS[name], count, seed) for name, count in plan.items()}
+    tallies = {name: fuzz_kind(KINDS[name], count, seed) for name, count in track(plan.items(), "fuzz kinds")}
     print(f"fuzz: seed {seed}, hang bound {HANG_BOUND_S} s")
     print(format_table(["kind", "inputs", "accepted (sensible)", "tracebacks", "hangs", "nonsense accepted",
                         "seconds", "goal 0/0/0"],

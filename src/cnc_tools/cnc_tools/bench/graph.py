@@ -41,6 +41,7 @@ from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import POLL_S
 from cnc_tools.runs.lifetime import check_stop, die_with_parent, runner_stop_signals, stop_process
+from cnc_tools.runs.progress import track
 
 SCENARIO = "scenarios/paper000_circle_high.yaml"
 SAMPLE_TIMES_S = (0.01, 0.001)
@@ -259,7 +260,7 @@ def graph_bench(options: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix="cnc_bench_graph_") as tmp:
         sides = {"theirs": other_side(commit, root, Path(tmp)),
                  "ours": Side("this tree", root / "src", root / SCENARIO, dict(os.environ))}
-        for index in range(plan.rounds):
+        for index in track(range(plan.rounds), "graph rounds"):
             order = ("theirs", "ours") if index % 2 == 0 else ("ours", "theirs")
             for key in order:
                 runs = run_side(sides[key], run_dir / f"round{index + 1}" / key, record, plan)

@@ -34,6 +34,7 @@ from cnc_tools.analysis.tables import format_table, goal_text, machine, write_js
 from cnc_tools.bench.hop_terms import HOP_RATIO_GOAL, HOPS, scenario_at
 from cnc_tools.runs.dds import profile_path
 from cnc_tools.runs.folders import project_root, timestamp
+from cnc_tools.runs.progress import track
 
 PROFILE_VARIABLES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
 SHIPPED = "shipped"
@@ -181,8 +182,8 @@ def hops_bench(options: argparse.Namespace) -> int:
     load_at_start = machine()["load_average_1min"]
     print(f"hops bench ({'quick' if options.quick else 'full'}), {plan.rounds} rounds, profiles "
           f"{', '.join(profiles)}; run files in {run_dir}", flush=True)
-    rounds = [measure_round(i, name, path, run_dir, plan)
-              for i in range(plan.rounds) for name, path in profiles.items()]
+    pairs = [(i, name, path) for i in range(plan.rounds) for name, path in profiles.items()]
+    rounds = [measure_round(i, name, path, run_dir, plan) for i, name, path in track(pairs, "hops rounds")]
     figures = {"bench": "hops", "quick": options.quick, "plan": asdict(plan), "machine": machine(),
                "profiles": {name: str(path) for name, path in profiles.items()}, "hops_per_tick": HOPS,
                "goal": HOP_RATIO_GOAL, "rounds": [{**asdict(r), "graph_over_bare": r.graph_over_bare,
