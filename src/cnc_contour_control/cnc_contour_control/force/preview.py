@@ -26,6 +26,8 @@ inside its window and hands back to the feedback law at its end.
 """
 from __future__ import annotations
 
+import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -167,6 +169,19 @@ def plan_step(model: TurningModelConfig, schedule: DepthSchedule, step_s: float,
 
 def plan_schedule(model: TurningModelConfig, schedule: DepthSchedule, reference_n: float, period_s: float,
                   switch: QuantiserConfig, config: PreviewConfig = PreviewConfig()) -> tuple[StepPlan, ...]:
-    """One :func:`plan_step` per depth change of ``schedule`` to a depth > 0, in time order."""
-    return tuple(plan_step(model, schedule, t, reference_n, period_s, switch, config)
-                 for t in schedule.step_times_s() if schedule.depth_mm(t) > 0.0)
+    """One :func:`plan_step` per depth change of ``schedule`` to a depth > 0, in time order, windows apart.
+
+    A step inside an earlier plan's window is in that plan already (its model runs the schedule through
+    the whole window) and gets none; a step whose window would open inside an earlier one opens it at that
+    window's end (a shorter lead). So the plans never overlap and a schedule of many close steps costs one
+    linear program per window, not one per step.
+    """
+    plans: list[StepPlan] = []
+    for t in schedule.step_times_s():
+        end_s = plans[-1].end_s if plans else -math.inf
+        if schedule.depth_mm(t) <= 0.0 or t < end_s - 1e-9:
+            continue
+        lead_s = min(config.before_s, max(t - end_s, 0.0))
+        window = config if lead_s == config.before_s else dataclasses.replace(config, before_s=lead_s)
+        plans.append(plan_step(model, schedule, t, reference_n, period_s, switch, window))
+    return tuple(plans)
