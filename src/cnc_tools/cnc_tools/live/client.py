@@ -43,7 +43,7 @@ class LiveClient:
 
         protocols = [SUBPROTOCOL]
         self.socket = connect(url, subprotocols=protocols,  # type: ignore[arg-type]  # a NewType of str there
-                              open_timeout=timeout_s, max_size=None)
+                              open_timeout=timeout_s, max_size=None).__enter__()  # closed by close()
         self.server_info: dict[str, Any] = {}
         self.channels: dict[str, dict[str, Any]] = {}
         self._by_subscription: dict[int, str] = {}

@@ -1,0 +1,125 @@
+"""The live view: peak-keeping decimation, the server's address rule, and an engine run watched by a protocol client.
+
+The client (``cnc_tools.live.client``, websockets, no browser) subscribes before the first tick of a paced engine
+run at T = 1 ms and gets, sample for sample, the bag's ``contour_error`` messages (the same CDR bytes), the
+scorer's exact contour error, and peak streams that keep the bag's contour-error peak exactly.
+"""
+from __future__ import annotations
+
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from mcap.reader import make_reader
+from rosbags.highlevel import AnyReader
+
+from cnc_contour_control.core.errors import ConfigError
+from cnc_tools.analysis.scoring import contour_error_series
+from cnc_tools.bagio.bag import read_bag
+from cnc_tools.bagio.typestore import project_typestore
+from cnc_tools.live.decimate import WINDOW_NS, PeakDecimator
+from cnc_tools.live.engine import check_rate
+from cnc_tools.live.server import LiveConfig, LiveServer
+from cnc_tools.live.watch import Watched, watch_engine_run
+from cnc_tools.runs.scenario import load_scenario
+
+ROOT = Path(__file__).resolve().parents[3]
+SCENARIO = ROOT / "scenarios" / "paper001_circle.yaml"
+CHANNELS = ("/cnc/joint_states", "/cnc/reference", "/cnc/contour_error", "/cnc/servo/x/command",
+            "/live/contour_error/exact", "/live/contour_error/exact/peaks", "/live/contour_error/estimated/peaks",
+            "/live/servo/x/peaks", "/live/scene", "/live/log", "/live/feed_override", "/live/xy")
+PROPERTY = settings(max_examples=40, deadline=None)
+
+
+# --------------------------------------------------------------------------- decimation
+@PROPERTY
+@given(st.lists(st.floats(-1e3, 1e3, allow_nan=False), min_size=1, max_size=300), st.integers(1, 50))
+def test_the_peak_streams_keep_every_window_extreme_and_send_at_most_two_per_window(values: list[float],
+                                                                                   per_window: int) -> None:
+    decimator = PeakDecimator[tuple[int, float]](window_ns=per_window)
+    kept = [s for k, v in enumerate(values) for s in decimator.push(k, v, (k, v))] + decimator.flush()
+    for window in range(0, len(values), per_window):
+        chunk = values[window:window + per_window]
+        in_window = [v for k, v in kept if window <= k < window + per_window]
+        assert min(chunk) in in_window and max(chunk) in in_window and len(in_window) <= 2
+    assert [k for k, _ in kept] == sorted(k for k, _ in kept)
+
+
+def test_bad_live_options_name_the_option_the_bound_and_the_value() -> None:
+    with pytest.raises(ConfigError, match=r"--live-port must be in \[0, 65535\], got 70000"):
+        LiveConfig(port=70000)
+    with pytest.raises(ConfigError, match=r"--live-rate must be in \[0.01, 1000\], got 0"):
+        check_rate(0.0)
+    with pytest.raises(ConfigError, match="window_ns must be > 0, got 0"):
+        PeakDecimator(0)
+
+
+def test_only_another_address_than_loopback_is_warned_about() -> None:
+    warned = io.StringIO()
+    with LiveServer(LiveConfig(port=0), warn=warned):
+        pass
+    assert warned.getvalue() == ""
+    with LiveServer(LiveConfig(host="0.0.0.0", port=0), warn=warned) as server:
+        assert server.port > 0
+    assert "WARNING" in warned.getvalue() and "NOT loopback" in warned.getvalue()
+
+
+# --------------------------------------------------------------------------- an engine run, watched
+@pytest.fixture(scope="module")
+def watched(tmp_path_factory: pytest.TempPathFactory) -> Watched:
+    """paper 001's circle with the window estimator, 0.4 s at T = 1 ms, paced in real time and watched."""
+    scenario = load_scenario(SCENARIO, {"duration_s": 0.4, "estimator": {"method": "window"}})
+    return watch_engine_run(scenario, tmp_path_factory.mktemp("live") / "run", CHANNELS)
+
+
+def _bag_raw(bag: Path, topic: str) -> list[bytes]:
+    with AnyReader([bag], default_typestore=project_typestore()) as reader:
+        connections = [c for c in reader.connections if c.topic == topic]
+        return [bytes(raw) for _, _, raw in reader.messages(connections=connections)]
+
+
+def test_ros_channels_carry_the_bags_ros2msg_schemas(watched: Watched) -> None:
+    with open(next((watched.record.source / "bag").glob("*.mcap")), "rb") as stream:
+        summary = make_reader(stream).get_summary()
+    assert summary is not None
+    in_bag = {c.topic: summary.schemas[c.schema_id] for c in summary.channels.values()}
+    for topic in ("/cnc/joint_states", "/cnc/reference", "/cnc/contour_error", "/cnc/servo/x/command"):
+        channel, schema = watched.channels[topic], in_bag[topic]
+        assert (channel["encoding"], channel["schemaEncoding"]) == ("cdr", "ros2msg")
+        assert (channel["schemaName"], channel["schema"]) == (schema.name, schema.data.decode())
+
+
+def test_contour_error_messages_are_the_bags_sample_for_sample(watched: Watched) -> None:
+    bag = watched.record.source / "bag"
+    for topic in ("/cnc/contour_error", "/cnc/joint_states", "/cnc/servo/x/command"):
+        live = [r.payload for r in watched.of(topic)]
+        assert len(live) == watched.record.summary["ticks"] == 401
+        assert live == _bag_raw(bag, topic), topic
+
+
+def test_the_exact_contour_error_is_the_scorers_and_its_peak_stream_keeps_the_peak(watched: Watched) -> None:
+    series, _ = contour_error_series(read_bag(watched.record.source / "bag"))
+    live = {m["stamp_ns"]: m["contour_error_um"] for m in map(lambda r: r.json(),
+                                                                watched.of("/live/contour_error/exact"))}
+    scored = dict(zip(series.stamp_ns.tolist(), (series.error_m * 1e6).tolist()))
+    assert scored and all(live[stamp] == value for stamp, value in scored.items())
+    peaks = [r.json() for r in watched.of("/live/contour_error/exact/peaks")]
+    assert max(abs(p["contour_error_um"]) for p in peaks) == max(abs(v) for v in live.values())
+    per_window = np.bincount([p["stamp_ns"] // WINDOW_NS for p in peaks])
+    assert per_window.max() <= 2 and len(peaks) < len(live) / 5  # <= 100 per simulated second at T = 1 ms
+
+
+def test_the_estimated_peak_stream_keeps_the_bags_estimated_peak(watched: Watched) -> None:
+    estimate = watched.record.contour_error
+    assert estimate is not None
+    peaks = [r.json()["contour_error_um"] for r in watched.of("/live/contour_error/estimated/peaks")]
+    assert max(map(abs, peaks)) == float(np.abs(estimate.contour_error_m * 1e6).max())
+
+
+def test_the_scene_draws_the_program_and_the_run_paces_at_real_time(watched: Watched) -> None:
+    assert watched.of("/live/scene") and watched.of("/live/log")
+    stamps = [r.arrived_ns for r in watched.of("/cnc/joint_states")]
+    assert 0.3 <= (stamps[-1] - stamps[0]) * 1e-9 <= 5.0  # 0.4 s simulated at rate 1 (the load may add)
