@@ -102,8 +102,8 @@ def test_contour_error_messages_are_the_bags_sample_for_sample(watched: Watched)
 
 def test_the_exact_contour_error_is_the_scorers_and_its_peak_stream_keeps_the_peak(watched: Watched) -> None:
     series, _ = contour_error_series(read_bag(watched.record.source / "bag"))
-    live = {m["stamp_ns"]: m["contour_error_um"] for m in map(lambda r: r.json(),
-                                                                watched.of("/live/contour_error/exact"))}
+    exact = [r.json() for r in watched.of("/live/contour_error/exact")]
+    live = {m["stamp_ns"]: m["contour_error_um"] for m in exact}
     scored = dict(zip(series.stamp_ns.tolist(), (series.error_m * 1e6).tolist()))
     assert scored and all(live[stamp] == value for stamp, value in scored.items())
     peaks = [r.json() for r in watched.of("/live/contour_error/exact/peaks")]
