@@ -52,7 +52,8 @@ def close_loop(regulator: ForceRegulator, loop: ModelLoop, seconds: float, dt_s:
 # ---------------------------------------------------------------- registry and bad input
 def test_registry_names_and_unknowns() -> None:
     assert sorted(FORCE_LAWS) == ["adaptive", "pi", "smc", "smc_integral"]
-    with pytest.raises(ConfigError, match=r"force_law must be one of \['adaptive', 'pi', 'smc', 'smc_integral'\], got 'mpc'"):
+    names = r"\['adaptive', 'pi', 'smc', 'smc_integral'\]"
+    with pytest.raises(ConfigError, match=rf"force_law must be one of {names}, got 'mpc'"):
         make_force_law("mpc")
     with pytest.raises(ConfigError, match="unknown key"):
         make_force_law("smc", {"lambda": 20.0})
