@@ -132,6 +132,7 @@ class Reporter:
         self._stream, self.mode, self.clock, self.interval_s = stream, mode, clock, interval_s
         self.redraw_s = redraw_s
         self._drawn_s = float("-inf")
+        self._style: Literal["terminal", "lines", "quiet"] = "quiet"  # resolved when the outermost task opens
         self.tasks: list[Task] = []
         self._last_line_s = float("-inf")
         self._drawn = False  # a status line is on the terminal
@@ -155,15 +156,17 @@ class Reporter:
         """Open a task (use it in a ``with`` block); it nests inside the tasks open now."""
         opened = Task(self, label, total)
         self.tasks.append(opened)
-        if len(self.tasks) == 1 and self.style() == "terminal":
-            _guard_stdout(self)
+        if len(self.tasks) == 1:  # the style holds until the outermost task ends (one look at the stream)
+            self._style = self.style()
+            if self._style == "terminal":
+                _guard_stdout(self)
         self._show(first=True)
         return opened
 
     def changed(self, changed: Task) -> None:
         """A task stepped: redraw, or write a line when the outermost task with a total reached another tenth
         of it, or when the interval says so."""
-        if changed in self.tasks:
+        if self._style != "quiet" and changed in self.tasks:
             leading = next((t for t in self.tasks if t.total is not None), None)
             self._show(tenth=changed is leading and changed.tenths() > changed.tenths_shown)
 
@@ -171,7 +174,7 @@ class Reporter:
         """A task ended: its line ends with ``done`` when it was the outermost; an inner one clears the line."""
         if task not in self.tasks:
             return
-        style = self.style()
+        style = self._style
         outermost = self.tasks[0] is task
         if outermost and style == "terminal":
             line = self.status(self.clock(), ending=True)[:max(10, self._width() - 1)]
@@ -193,7 +196,7 @@ class Reporter:
     def after_output(self, line_ended: bool) -> None:
         """The command wrote to the terminal: draw the status line again once its output ended a line."""
         self._held = not line_ended
-        if line_ended and self.tasks and self.style() == "terminal":
+        if line_ended and self.tasks and self._style == "terminal":
             self._show()
 
     def status(self, now_s: float, *, ending: bool = False) -> str:
@@ -209,7 +212,7 @@ class Reporter:
         return " · ".join(parts)
 
     def _show(self, *, first: bool = False, tenth: bool = False) -> None:
-        style = self.style()
+        style = self._style
         if style == "quiet":
             return
         now_s = self.clock()
