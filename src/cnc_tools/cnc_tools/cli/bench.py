@@ -24,8 +24,9 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help="run in-process instead of the node graph (paper benches)")
     parser.add_argument("--seeds", type=int, help="plant seeds 1..N per row (paper benches)")
     parser.add_argument("--workers", type=int, help="local processes for a bench's independent runs "
-                        "(paper003; default all cores)")
-    parser.add_argument("--scheduler", help="Dask scheduler tcp://host:port for a bench's independent runs (paper003)")
+                        "(paper003, best; default all cores)")
+    parser.add_argument("--scheduler",
+                        help="Dask scheduler tcp://host:port for a bench's independent runs (paper003, best)")
     add_engine_options(parser)
     add_graph_options(parser)
     add_hops_options(parser)
