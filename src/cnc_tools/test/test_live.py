@@ -7,6 +7,7 @@ scorer's exact contour error, and peak streams that keep the bag's contour-error
 from __future__ import annotations
 
 import io
+import json
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,7 @@ from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.typestore import project_typestore
 from cnc_tools.live.decimate import WINDOW_NS, PeakDecimator
 from cnc_tools.live.engine import check_rate
+from cnc_tools.live.layout import LAYOUT_PATH, build_layout, layout_topics
 from cnc_tools.live.server import LiveConfig, LiveServer
 from cnc_tools.live.watch import Watched, watch_engine_run
 from cnc_tools.runs.scenario import load_scenario
@@ -123,3 +125,11 @@ def test_the_scene_draws_the_program_and_the_run_paces_at_real_time(watched: Wat
     assert watched.of("/live/scene") and watched.of("/live/log")
     stamps = [r.arrived_ns for r in watched.of("/cnc/joint_states")]
     assert 0.3 <= (stamps[-1] - stamps[0]) * 1e-9 <= 5.0  # 0.4 s simulated at rate 1 (the load may add)
+
+
+def test_the_shipped_layout_is_current_and_names_only_advertised_channels(watched: Watched) -> None:
+    shipped = json.loads(LAYOUT_PATH.read_text(encoding="utf-8"))
+    assert shipped == build_layout(), "python -m cnc_tools.live.layout writes it again"
+    named = layout_topics(shipped)
+    assert {"/live/xy", "/live/contour_error/exact/peaks", "/live/log", "/live/feed_override"} <= named
+    assert named <= set(watched.channels), sorted(named - set(watched.channels))
