@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cnc_tools.analysis.force import force_figures
+from cnc_tools.analysis.force import STEP_WINDOW_S, force_figures
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.scenario import load_scenario
@@ -47,3 +47,13 @@ def test_samples_before_the_first_schedule_time_are_in_the_first_segment(run: Ru
     figures = force_figures(with_schedule(run, [[0.3, 1.0], [0.5, 2.0]]), 500.0)
     assert figures is not None and figures.segments[0].start_s == 0.0
     assert max(s.peak_n for s in figures.segments) == force_n.max()
+
+
+def test_the_step_overshoot_reads_the_first_half_second_of_a_segment(run: RunRecord) -> None:
+    assert run.cutting_force is not None
+    t_s, force_n = run.cutting_force.stamp_ns * 1e-9, run.cutting_force.force_n[:, 0]
+    figures = force_figures(with_schedule(run, [[0.0, 1.0], [0.2, 1.0], [0.5, 2.0]]), 500.0)
+    assert figures is not None
+    for segment, start_s, end_s in zip(figures.segments, (0.0, 0.2, 0.5), (0.2, 0.5, 1.0)):
+        inside = (t_s >= start_s - 1e-9) & (t_s < min(start_s + STEP_WINDOW_S, end_s) - 1e-9)
+        assert segment.step_overshoot_pct == pytest.approx(100.0 * (force_n[inside].max() / 500.0 - 1.0))

@@ -7,6 +7,10 @@ on the recorded ``cutting_force`` (``force.x``, F_c [N]):
 
 - peak [N] and overshoot [%] = 100 (peak / F_ref − 1), from every sample of the
   segment (a segment of one sample is a row: every sample is in exactly one);
+- step overshoot [%]: the same over the segment's first ``STEP_WINDOW_S``, the
+  step's transient (a steady cycle between two override levels can hold a
+  level whose force lies above the reference: the segment's peak is then the
+  cycle's, not the step's);
 - settling [s]: from the segment's start to the last sample outside
   ±``band_fraction`` F_ref (None: still outside at the segment's end);
 - over the segment's last third: mean [N], ripple (peak to peak) [N] and
@@ -28,6 +32,8 @@ from cnc_tools.run_record import RunRecord
 
 #: Settling band as a fraction of the reference (paper 004's ε).
 BAND_FRACTION = 0.05
+#: The transient of a depth step [s]: issue 12's settling goal.
+STEP_WINDOW_S = 0.5
 
 
 @dataclass(frozen=True)
@@ -38,6 +44,7 @@ class ForceSegment:
     depth_mm: float | None
     peak_n: float
     overshoot_pct: float | None
+    step_overshoot_pct: float | None
     settling_s: float | None
     mean_n: float
     ripple_n: float
@@ -61,10 +68,11 @@ class ForceFigures:
         """A short table for a terminal."""
         ref = "no reference" if self.reference_n is None else f"F_ref {self.reference_n:g} N"
         rows = [f"cutting force ({ref}, settling band ±{100 * self.band_fraction:g} %)",
-                "  from s  depth mm  peak N  overshoot %  settling s  mean N  ripple N  switchings/s"]
+                "  from s  depth mm  peak N  overshoot %  step %  settling s  mean N  ripple N  switchings/s"]
         for s in self.segments:
             rows.append(f"  {s.start_s:6.2f}  {_text(s.depth_mm, '8.2f')}  {s.peak_n:6.1f}  "
-                        f"{_text(s.overshoot_pct, '11.1f')}  {_text(s.settling_s, '10.3f')}  {s.mean_n:6.1f}  "
+                        f"{_text(s.overshoot_pct, '11.1f')}  {_text(s.step_overshoot_pct, '6.1f')}  "
+                        f"{_text(s.settling_s, '10.3f')}  {s.mean_n:6.1f}  "
                         f"{s.ripple_n:8.1f}  {s.switchings_per_s:12.1f}")
         return rows
 
@@ -100,8 +108,9 @@ def _segment(run: RunRecord, window: np.ndarray, start_s: float, depth_mm: float
     if run.feed_override is not None and run.feed_override.applied_ratio.size == t_s.size and t[-1] > t[0]:
         applied = run.feed_override.applied_ratio[window][steady]
         changes = np.count_nonzero(np.diff(applied)) / max(float(t[steady][-1] - t[steady][0]), 1e-9)
-    peak = float(f.max())
+    peak, step_peak = float(f.max()), float(f[t < t[0] + STEP_WINDOW_S].max())
     return ForceSegment(start_s, depth_mm, peak, None if reference_n is None else 100.0 * (peak / reference_n - 1.0),
+                        None if reference_n is None else 100.0 * (step_peak / reference_n - 1.0),
                         None if reference_n is None else _settling_s(t, f, start_s, reference_n, band),
                         float(f[steady].mean()), float(np.ptp(f[steady])), float(changes))
 
