@@ -34,6 +34,8 @@ from cnc_tools.runs.dds import MAX_RANDOM_DOMAIN_ID, loopback_env
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph
+from cnc_tools.runs.progress import Task
+from cnc_tools.runs.progress import task as progress_task
 from cnc_tools.runs.scenario import load_scenario
 
 Report = Callable[[int, fid.FrictionPoint], None]
@@ -322,10 +324,11 @@ def _config(args: argparse.Namespace) -> fid.IdentificationConfig:
                                     window_s=args.window_s)
 
 
-def _progress(total: int) -> Report:
+def _progress(total: int, runs: Task) -> Report:
     def report(index: int, p: fid.FrictionPoint) -> None:
         print(f"  [{index + 1:3d}/{total}] {p.plant_label:<8} V_r = {p.velocity_mm_s:+7.2f} mm/s  "
               f"F_d = {p.friction_dac:+7.2f} DAC  (model {p.model_dac:+7.2f})  {p.status}", flush=True)
+        runs.step()
     return report
 
 
@@ -342,7 +345,8 @@ def identify_friction(args: argparse.Namespace) -> int:
     print(f"identifying axis {config.axis}: {len(config.signed_speeds_mm_s)} speeds × {1 + len(config.seeds)} "
           f"plants = {len(runs)} runs ({how}), K_p = {config.kp_dac_per_count:g}, K = "
           f"{constants.gain_blu_s_per_dac:g} BLU/s per DAC, K_e = {constants.encoder_counts_per_blu:g}", flush=True)
-    points = run_all(runs, constants, config, out_dir, args.engine, args.jobs, _progress(len(runs)))
+    with progress_task("friction runs", len(runs)) as done:
+        points = run_all(runs, constants, config, out_dir, args.engine, args.jobs, _progress(len(runs), done))
     summaries = fcurve.summarise(points)
     return _outputs(args, config, constants, points, summaries, out_dir, runs[-1])
 
