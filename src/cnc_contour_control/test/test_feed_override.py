@@ -16,7 +16,7 @@ from cnc_contour_control.motion.feed_override import (
     planning_limits,
 )
 from cnc_contour_control.motion.geometry import LineSegment, Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator
+from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_contour_control.motion.program import load_program
 
 LIMITS = AxisLimits((0.05, 0.05), (0.5, 0.5))
@@ -95,3 +95,33 @@ def test_random_request_schedules_never_exceed_the_limits(schedule: list) -> Non
     requests = [r for ticks, r in schedule for _ in range(ticks)] + [1.0] * 3000
     positions, _, samples = run(follower(program, config), requests)
     assert_within_limits(positions, samples)
+
+
+def zigzag(turn_deg: float, segments: int = 3, length_m: float = 0.001, feed_m_s: float = 0.02) -> Program:
+    """Lines alternately up and down along x, turning by ``turn_deg`` at every junction."""
+    half = math.radians(0.5 * turn_deg)
+    steps = [[math.cos(half), math.sin(half) * (1 if i % 2 == 0 else -1)] for i in range(segments)]
+    points = np.vstack([np.zeros(2), np.cumsum(length_m * np.array(steps), axis=0)])
+    return Program("zigzag", ("x", "y"), tuple(LineSegment(points[i], points[i + 1], feed_m_s)
+                                               for i in range(segments)))
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(turn_deg=st.floats(20.0, 160.0), tolerance_mm=st.floats(0.002, 0.05),
+       schedule=st.lists(st.tuples(st.integers(1, 400), st.floats(0.1, 2.0)), min_size=1, max_size=6))
+def test_overrides_from_10_to_200_percent_keep_the_tolerance_and_the_limits(
+        turn_deg: float, tolerance_mm: float, schedule: list[tuple[int, float]]) -> None:
+    """A blended zig-zag planned for 200 %: any schedule of requests in [10 %, 200 %] changed at any tick keeps
+    every sample within P of the programmed path and within the velocity and acceleration limits."""
+    config = OverrideConfig(max_ratio=2.0)
+    program = zigzag(turn_deg)
+    interpolator = Interpolator(program, planning_limits(LIMITS, config),
+                                InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True))
+    f = OverrideFollower(interpolator, LIMITS, config)
+    requests = [r for ticks, r in schedule for _ in range(ticks)]
+    requests += [requests[-1]] * int(1.2 * interpolator.duration_s / (0.1 * DT_S) + 100)  # to the end at 10 %
+    positions, _, samples = run(f, requests)
+    assert samples[-1].done
+    assert_within_limits(positions, samples)
+    deviation_m = interpolator.blended.local_deviation_m(positions, [s.segment_index for s in samples])
+    assert np.max(deviation_m) <= tolerance_mm * 1e-3 * (1 + 1e-9)

@@ -8,8 +8,21 @@ import pytest
 
 from cnc_contour_control.motion.geometry import LineSegment, Program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_tools.bench.blending import limit_ratios, limits_for, planning_cost, worst_deviation_m
-from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, polygon, true_circle
+from cnc_tools.bench.blending import (
+    BEST_OPTIONS,
+    JERK_STRIDE,
+    MAX_ACCELERATION_M_S2,
+    MAX_JERK_M_S3,
+    MAX_VELOCITY_M_S,
+    goals,
+    limit_ratios,
+    limits_for,
+    planning_cost,
+    sampled_ratios,
+    worst_deviation_m,
+)
+from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, polygon, ramps_3axis, true_circle, zigzag
+from cnc_tools.bench.blending_override import SCHEDULES, sweep_figures
 from cnc_tools.bench.time_optimal import ProgramPath, time_optimal_s
 
 LIMITS = AxisLimits((0.035, 0.035), (0.5, 0.5))
@@ -22,9 +35,10 @@ def test_toppra_finds_the_trapezoid_of_one_line() -> None:
 
 
 def test_toppra_on_the_circle_is_faster_than_our_half_budget_arc() -> None:
-    """Our arcs keep half the acceleration for the centripetal part; the optimum uses all of it."""
+    """The split budget keeps half the acceleration for the centripetal part; the optimum uses all of it."""
     circle = true_circle()
-    ours = Interpolator(circle, limits_for(circle)).duration_s
+    split = InterpolatorConfig(arc_combined_budget=False, arc_centripetal_fraction=0.5)
+    ours = Interpolator(circle, limits_for(circle), split).duration_s
     optimum = time_optimal_s(circle, limits_for(circle), 2e-4)
     assert optimum < ours < math.sqrt(2.0) * optimum * 1.05
 
@@ -59,3 +73,48 @@ def test_planning_cost_per_segment_does_not_grow_with_the_program() -> None:
     short, long = planning_cost((500, 5000))
     assert long["segments"] == 5000 and long["load_1min"] >= 0.0
     assert long["us_per_segment"] < 3.0 * short["us_per_segment"]
+
+
+def test_the_shipped_planner_defaults_are_the_bench_s_best_options() -> None:
+    defaults = InterpolatorConfig()
+    assert {name: getattr(defaults, name) for name in BEST_OPTIONS} == BEST_OPTIONS
+
+
+def test_sampled_ratios_find_a_cubic_s_jerk_and_an_acceleration_step() -> None:
+    """p = j t^3 / 6 on x: jerk j from the acceleration's and the positions' differences; a step in a: a / dt."""
+    dt_s, jerk = 1e-3, 0.5 * MAX_JERK_M_S3
+    t = np.arange(0.0, 0.04, dt_s)
+    position = np.c_[jerk * t**3 / 6.0, np.zeros_like(t)]
+    velocity, acceleration = np.c_[jerk * t**2 / 2.0, 0 * t], np.c_[jerk * t, 0 * t]
+    ratios = sampled_ratios(position, velocity, acceleration, dt_s, 2)
+    assert ratios["jerk_ratio"] == pytest.approx([0.5, 0.0], abs=1e-6)
+    assert ratios["velocity_ratio"][0] == pytest.approx(jerk * t[-1] ** 2 / 2.0 / MAX_VELOCITY_M_S)
+    step = np.c_[np.where(t >= 0.02, 0.5 * MAX_ACCELERATION_M_S2, 0.0), 0 * t]
+    stepped = sampled_ratios(np.zeros_like(position), np.zeros_like(position), step, dt_s, 2)
+    assert stepped["jerk_ratio"][0] == pytest.approx(0.5 * MAX_ACCELERATION_M_S2 / dt_s / MAX_JERK_M_S3)
+    assert JERK_STRIDE * dt_s <= 0.004  # the positions' third difference spans 4 ms at most
+
+
+def test_the_zigzag_turns_by_150_degrees_and_the_ramps_move_three_axes() -> None:
+    program = zigzag()
+    u = np.array([segment.unit_vector for segment in program.segments])
+    turns = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", u[:-1], u[1:]), -1, 1)))
+    assert turns == pytest.approx(np.full(len(u) - 1, 150.0))
+    ramps = ramps_3axis()
+    assert ramps.n_axes == 3 and np.all(np.abs(ramps.segments[0].unit_vector) > 0.0)
+
+
+def test_goals_read_each_column() -> None:
+    figures = {"program": "pocket", "deviation_over_p": 1.0, "velocity_ratio": [0.6], "acceleration_ratio": [1.0],
+               "jerk_ratio": [3.0], "cycle_s": 10.0, "exact_stop_s": 9.0, "toppra_s": 9.0}
+    assert goals(figures) == {"deviation": True, "v, a": True, "jerk": False, "<= G61": False, "toppra": True}
+    assert goals({**figures, "program": "star-5"})["toppra"] is None
+
+
+def test_the_override_sweep_holds_the_tolerance_and_the_limits_on_a_short_zigzag() -> None:
+    """Requests changed mid-path from 100 % to 200 %, 10 %, 150 %, 50 %, 200 % on a 4-segment zig-zag."""
+    figures = sweep_figures(zigzag(segments=4, length_m=0.002), "changes mid-path")
+    assert SCHEDULES["changes mid-path"][1] == (1.0, 2.0, 0.1, 1.5, 0.5, 2.0)
+    assert figures["deviation_over_p"] <= 1.0 + 1e-9
+    assert max(figures["velocity_ratio"] + figures["acceleration_ratio"]) <= 1.0 + 1e-9
+    assert figures["cycle_s"] > 0.5

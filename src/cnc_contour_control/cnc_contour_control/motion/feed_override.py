@@ -30,7 +30,8 @@ and acceleration *and* the first and second differences of the positions
 within ``acceleration_share`` of them.
 
 On line (:class:`LiveReference`, what the interpolator node and the engine
-both call each tick): the requested ratio of tick k is the step schedule's
+both call each tick; a streaming plan is planned a small step ahead and forgotten behind the tool there,
+:mod:`cnc_contour_control.motion.plan_stream`): the requested ratio of tick k is the step schedule's
 value at t_k when ``schedule_times_s`` is given (an operator turning the
 knob; 1 before its first time), else the latest ``feed_override`` message's
 ratio (:func:`message_ratio`: its ``applied_ratio``, or a bare request's
@@ -55,6 +56,9 @@ from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig, ReferenceSample
 
 _BISECTIONS = 40
+#: How far (profile time, s) a streaming plan's committed phases reach ahead of the tool before a tick plans a
+#: step (:meth:`~cnc_contour_control.motion.plan_stream.StreamPlan.plan_ahead`): 125 ticks of 1 ms at 200 %.
+PLAN_LEAD_S = 0.25
 
 #: Where the interpolator's requested ratio comes from (the node's ``feed_override_source``):
 #: ``none`` no on-line override (the reference at the stamp); ``schedule`` the config's step schedule;
@@ -171,8 +175,8 @@ class OverrideFollower:
         acceleration = (ratio * ratio) * base.acceleration_m_s2 + rate * base.velocity_m_s
         step_m = base.position_m - self._last_m
         differenced = (step_m - (self._last_m - self._before_m)) / (dt_s * dt_s)
-        ok = bool(np.all(np.abs(velocity) <= self._v_max) and np.all(np.abs(step_m) <= self._v_max * dt_s)
-                  and np.all(np.abs(acceleration) <= self._a_max) and np.all(np.abs(differenced) <= self._a_max))
+        ok = bool((np.abs(velocity) <= self._v_max).all() and (np.abs(step_m) <= self._v_max * dt_s).all()
+                  and (np.abs(acceleration) <= self._a_max).all() and (np.abs(differenced) <= self._a_max).all())
         return replace(base, velocity_m_s=velocity, acceleration_m_s2=acceleration, feed_m_s=ratio * base.feed_m_s,
                        profile_time_s=tau, feed_override_ratio=ratio), ok
 
@@ -249,6 +253,10 @@ class LiveReference:
         else:
             sample = self.follower.advance(ns_to_s(stamp_ns - self._last_ns), requested_ratio)
         self._last_ns = stamp_ns
+        stream = self.interpolator._stream  # a streaming plan (window shorter than the program), else None
+        if stream is not None:  # a tick's share of planning, and nothing kept behind the tool
+            stream.plan_ahead(self.follower.profile_time_s, PLAN_LEAD_S)
+            stream.forget_before(self.follower.profile_time_s)
         return self._filtered(ns_to_s(stamp_ns), sample)
 
     def _filtered(self, t_s: float, sample: ReferenceSample) -> ReferenceSample:

@@ -151,10 +151,10 @@ class InterpolatorConfig:
         1.0e-4, unit="deg", low=0.0, high=10.0, read_only=True,
         description="junctions whose tangents differ by at most this angle are passed without a stop")
     arc_centripetal_fraction: float = param(
-        0.5, low=0.01, high=0.99, read_only=True,
+        0.8, low=0.01, high=0.99, read_only=True,
         description="share of each axis's acceleration for centripetal use on arcs (the rest changes speed)")
     arc_combined_budget: bool = param(
-        False, read_only=True,
+        True, read_only=True,
         description="bound an arc's tangential and centripetal acceleration together (faster speed changes on arcs)")
     arc_speed_bands: int = param(
         8, low=1, high=64, read_only=True,

@@ -28,15 +28,25 @@ nothing at or before ``J + C``. The forward pass is causal. Rounding differs
 What differs from planning whole: a segment the limits refuse (a feed over
 them, ``clamp_feed`` false) raises its :class:`ProgramError` when the stream
 reaches it, from :meth:`StreamPlan.extend_to`, not at construction.
+
+On line (:class:`~cnc_contour_control.motion.feed_override.LiveReference`, each tick) two calls keep the
+planner's cost per tick and its memory bounded by the window: :meth:`StreamPlan.plan_ahead` commits one small
+chunk (``STEP_SEGMENTS``, blending ``STEP_BLOCK`` programmed segments at a time) whenever the committed phases
+end less than its lead ahead of the tick, so a tick never plans a whole chunk of ``MIN_CHUNK_SEGMENTS``;
+:meth:`StreamPlan.forget_before` drops the phases and planned segments behind the tool (``FORGET_PHASES`` at a
+time), so the lists and arrays hold the window, the chunk in hand and what is sampled. The chunk size does not
+change the plan (the argument above holds for every ``C``); a forgotten time cannot be sampled again.
 """
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
+from cnc_contour_control.core.errors import ProgramError
 from cnc_contour_control.motion.blend_choice import CornerLimits
 from cnc_contour_control.motion.blending import blend_program
 from cnc_contour_control.motion.geometry import Dwell, Program, Segment
@@ -54,6 +64,12 @@ from cnc_contour_control.motion.segment_tangents import junction_turns_rad
 #: Fewest planned segments committed per chunk: a short window still plans in blocks worth a NumPy pass (at 1024
 #: streaming costs what the whole plan does per segment, 256 took 1.5 times as much; bench ``blending``).
 MIN_CHUNK_SEGMENTS = 1024
+#: Planned segments committed by one :meth:`StreamPlan.plan_ahead` step (a tick's share of planning), and
+#: programmed segments blended per block by such a step.
+STEP_SEGMENTS = 64
+STEP_BLOCK = 64
+#: Phases behind the tool that :meth:`StreamPlan.forget_before` lets gather before it drops them.
+FORGET_PHASES = 2048
 
 
 @dataclass(frozen=True)
@@ -87,20 +103,27 @@ class _Blocks:
         self.program, self.settings = program, settings
         self.segments: list[Segment] = []
         self._next = 0  # programmed segments already turned into planned ones
+        self.base = 0  # planned segments forgotten (global index of ``segments[0]`` and of each column's row 0)
         self._carry_dwell_s = 0.0
         self._columns: dict[str, np.ndarray] = {}
         self._sizes: dict[str, int] = {}
-        self._total_m = 0.0
+        self.total_m = 0.0  # length of the planned segments so far, m
 
     @property
     def exhausted(self) -> bool:
         """Whether every programmed segment has been planned."""
         return self._next >= len(self.program.segments)
 
-    def ensure(self, count: int) -> None:
-        """Plan programmed segments until at least ``count`` planned ones exist or the program is exhausted."""
-        block = max(self.settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
-        while len(self.segments) < count and not self.exhausted:
+    @property
+    def count(self) -> int:
+        """Planned segments so far, forgotten ones included."""
+        return self.base + len(self.segments)
+
+    def ensure(self, count: int, block: int | None = None) -> None:
+        """Plan programmed segments ``block`` at a time (default ``max(W, MIN_CHUNK_SEGMENTS)``) until at least
+        ``count`` planned ones exist or the program is exhausted."""
+        block = block or max(self.settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
+        while self.count < count and not self.exhausted:
             self._add(self._next, min(self._next + block, len(self.program.segments)))
 
     def _sub_program(self, first: int, stop: int) -> Program:
@@ -136,7 +159,7 @@ class _Blocks:
 
     def _append(self, new: list[Segment], dwell: FloatArray) -> None:
         s = self.settings
-        start = len(self.segments)
+        start = self.count
         speed, _, bands = plan_banded_limits(new, s.max_velocity_m_s, s.max_acceleration_m_s2,
                                              s.centripetal_fraction, s.combined_budget, s.clamp_feed, start,
                                              s.n_bands)
@@ -145,8 +168,8 @@ class _Blocks:
         turns = junction_turns_rad(self.segments[-1:] + new)  # the junctions before new[1:], or before new[0:]
         smooth = (turns <= s.corner_rad) & (dwell[len(dwell) - len(turns):] == 0.0)
         length = np.array([seg.length_m for seg in new])
-        ends = np.cumsum(np.concatenate(([self._total_m], length)))  # sequential: the whole program's cumsum
-        self._total_m = float(ends[-1])
+        ends = np.cumsum(np.concatenate(([self.total_m], length)))  # sequential: the whole program's cumsum
+        self.total_m = float(ends[-1])
         for name, value in (("length", length), ("start", ends[:-1]), ("cruise", speed), ("edges", bands.edges_m_s),
                             ("accel", bands.accel_m_s2), ("smooth", smooth), ("dwell", dwell)):
             self._grow(name, np.asarray(value))
@@ -165,8 +188,29 @@ class _Blocks:
         self._sizes[name] = size + len(rows)
 
     def column(self, name: str) -> np.ndarray:
-        """One per-segment array over every planned segment so far, a view (``smooth``: per inner junction)."""
+        """One per-segment array over the planned segments kept (from :attr:`base`), a view (``smooth``: per inner
+        junction, row ``i`` the junction after segment ``base + i``)."""
         return self._columns[name][:self._sizes[name]]
+
+    def rows(self, name: str, first: int, stop: int) -> np.ndarray:
+        """Rows of column ``name`` for planned segments ``first .. stop - 1`` (global indices, not forgotten)."""
+        return self._columns[name][first - self.base:stop - self.base]
+
+    def forget(self, first: int) -> None:
+        """Drop the planned segments before global index ``first`` and their rows."""
+        n = min(first, self.count - 1) - self.base  # the last segment stays: the next block's junction needs it
+        if n <= 0:
+            return
+        del self.segments[:n]
+        for name, column in self._columns.items():
+            size = self._sizes[name]
+            column[:size - n] = column[n:size]
+            self._sizes[name] = size - n
+        self.base += n
+
+    def held_rows(self) -> int:
+        """Rows held: planned segments kept plus the columns' capacity (what the plan's memory grows with)."""
+        return len(self.segments) + sum(len(column) for column in self._columns.values())
 
     def end_dwell_s(self) -> float:
         """The dwell at the program's end, s (once exhausted)."""
@@ -185,7 +229,7 @@ class StreamPlan:
     def __init__(self, program: Program, settings: StreamSettings) -> None:
         self.settings = settings
         self._blocks = _Blocks(program, settings)
-        self.segments = self._blocks.segments
+        self.segments = _Planned(self._blocks)
         self.start_s: list[float] = []
         self.s0_m: list[float] = []
         self.v0_m_s: list[float] = []
@@ -196,12 +240,41 @@ class StreamPlan:
         self.finished = False
         self._chunk = max(settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
         self._phases: Phases | None = None
+        self._forgotten_junctions = 0
         self._plan_chunk()
 
     @property
     def committed_segments(self) -> int:
         """Planned segments whose speeds and phases are committed."""
-        return len(self.junction_speeds_m_s) - 1
+        return self._forgotten_junctions + len(self.junction_speeds_m_s) - 1
+
+    def plan_ahead(self, t_s: float, lead_s: float) -> None:
+        """One small step of planning (``STEP_SEGMENTS``) if the committed phases end within ``lead_s`` (s) after
+        ``t_s`` (s): what a tick plans on line."""
+        if not self.finished and self.planned_until_s < t_s + lead_s:
+            self._plan_chunk(STEP_SEGMENTS, STEP_BLOCK)
+
+    def forget_before(self, t_s: float) -> None:
+        """Drop the phases that end before ``t_s`` (s) and the planned segments before the first one kept, once
+        ``FORGET_PHASES`` have gathered. Sampling before ``t_s`` afterwards is not supported (a forgotten segment raises
+        :class:`ProgramError`), nor are the whole plan's arrays (:meth:`whole`)."""
+        k = bisect.bisect_right(self.start_s, t_s) - 1
+        if k < FORGET_PHASES:
+            return
+        for values in (self.start_s, self.s0_m, self.v0_m_s, self.accel_m_s2, self.segment):
+            del values[:k]
+        first = self.segment[0]
+        drop = first - self._forgotten_junctions  # junction speeds before the first kept segment
+        if drop > 0:
+            del self.junction_speeds_m_s[:drop]
+            self._forgotten_junctions += drop
+        self._blocks.forget(first)
+        self._phases = None
+
+    def held_rows(self) -> int:
+        """Entries the plan holds: phases, junction speeds, planned segments and their columns (flat when forgetting
+        keeps pace with the tool)."""
+        return 5 * len(self.start_s) + len(self.junction_speeds_m_s) + self._blocks.held_rows()
 
     def extend_to(self, t_s: float) -> float:
         """Plan until the committed phases reach past ``t_s`` (s) or the end; the duration if known, else inf."""
@@ -213,27 +286,29 @@ class StreamPlan:
         """Plan to the end; the profile's duration, s."""
         return self.extend_to(math.inf)
 
-    def _plan_chunk(self) -> None:
+    def _plan_chunk(self, chunk: int | None = None, block: int | None = None) -> None:
+        """Commit the next ``chunk`` planned segments (default ``max(W, MIN_CHUNK_SEGMENTS)``)."""
+        chunk = chunk or self._chunk
         j, window = self.committed_segments, self.settings.look_ahead_segments
         blocks = self._blocks
-        blocks.ensure(j + self._chunk + window + 1)
-        total = len(blocks.segments)
-        end = min(j + self._chunk + window, total)
+        blocks.ensure(j + chunk + window + 1, block)
+        total = blocks.count
+        end = min(j + chunk + window, total)
         last = blocks.exhausted and end == total
-        commit = end - j if last else self._chunk
-        length, cruise = blocks.column("length")[j:end], blocks.column("cruise")[j:end]
-        bands = SpeedBands(blocks.column("edges")[j:end], blocks.column("accel")[j:end])
+        commit = end - j if last else chunk
+        length, cruise = blocks.rows("length", j, end), blocks.rows("cruise", j, end)
+        bands = SpeedBands(blocks.rows("edges", j, end), blocks.rows("accel", j, end))
         caps = look_ahead_caps_m_s(bands.accel_m_s2[:, -1], length, window)  # inf past J + C unless last
-        speeds = banded_junction_speeds_m_s(cruise, bands, length, blocks.column("smooth")[j:end - 1], caps,
+        speeds = banded_junction_speeds_m_s(cruise, bands, length, blocks.rows("smooth", j, end - 1), caps,
                                             self.junction_speeds_m_s[-1])
         self._commit(j, commit, speeds, last)
 
     def _commit(self, j: int, commit: int, speeds: FloatArray, last: bool) -> None:
         blocks = self._blocks
-        dwell = np.append(blocks.column("dwell")[j:j + commit], blocks.end_dwell_s() if last else 0.0)
-        bands = SpeedBands(blocks.column("edges")[j:j + commit], blocks.column("accel")[j:j + commit])
-        phases = banded_phases(blocks.column("length")[j:j + commit], speeds[:commit], speeds[1:commit + 1],
-                               blocks.column("cruise")[j:j + commit], bands, dwell)
+        dwell = np.append(blocks.rows("dwell", j, j + commit), blocks.end_dwell_s() if last else 0.0)
+        bands = SpeedBands(blocks.rows("edges", j, j + commit), blocks.rows("accel", j, j + commit))
+        phases = banded_phases(blocks.rows("length", j, j + commit), speeds[:commit], speeds[1:commit + 1],
+                               blocks.rows("cruise", j, j + commit), bands, dwell)
         self.start_s.extend((phases.start_s[:-1] + self.planned_until_s).tolist())
         self.s0_m.extend(phases.s0_m.tolist())
         self.v0_m_s.extend(phases.v0_m_s.tolist())
@@ -242,6 +317,7 @@ class StreamPlan:
         self.junction_speeds_m_s.extend(speeds[1:commit + 1].tolist())
         self.planned_until_s += float(phases.start_s[-1])
         self.finished = last
+        self._phases = None
 
     @property
     def n_axes(self) -> int:
@@ -249,25 +325,35 @@ class StreamPlan:
         return self._blocks.program.n_axes
 
     @property
-    def segment_start_m(self) -> FloatArray:
-        """Path length at the start of every planned segment so far, m (as :attr:`Program.segment_start_m`)."""
-        return self._blocks.column("start")
+    def segment_start_m(self) -> _Shifted:
+        """Path length at the start of every planned segment so far, m (as :attr:`Program.segment_start_m`; indexed
+        by global segment index, int or int array)."""
+        return _Shifted(self._blocks.column("start"), self._blocks.base)
 
     @property
     def total_length_m(self) -> float:
         """Length of the planned segments so far, m (the program's once :attr:`finished`)."""
-        return float(np.sum(self._blocks.column("length")))
+        return self._blocks.total_m
 
     def phases(self) -> Phases:
-        """The committed phases as arrays (``start_s`` ends with :attr:`planned_until_s`)."""
-        if self._phases is None or self._phases.segment.size != len(self.segment):
+        """The committed phases kept as arrays (``start_s`` ends with :attr:`planned_until_s`)."""
+        if self._phases is None:
             self._phases = Phases(np.array(self.start_s + [self.planned_until_s]), np.array(self.s0_m),
                                   np.array(self.v0_m_s), np.array(self.accel_m_s2),
                                   np.array(self.segment, dtype=np.intp))
         return self._phases
 
     def whole(self) -> dict[str, object]:
-        """Plan to the end; the whole plan's arrays by :class:`Interpolator` attribute name."""
+        """Plan to the end; the whole plan's arrays by :class:`Interpolator` attribute name.
+
+        Raises
+        ------
+        ProgramError
+            If :meth:`forget_before` has dropped its start.
+        """
+        if self._blocks.base or self._forgotten_junctions:
+            raise ProgramError(f"the streamed plan forgot its first {self._blocks.base} planned segments (on line, "
+                               "behind the tool): the whole plan's arrays are gone")
         self.finish()
         edges, accel = self._blocks.column("edges"), self._blocks.column("accel")
         last = self.segments[-1]
@@ -275,6 +361,35 @@ class StreamPlan:
                 "junction_speeds_m_s": np.array(self.junction_speeds_m_s),
                 "cruise_speed_m_s": self._blocks.column("cruise"), "tangential_acceleration_m_s2": accel[:, -1],
                 "speed_bands": SpeedBands(edges, accel)}
+
+
+class _Planned:
+    """The planned segments so far by global index (``len``: all of them, forgotten ones included)."""
+
+    def __init__(self, blocks: _Blocks) -> None:
+        self._blocks = blocks
+
+    def __len__(self) -> int:
+        return self._blocks.count
+
+    def __getitem__(self, index: int) -> Segment:
+        blocks = self._blocks
+        if index < 0:
+            return blocks.segments[index]
+        if index < blocks.base:
+            raise ProgramError(f"planned segment {index} was forgotten (kept from {blocks.base}): sampled behind the "
+                               "tool")
+        return blocks.segments[index - blocks.base]
+
+
+class _Shifted:
+    """A kept column indexed by global segment index (``int`` or an int array)."""
+
+    def __init__(self, column: np.ndarray, base: int) -> None:
+        self._column, self._base = column, base
+
+    def __getitem__(self, index: Any) -> Any:
+        return self._column[np.asarray(index) - self._base]
 
 
 def stream_settings(max_velocity_m_s: FloatArray, max_acceleration_m_s2: FloatArray, config: Any,
@@ -320,7 +435,11 @@ def whole_plan(interpolator: Any, name: str) -> dict[str, object]:
         blended = blend_program(interpolator.programmed_program, settings.tolerance_m, settings.corner_rad,
                                 settings.corner_limits)
         return {"blended": blended, "program": blended.planned}
-    if name in ("duration_s", "_phases", "_end_point_m", "junction_speeds_m_s", "cruise_speed_m_s",
-                "tangential_acceleration_m_s2", "speed_bands"):
+    if name in ("duration_s", "_end_point_m"):  # what the end's sample needs, also after forget_before
+        duration_s = stream.finish()
+        last = stream.segments[-1]
+        return {"duration_s": duration_s, "_end_point_m": last.point(last.length_m)}
+    if name in ("_phases", "junction_speeds_m_s", "cruise_speed_m_s", "tangential_acceleration_m_s2",
+                "speed_bands"):
         return stream.whole()
     raise AttributeError(f"{type(interpolator).__name__!r} object has no attribute {name!r}")

@@ -1,7 +1,8 @@
 """Programs of the blending bench: what CAM emits.
 
 Polygon circles, acute stars, pockets of short moves, arc chains (tangent, and with line-arc and
-arc-arc corners), rasters.
+arc-arc corners), rasters, a zig-zag of 150° turns (where a blend can be slower than a stop) and 3-axis
+ramps between arcs.
 
 All at ``FEED_M_S`` (1300 mm/min); sizes in m.
 """
@@ -119,6 +120,29 @@ def raster(passes: int = 10, step_m: float = 5e-4, width_m: float = 0.04, stepov
     return polyline("raster-3axis", np.vstack(rows), ("x", "y", "z"))
 
 
+def zigzag(turn_deg: float = 150.0, segments: int = 30, length_m: float = 0.005) -> Program:
+    """Lines of ``length_m`` along x, alternately up and down, turning by ``turn_deg`` at every junction."""
+    half = math.radians(0.5 * turn_deg)
+    steps = np.array([[math.cos(half), math.sin(half) * (1 if i % 2 == 0 else -1)] for i in range(segments)])
+    points = np.vstack([np.zeros(2), np.cumsum(length_m * steps, axis=0)])
+    return polyline(f"zigzag-{turn_deg:g}", points)
+
+
+def ramps_3axis(repeats: int = 6, radius_m: float = 0.003, ramp_m: tuple[float, float, float] = (0.004, 0.002, -5e-4)
+                ) -> Program:
+    """Quarter arcs in xy (CCW, z constant) joined by ramps moving x, y and z at once: 3-axis line-arc corners."""
+    segments: list[Segment] = []
+    point = np.zeros(3)
+    for _ in range(repeats):
+        end = point + np.asarray(ramp_m)
+        segments.append(LineSegment(point, end, FEED_M_S))
+        center = end + np.array([0.0, radius_m, 0.0])
+        arc_end = center + np.array([radius_m, 0.0, 0.0])
+        segments.append(ArcSegment(end, arc_end, center, False, (0, 1), FEED_M_S))
+        point = arc_end
+    return Program("ramps-3axis", ("x", "y", "z"), tuple(segments))
+
+
 #: Program name -> generator, in the bench's order. ``quick`` leaves out those marked False.
 CORPUS: dict[str, tuple[Callable[[], Program], bool]] = {
     "circle-36-gon": (lambda: polygon(36), True),
@@ -130,4 +154,6 @@ CORPUS: dict[str, tuple[Callable[[], Program], bool]] = {
     "arc-scallops": (arc_scallops, True),
     "lines-and-arcs": (lines_and_arcs, True),
     "raster-3axis": (raster, True),
+    "zigzag-150": (zigzag, True),
+    "ramps-3axis": (ramps_3axis, True),
 }

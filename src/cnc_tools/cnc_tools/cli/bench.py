@@ -11,6 +11,7 @@ from cnc_tools.runs.progress import task as progress_task
 
 def configure(parser: argparse.ArgumentParser) -> None:
     """The options every bench shares, plus ``--against`` (engine and graph benches) and ``--record`` (graph bench)."""
+    from cnc_tools.bench.blending_stream import add_options as add_blending_options
     from cnc_tools.bench.engine import add_options as add_engine_options  # the bench command only
     from cnc_tools.bench.fuzz import add_options as add_fuzz_options
     from cnc_tools.bench.graph import add_options as add_graph_options
@@ -31,6 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     add_graph_options(parser)
     add_hops_options(parser)
     add_fuzz_options(parser)
+    add_blending_options(parser)
 
 
 def bench(args: argparse.Namespace) -> int:
