@@ -33,6 +33,7 @@ TARGETS: dict[str, str] = {
     "laws": "cnc_tools.bench.laws:laws",
     "compensator": "cnc_tools.bench.compensator:compensator_bench",
     "estimator": "cnc_tools.bench.estimator:estimator_bench",
+    "live": "cnc_tools.bench.live:live_bench",
     "paper000-pid": "cnc_tools.reproductions.paper000.bench:paper000_pid_bench",
     "paper000": "cnc_tools.reproductions.paper000.bench:paper000_bench",
     "paper000-assumptions": "cnc_tools.reproductions.paper000.assumptions:paper000_assumptions_bench",

@@ -52,7 +52,7 @@ def watch_engine_run(scenario: Scenario, run_dir: Path, topics: Sequence[str], r
         url = live["on_tick"].feed.server.url  # type: ignore[attr-defined]  # the observer is an EngineLive
         client = LiveClient(url)
         try:
-            client.wait_channels(topics)
+            client.wait_channels(topics or ("/cnc/joint_states",))  # every channel of the run is advertised at once
             channels = dict(client.channels)
             client.subscribe(topics or sorted(channels))
             collector = threading.Thread(target=client.collect, args=(lambda _: False, timeout_s), daemon=True)
