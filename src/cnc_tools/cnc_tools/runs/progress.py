@@ -9,9 +9,10 @@ The elapsed time counts from the outermost task's start; the estimate is the out
 and at least one step done, at its mean rate so far. Where the line goes depends on the stream:
 
 - a terminal: the line is redrawn in place (``\\r``, cleared to its end, cut to the terminal's width) at
-  every start and step; an inner task's end clears it, the outermost task's end leaves its last line with
-  ``done``. When stdout is the same terminal, the command's own output clears the line and the line is drawn
-  again below it, so a table printed mid-sweep does not run into it (output of child processes can);
+  each task's start and at steps, every :data:`REDRAW_S` at most; an inner task's end clears it, the
+  outermost task's end leaves its last line with ``done``. When stdout is the same terminal, the command's
+  own output clears the line and the line is drawn again below it, so a table printed mid-sweep does not
+  run into it (output of child processes can);
 - not a terminal (a pipe, a file, a CI log): plain lines, only when the outermost task starts or ends, when
   the outermost task with a total reaches another tenth of it, or at a step once :attr:`Reporter.interval_s`
   has passed since the last line; a dozen lines plus a few a minute at most, whatever the step rate;
