@@ -17,6 +17,10 @@ DEPTH_SCHEDULE: tuple[tuple[float, float], ...] = ((0.0, 1.0), (4.0, 2.0), (8.0,
 INTERPOLATOR_TAU_S = 0.17
 SPECIFIC_FORCE_N_MM2 = 1773.0
 SMC_PARAMS = {"lambda_per_s": 20.0, "eta_n_s2": 0.1, "epsilon_fraction": 0.05}
+#: Ours for the 4-bit switch (law ``smc_integral``, not the paper's): its λ and ε, η raised to reach from any
+#: start, an integral in the layer; with the regulator's hysteresis (a fraction of a level).
+OURS_PARAMS = {"lambda_per_s": 20.0, "eta_n_s2": 1.0e5, "epsilon_fraction": 0.05, "integral_per_s": 2.0}
+OURS_HYSTERESIS = 0.25
 #: The FANUC 0T switch: 0-150 % in 10 % steps.
 SWITCH = {"step_ratio": 0.1, "min_ratio": 0.0, "max_ratio": 1.5}
 #: Settling band of the bench (± fraction of the reference), the paper's ε.

@@ -4,7 +4,10 @@ The chain override -> τ_s -> τ_c is linear with a non-negative impulse
 response, so with any feed >= 0 the force after a depth step is at least the
 force with the feed cut to zero at the step (``sim.feed_stop_response``):
 its peak is the overshoot floor, its return into the band the fastest
-settling. The steady levels of the switch follow from ``F = K_s d f_prog r``.
+settling. A feedback law sees the step only in the force, so it cuts the feed
+at its first update after the step at the earliest: the floor with the cut one
+update period late is the feedback floor on a sampled loop. The steady levels
+of the switch follow from ``F = K_s d f_prog r``.
 """
 from __future__ import annotations
 
@@ -27,9 +30,10 @@ class StepFloor:
 
 
 def step_floor(model: TurningModelConfig, depths_mm: tuple[float, float], reference_n: float,
-               band_fraction: float) -> StepFloor:
-    """Overshoot [%] and fastest settling into ±``band_fraction`` [s] of the step ``depths_mm``."""
-    t_s, force = feed_stop_response(model, depths_mm, reference_n)
+               band_fraction: float, delay_s: float = 0.0) -> StepFloor:
+    """Overshoot [%] and fastest settling into ±``band_fraction`` [s] of the step ``depths_mm``, the feed cut
+    ``delay_s`` [s] after it."""
+    t_s, force = feed_stop_response(model, depths_mm, reference_n, delay_s=delay_s)
     peak = int(np.argmax(force))
     inside = np.nonzero(force[peak:] <= reference_n * (1.0 + band_fraction))[0]
     settling = float(t_s[peak + inside[0]]) if len(inside) else float("inf")

@@ -59,6 +59,7 @@ class Case:
     from_rest: bool = False
     law_params: Mapping[str, Any] = field(default_factory=dict)
     preview: tuple[tuple[float, float], ...] | None = None
+    hysteresis_fraction: float = 0.0
 
 
 def _smc_params() -> dict[str, Any]:
@@ -102,6 +103,16 @@ PREVIEW_CASES: tuple[Case, ...] = (
 )
 
 
+#: Ours: the paper's SMC to reach the layer, an integral inside it, the switch's hysteresis (``smc_integral``).
+OURS_CASES: tuple[Case, ...] = (
+    Case("ours/cont", "ours (SMC + integral), continuous", "smc_integral", False, law_params=data.OURS_PARAMS),
+    Case("ours/4bit", "ours (SMC + integral), 4-bit", "smc_integral", True, law_params=data.OURS_PARAMS,
+         hysteresis_fraction=data.OURS_HYSTERESIS),
+    Case("preview-ours/4bit", "ours + preview, 4-bit", "smc_integral", True, law_params=data.OURS_PARAMS,
+         preview=_shifted(), hysteresis_fraction=data.OURS_HYSTERESIS),
+)
+
+
 @dataclass(frozen=True)
 class Result:
     """A run: its case, traces, segment measures and switching rate; the plans it used."""
@@ -129,7 +140,7 @@ def run_case(case: Case, duration_s: float = data.DURATION_S, preview: PreviewCo
     """Run ``case`` on the paper's scenario (``duration_s`` shorter for quick checks)."""
     model = paper_model()
     config = ForceRegulatorConfig(law=case.law, law_params=case.law_params, quantiser=switch(case.quantised),
-                                  update_period_s=UPDATE_PERIOD_S)
+                                  update_period_s=UPDATE_PERIOD_S, hysteresis_fraction=case.hysteresis_fraction)
     plans = plans_for(case, preview)
     loop = Loop(model, TurningConfig(specific_force_n_mm2=model.specific_force_n_mm2, spindle_rpm=model.spindle_rpm,
                                      depth_schedule=data.DEPTH_SCHEDULE),

@@ -72,11 +72,13 @@ def simulate(loop: Loop, regulator: ForceRegulator, reference_n: float) -> Trace
 
 
 def feed_stop_response(model: TurningModelConfig, depths_mm: Sequence[float], reference_n: float,
-                       dt_s: float = 1.0e-4, duration_s: float = 1.0) -> tuple[npt.NDArray[np.float64], ...]:
-    """Steady at ``reference_n`` at depth ``depths_mm[0]``; at t = 0 the depth steps to ``depths_mm[1]`` and v_c to 0.
+                       dt_s: float = 1.0e-4, duration_s: float = 1.0,
+                       delay_s: float = 0.0) -> tuple[npt.NDArray[np.float64], ...]:
+    """Steady at ``reference_n`` at depth ``depths_mm[0]``; at t = 0 the depth steps to ``depths_mm[1]``, and at
+    ``delay_s`` [s] v_c to 0.
 
-    Returns ``(t_s, force_n)``, shape (n,): the lowest force any feed >= 0 can give after the step
-    (the chain is linear with a non-negative impulse response).
+    Returns ``(t_s, force_n)``, shape (n,): the lowest force any feed >= 0 from ``delay_s`` on can give after
+    the step (the chain is linear with a non-negative impulse response).
     """
     before, after = depths_mm
     ratio = model.steady_ratio(reference_n, before)
@@ -86,7 +88,9 @@ def feed_stop_response(model: TurningModelConfig, depths_mm: Sequence[float], re
     interpolator = FirstOrderLag(model.interpolator_tau_s, ratio * model.programmed_feed_mm_min)
     n = int(round(duration_s / dt_s))
     force = np.empty(n)
+    held_mm_min = ratio * model.programmed_feed_mm_min
     for k in range(n):
-        force[k] = process.step(interpolator.step(dt_s, 0.0) / MM_MIN_PER_M_S, dt_s)
+        command = held_mm_min if k * dt_s < delay_s - 1e-12 else 0.0
+        force[k] = process.step(interpolator.step(dt_s, command) / MM_MIN_PER_M_S, dt_s)
     return dt_s * np.arange(1, n + 1, dtype=np.float64), force
 
