@@ -60,11 +60,11 @@ def run(args: argparse.Namespace) -> int:
     print(f"running {scenario.name} through the node graph ({scenario.mode}, T = {scenario.sample_time_s} s, "
           f"{scenario.duration_s:.2f} s simulated, compose {args.compose}) in namespace {namespace}, "
           f"recording to {run_dir / 'bag'}", flush=True)
-    with graph_live(args, namespace) as live_readers:
+    with graph_live(args, namespace, scenario) as live:
         result = run_graph(scenario, run_dir, record=True, on_poll=Progress(run_dir / "summary.json",
                                                                             scenario.duration_s),
                            namespace=namespace, compose=args.compose, managed=args.managed,
-                           extra_subscribers=live_readers)
+                           extra_subscribers=live.extra_subscribers)
     print_summary(scenario.name, "node graph", result.summary)
     if result.faults or result.bag_path is None:
         return 1

@@ -11,8 +11,10 @@ import argparse
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
+from cnc_contour_control.core import topics
 from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.live.decimate import WINDOW_NS
 from cnc_tools.live.server import DEFAULT_HOST, DEFAULT_PORT, LiveConfig, LiveServer
@@ -96,12 +98,20 @@ def engine_live(args: argparse.Namespace, scenario: Scenario) -> Iterator[dict[s
         feed.note(LogLevel.Info, "run finished", time.time_ns(), name="engine")
 
 
+@dataclass(frozen=True)
+class GraphLive:
+    """What a graph run needs from --live: the extra reader every stage waits for, and the feed (None without)."""
+
+    extra_subscribers: int = 0
+    feed: LiveFeed | None = None
+
+
 @contextmanager
-def graph_live(args: argparse.Namespace, namespace: str) -> Iterator[int]:
-    """The runner's ``extra_subscribers`` for a graph run: with --live, a ``live`` node in this process reads the
-    run's namespace and every stage waits for it (1), so the viewer sees every tick; else 0."""
+def graph_live(args: argparse.Namespace, namespace: str, scenario: Scenario) -> Iterator[GraphLive]:
+    """For a graph run: with --live, a ``live`` node in this process reads the run's namespace and every stage
+    waits for it (one extra subscriber), so the viewer sees every tick; the run's channels are offered at once."""
     if not getattr(args, "live", False):
-        yield 0
+        yield GraphLive()
         return
     import os
 
@@ -110,9 +120,12 @@ def graph_live(args: argparse.Namespace, namespace: str) -> Iterator[int]:
 
     apply_loopback_policy(os.environ)  # this process's reader joins the run's domain, on loopback as the nodes
     with live_session(args) as feed:
+        for name, type_name in scenario.pipeline().recorded_topics().items():
+            if type_name != topics.CLOCK.type_name:
+                feed.advertise(name, type_name)
         thread = LiveThread(feed, namespace)
         try:
-            yield 1
+            yield GraphLive(1, feed)
         finally:
             thread.close()
 

@@ -44,25 +44,63 @@ def live_args(rate: float = 1.0, port: int = 0) -> argparse.Namespace:
                               live_rate=rate)
 
 
+class _Collector:
+    """A client subscribed to ``topics`` (all offered when empty), collecting in a thread until the server closes."""
+
+    def __init__(self, url: str, topics: Sequence[str], timeout_s: float) -> None:
+        self.client, self.timeout_s = LiveClient(url), timeout_s
+        try:
+            self.client.wait_channels(topics or ("/cnc/joint_states",))  # a run's channels are offered at once
+            self.channels = dict(self.client.channels)
+            self.client.subscribe(topics or sorted(self.channels))
+        except BaseException:
+            self.client.close()
+            raise
+        self.thread = threading.Thread(target=self.client.collect, args=(lambda _: False, timeout_s), daemon=True)
+        self.thread.start()
+
+    def finish(self) -> list[Received]:
+        """Wait until the server closed (after its linger), close the client, return what it got."""
+        self.thread.join(self.timeout_s)
+        self.client.close()
+        if self.thread.is_alive():
+            raise CncError(f"the live client did not see the server close within {self.timeout_s} s")
+        return self.client.pending
+
+
+def watch_graph_run(scenario: Scenario, run_dir: Path, topics: Sequence[str], timeout_s: float = 300.0) -> Watched:
+    """Run ``scenario`` through the node graph with --live into ``run_dir`` (``run --live``'s path), watched."""
+    from cnc_tools.bagio.bag import read_bag
+    from cnc_tools.live.options import graph_live
+    from cnc_tools.runs.graph import run_graph
+    from cnc_tools.runs.namespaces import run_namespace
+
+    namespace = run_namespace()
+    with graph_live(live_args(), namespace, scenario) as live:
+        assert live.feed is not None  # --live is set
+        collector = _Collector(live.feed.server.url, topics, timeout_s)
+        try:
+            result = run_graph(scenario, run_dir, record=True, namespace=namespace,
+                               extra_subscribers=live.extra_subscribers, timeout_s=timeout_s)
+        except BaseException:
+            collector.client.close()
+            raise
+    received = collector.finish()
+    if result.faults or result.bag_path is None:
+        raise CncError(f"the watched graph run faulted: {result.faults}")
+    record = read_bag(result.bag_path).with_(summary=result.summary, backend="graph", name=scenario.name)
+    return Watched(collector.channels, received, record)
+
+
 def watch_engine_run(scenario: Scenario, run_dir: Path, topics: Sequence[str], rate: float = 1.0,
                      timeout_s: float = 120.0) -> Watched:
     """Run ``scenario`` on the engine with --live into ``run_dir``, watched on ``topics`` (all when empty)."""
-    outcome: dict[str, Any] = {}
     with engine_live(live_args(rate), scenario) as live:
         url = live["on_tick"].feed.server.url  # type: ignore[attr-defined]  # the observer is an EngineLive
-        client = LiveClient(url)
+        collector = _Collector(url, topics, timeout_s)
         try:
-            client.wait_channels(topics or ("/cnc/joint_states",))  # every channel of the run is advertised at once
-            channels = dict(client.channels)
-            client.subscribe(topics or sorted(channels))
-            collector = threading.Thread(target=client.collect, args=(lambda _: False, timeout_s), daemon=True)
-            collector.start()
-            outcome["record"] = run_on_engine(scenario, run_dir, **live)
+            record = run_on_engine(scenario, run_dir, **live)
         except BaseException:
-            client.close()
+            collector.client.close()
             raise
-    collector.join(timeout_s)  # the server closed after its linger: the client saw the end
-    client.close()
-    if collector.is_alive():
-        raise CncError(f"the live client did not see the server close within {timeout_s} s")
-    return Watched(channels, client.pending, outcome["record"])
+    return Watched(collector.channels, collector.finish(), record)
