@@ -50,7 +50,7 @@ def replay(args: argparse.Namespace) -> int:
     if args.wait_for_subscribers:
         print(f"waiting up to {args.wait_timeout:g} s for {args.wait_for_subscribers} reader(s) of each of "
               f"{', '.join(awaited)}", flush=True)
-    with replay_live(args, list(recording.topics)) as readers:
+    with replay_live(args, recording.topics) as readers:
         code = _spin(recording, config, readers, awaited, args.wait_timeout)
     if code == 0 and not recording.integrity.complete:
         return 1

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
@@ -131,18 +131,22 @@ def graph_live(args: argparse.Namespace, namespace: str, scenario: Scenario) -> 
 
 
 @contextmanager
-def replay_live(args: argparse.Namespace, topic_names: list[str]) -> Iterator[int]:
-    """For ``replay --live``: a ``live`` node in this process on the bag's run namespace; yields the readers the
-    replay waits for on each topic (at least this one, so the viewer gets the whole bag)."""
+def replay_live(args: argparse.Namespace, recorded: Mapping[str, str]) -> Iterator[int]:
+    """For ``replay --live``: a ``live`` node in this process on the bag's run namespace, its topics (``recorded``:
+    name -> type) offered at once; yields the readers the replay waits for on each topic (at least this one)."""
     if not getattr(args, "live", False):
         yield int(args.wait_for_subscribers)
         return
     from cnc_tools.bagio.recording import run_namespace
     from cnc_tools.live.ros import LiveThread
 
-    rate = float(getattr(args, "rate", 1.0))
-    with live_session(args, rate) as feed:
-        thread = LiveThread(feed, run_namespace(topic_names))
+    namespace = run_namespace(recorded)
+    with live_session(args, float(getattr(args, "rate", 1.0))) as feed:
+        for name, type_name in recorded.items():
+            if type_name != topics.CLOCK.type_name:
+                diagnostics = type_name == topics.DIAGNOSTICS.type_name
+                feed.advertise(topics.DIAGNOSTICS.name if diagnostics else topics.relative(namespace, name), type_name)
+        thread = LiveThread(feed, namespace)
         try:
             yield max(1, int(args.wait_for_subscribers))
         finally:
