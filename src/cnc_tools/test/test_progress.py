@@ -16,11 +16,14 @@ from importlib import metadata
 from pathlib import Path
 from typing import TextIO
 
+import numpy as np
 import pytest
 
 from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.runs.folders import project_root
-from cnc_tools.runs.progress import Reporter, format_duration
+from cnc_tools.runs.progress import Reporter, format_duration, set_quiet
+from cnc_tools.tuning.problem import Constraint, DesignVariable
+from cnc_tools.tuning.solve import solve
 
 CIRCLE = project_root() / "scenarios" / "paper000_circle_high.yaml"
 
@@ -167,6 +170,27 @@ def test_bad_options_are_refused_naming_them() -> None:
     with pytest.raises(ConfigError, match="total must be None or an integer >= 0, got -1"):
         Reporter(mode="quiet").task("runs", -1)
     assert [format_duration(s) for s in (4.6, 125, 7620)] == ["5 s", "2 min 05 s", "2 h 07 min"]
+
+
+def _first(x: np.ndarray) -> float:
+    return float(x[0])
+
+
+def _first_figure(x: np.ndarray) -> list[float]:
+    return [float(x[0])]
+
+
+@pytest.mark.parametrize(("bound", "note"), [
+    (0.5, r"best [0-9.e+-]+ um, meets the constraints"),
+    (5.0, r"no member meets the constraints, least violation 4"),
+])
+def test_each_tune_generation_says_whether_its_best_meets_the_constraints(
+        bound: float, note: str, capsys: pytest.CaptureFixture[str]) -> None:
+    set_quiet(False)
+    solve(_first, (DesignVariable("a", 0.0, 1.0),), (Constraint("a", ">=", bound),), _first_figure,
+          maxiter=3, popsize=3, unit="um")
+    lines = capsys.readouterr().err.splitlines()  # not a terminal under capsys: plain lines
+    assert re.match(rf"tune generation 3/3 \({note}[0-9.]*\) · done in ", lines[-1]), lines
 
 
 def _cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:

@@ -104,10 +104,11 @@ class Executor(Protocol):
 
 
 class _Progress:
-    """A labelled map's task on the process's progress reporter; none without a label or with ``enabled=False``."""
+    """A labelled map's task on the process's progress reporter; none without a label or an item, or with
+    ``enabled=False``."""
 
     def __init__(self, label: str, total: int, enabled: bool | None) -> None:
-        self.task = progress_task(label, total) if label and enabled is not False else None
+        self.task = progress_task(label, total) if label and total and enabled is not False else None
 
     def step(self) -> None:
         """One more item done."""

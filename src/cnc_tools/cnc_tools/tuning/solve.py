@@ -86,10 +86,16 @@ class _Tracker:
     def __call__(self, intermediate_result: Any) -> None:
         self.history.append(float(intermediate_result.fun))
         if self.generations is not None:
-            violation = getattr(intermediate_result, "maxcv", None)
-            verdict = "" if violation is None else (
-                ", meets the constraints" if violation <= 0 else f", violates a constraint by {violation:.3g}")
-            self.generations.step(note=f"best {self.history[-1]:.6g}{' ' + self.unit if self.unit else ''}{verdict}")
+            self.generations.step(note=self.note(self.history[-1], getattr(intermediate_result, "maxcv", None)))
+
+    def note(self, best: float, violation: float | None) -> str:
+        """The generation's best and its constraints: met, or the largest violation (None: no constraints)."""
+        if violation is not None and violation > 0 and not np.isfinite(best):
+            return f"no member meets the constraints, least violation {violation:.3g}"
+        text = f"best {best:.6g}{' ' + self.unit if self.unit else ''}"
+        if violation is None:
+            return text
+        return text + (", meets the constraints" if violation <= 0 else f", violates a constraint by {violation:.3g}")
 
 
 def solve(objective: Callable[[np.ndarray], float], variables: Sequence[DesignVariable],
