@@ -46,6 +46,7 @@ from cnc_tools.bench.lockstep import children_cpu_s
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph
+from cnc_tools.runs.progress import track
 from cnc_tools.runs.scenario import Scenario, load_scenario
 
 SCENARIO = "scenarios/paper001_circle_neural.yaml"
@@ -179,7 +180,7 @@ def period_errors(bag: Path, sample_time_s: float) -> tuple[float | None, float 
 def lockstep_rounds(run_dir: Path, plan: Plan) -> list[list[LockstepFigures]]:
     """``plan.rounds`` rounds of every side, each round in a rotated order."""
     rounds = []
-    for r in range(plan.rounds):
+    for r in track(range(plan.rounds), "compose lockstep rounds"):
         order = LOCKSTEP_SIDES[r % len(LOCKSTEP_SIDES):] + LOCKSTEP_SIDES[:r % len(LOCKSTEP_SIDES)]
         figures = {}
         for side in order:
@@ -216,7 +217,7 @@ def compose_bench(options: argparse.Namespace) -> int:
     startup_s = startup_cpu_s(run_dir)
     rounds = lockstep_rounds(run_dir, plan)
     realtime = []
-    for side in REALTIME_SIDES:
+    for side in track(REALTIME_SIDES, "compose real-time runs"):
         print(f"  real time {side} ...", flush=True)
         realtime.append(realtime_run(side, run_dir / f"realtime_{side}", plan.realtime_duration_s))
     figures = {"bench": "compose", "quick": options.quick, "scenario": SCENARIO, "machine": machine(),

@@ -39,6 +39,7 @@ from cnc_tools.bench.relay import relay_ticks
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.folders import project_root, timestamp
 from cnc_tools.runs.graph import run_graph
+from cnc_tools.runs.progress import track
 from cnc_tools.runs.scenario import Scenario
 
 #: Goal: the engine runs two axes at T = 1 ms at least this much faster than real time.
@@ -152,7 +153,7 @@ def lockstep_bench(options: argparse.Namespace) -> int:
     print("  node graph start-up (2 ticks) ...", flush=True)
     startup_s = startup_cpu_s(run_dir / "graph_startup")
     graph = []
-    for t in SAMPLE_TIMES_S:
+    for t in track(SAMPLE_TIMES_S, "lockstep graph runs"):
         print(f"  node graph at T = {t * 1e3:g} ms ...", flush=True)
         scenario = scenario_at(t, plan.graph_duration_s[t])
         graph.append(measure_graph(scenario, run_dir / f"graph_T{t * 1e3:g}ms", startup_s))
