@@ -53,6 +53,7 @@ def test_the_regulator_brings_the_deeper_cut_towards_the_reference(scenario: Sce
 
 def test_the_speed_bench_times_every_law_beside_both_servos() -> None:
     costs = step_costs_us(steps=1000, repeats=1)
-    assert set(costs) == {"regulator smc, 4-bit", "regulator adaptive, 4-bit", "regulator pi, 4-bit",
+    assert set(costs) == {"regulator smc, 4-bit", "regulator smc_integral, 4-bit",
+                          "regulator adaptive, 4-bit", "regulator pi, 4-bit",
                           "servo P (turning)", "servo PID (paper 000)"}
     assert all(0.0 < us < 1.0e4 for us in costs.values())
