@@ -97,7 +97,7 @@ class EngineLive:
     def _send(self, topic: topics.Topic | str, message: Any) -> None:
         name = topic if isinstance(topic, str) else topic.name
         type_name = topics.COMMAND.type_name if isinstance(topic, str) else topic.type_name
-        cdr = self.feed.store.serialize_cdr(message, type_name)
+        cdr = self.feed.store.serialize_cdr(message, type_name) if self.feed.wants(name, type_name) else None
         self.feed.publish(name, type_name, cdr, self.wall_ns(), message)
 
     def _reference(self, board: Board, stages: list[EngineStage], header: Any) -> Any:

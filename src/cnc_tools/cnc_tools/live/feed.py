@@ -107,16 +107,22 @@ class LiveFeed:
             channel, schema = DERIVED_PEAKS[type_name]
             self.server.json_channel(channel.format(axis=name.split("/")[1] if "/" in name else ""), schema)
 
-    def publish(self, name: str, type_name: str, cdr: bytes | memoryview, log_time_ns: int,
+    def wants(self, name: str, type_name: str) -> bool:
+        """True when a client subscribes to topic ``name``'s channel (else its CDR need not be made)."""
+        return bool(self.server.ros_channel(topics.qualify(CHANNEL_NAMESPACE, name), type_name).has_sinks())
+
+    def publish(self, name: str, type_name: str, cdr: bytes | memoryview | None, log_time_ns: int,
                 message: Any = None) -> None:
-        """One message of topic ``name`` (relative to the run's namespace, or ``/diagnostics``)."""
-        topic = topics.qualify(CHANNEL_NAMESPACE, name)
-        self.server.ros_channel(topic, type_name).log(bytes(cdr), log_time=log_time_ns)
+        """One message of topic ``name`` (relative to the run's namespace, or ``/diagnostics``); ``cdr`` None:
+        only its derived streams (no client wants the message itself, ``message`` holds it decoded)."""
+        channel = self.server.ros_channel(topics.qualify(CHANNEL_NAMESPACE, name), type_name)
+        if cdr is not None and channel.has_sinks():
+            channel.log(bytes(cdr), log_time=log_time_ns)
         handler = self._handlers.get(name)
         if handler is None and name.startswith("servo/") and name.endswith("/command"):
             handler = self._on_command
         if handler is not None:
-            handler(name, message if message is not None else self.store.deserialize_cdr(cdr, type_name),
+            handler(name, message if message is not None else self.store.deserialize_cdr(cdr or b"", type_name),
                     log_time_ns)
 
     def note(self, level: LogLevel, text: str, log_time_ns: int, name: str = "live") -> None:
@@ -207,9 +213,11 @@ class LiveFeed:
         error_m, index = self.program.contour_distance(np.array([p for _, p in self._pending], float))
         self._pending = []
         channel = self.server.channels["/live/contour_error/exact"]
+        full_rate = channel.has_sinks()
         for stamp_ns, error, segment in zip(stamps, error_m.tolist(), index.tolist()):
             sample = {"stamp_ns": stamp_ns, "contour_error_um": error * 1e6, "segment_index": int(segment)}
-            channel.log(sample, log_time=log_time_ns)
+            if full_rate:
+                channel.log(sample, log_time=log_time_ns)
             self._peak("/live/contour_error/exact/peaks", EXACT_SCHEMA, stamp_ns, sample["contour_error_um"],
                        sample, log_time_ns)
 
@@ -222,14 +230,15 @@ class LiveFeed:
         self._emit(topic, decimator.push(stamp_ns, value, sample), log_time_ns)
 
     def _emit(self, topic: str, samples: list[dict[str, Any]], log_time_ns: int) -> None:
-        if samples:
-            channel = self.server.channels[topic]
+        channel = self.server.channels[topic]
+        if samples and channel.has_sinks():
             for sample in samples:
                 channel.log(sample, log_time=log_time_ns)
 
     def _send_scene(self, stamp_ns: int, log_time_ns: int) -> None:
-        if not self.scene.path and not self.scene.trail:
-            return
+        channel = self.server.typed_channel("/live/scene", "SceneUpdate")
         self._next_scene_ns = stamp_ns + SCENE_PERIOD_NS
-        self.server.typed_channel("/live/scene", "SceneUpdate").log(self.scene.update(stamp_ns),
+        if (not self.scene.path and not self.scene.trail) or not channel.has_sinks():
+            return
+        channel.log(self.scene.update(stamp_ns),
                                                                     log_time=log_time_ns)

@@ -45,14 +45,15 @@ def live_args(rate: float = 1.0, port: int = 0) -> argparse.Namespace:
 
 
 class _Collector:
-    """A client subscribed to ``topics`` (all offered when empty), collecting in a thread until the server closes."""
+    """A client subscribed to those of ``topics`` the run offers (all when empty), collecting in a thread until the
+    server closes."""
 
     def __init__(self, url: str, topics: Sequence[str], timeout_s: float) -> None:
         self.client, self.timeout_s = LiveClient(url), timeout_s
         try:
-            self.client.wait_channels(topics or ("/cnc/joint_states",))  # a run's channels are offered at once
+            self.client.wait_channels(("/cnc/joint_states",))  # a run's channels are offered at once
             self.channels = dict(self.client.channels)
-            self.client.subscribe(topics or sorted(self.channels))
+            self.client.subscribe([t for t in topics if t in self.channels] if topics else sorted(self.channels))
         except BaseException:
             self.client.close()
             raise
