@@ -14,11 +14,19 @@ import yaml
 
 from cnc_contour_control.compensators import make_compensator
 from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_plant_sim.models.mass_friction import paper001_axes
 from cnc_tools.bench.registry import BENCHES
 from cnc_tools.reproductions.paper001 import runs as runs_module
 from cnc_tools.reproductions.paper001.bench import GOAL_RATIO, TABLE_STACKS
 from cnc_tools.reproductions.paper001.data import SCENARIOS, TABLE1_NETWORK, TABLES
-from cnc_tools.reproductions.paper001.readings import measure
+from cnc_tools.reproductions.paper001.readings import (
+    READINGS,
+    discrete_poles,
+    measure,
+    reading_named,
+    run_reading,
+    stable_readings,
+)
 from cnc_tools.reproductions.paper001.runs import (
     PAPER000_SCENARIO,
     STACKS,
@@ -90,6 +98,35 @@ def test_quick_bench_has_every_stack_at_its_checkpoints(quick_bench: tuple[str, 
         assert row["met"] == (row["ratio"] <= GOAL_RATIO)
     assert (out / "learning_curves.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert len(figures["fig8"]) == 6 and len(figures["paper000"]) == 3
+
+
+def test_quick_bench_benches_the_network_in_every_stable_reading(quick_bench: tuple[str, dict, Path]) -> None:
+    text, figures, _ = quick_bench
+    rows = figures["readings"]
+    assert {r["reading"] for r in rows} == {"mm_plant_um_gains", "si_plant_mm_gains"}
+    assert "the network in every stable reading" in text
+    for name in ("mm_plant_um_gains", "si_plant_mm_gains"):
+        pid = next(r for r in rows if (r["reading"], r["contour"], r["network"]) == (name, "circle", "pid"))
+        expected = run_reading(load_scenario(CIRCLE), reading_named(name))
+        assert pid["peak_mm"] == pytest.approx(expected["peak_mm"], rel=1e-12)
+        assert {r["contour"] for r in rows if r["reading"] == name} == {"line", "circle"}
+    for row in rows:
+        if row["network"] != "pid":
+            assert row["holds"] == (row["peak_change"] <= row["paper_peak_change"])
+            assert row["asked_runs"] in figures["plan"]["checkpoints"]
+
+
+def test_the_stable_readings_are_those_whose_sampled_loop_is_stable() -> None:
+    scenario = load_scenario(CIRCLE)
+    stable = {r.name for r in stable_readings(scenario)}
+    assert stable == {"mm_plant_um_gains", "si_plant_mm_gains"}
+    for reading in READINGS:
+        plant = reading.apply(scenario).plant
+        radius = max(np.max(np.abs(discrete_poles(axis, reading, 1e-3)))
+                     for axis in paper001_axes(plant.axes, plant.axis_overrides))
+        assert (radius < 1.0) == (reading.name in stable), reading.name
+    with pytest.raises(ConfigError, match="si_plant_mm_gains"):
+        reading_named("SI")
 
 
 # ---------------------------------------------------------------- sessions

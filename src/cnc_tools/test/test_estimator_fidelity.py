@@ -12,6 +12,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.estimators import make_estimator
 from cnc_contour_control.motion.geometry import ArcSegment
 from cnc_contour_control.motion.program import load_program
 from cnc_tools.analysis.scoring import contour_error_series
@@ -29,7 +30,10 @@ from cnc_tools.reproductions.paper001.fidelity import (
     measure,
     run_contour,
     steady_mask,
+    trace,
 )
+from cnc_tools.runs.engine import run_engine
+from cnc_tools.runs.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -106,6 +110,19 @@ def test_at_the_corner_the_window_errs_in_sign_at_the_vertex_only(records: dict[
     assert row.magnitude_max_um < 1e-3  # magnitudes agree while following the reference
     assert row.max_um > 10.0 and row.worst.junction_mm < 1e-3  # the signed worst case sits on the vertex
     assert row.ahead_samples > 0 and row.ahead.error_um > 10.0  # overshoot past the vertex and the end
+
+
+def test_window_within_1_um_on_paper001s_circle_where_the_position_leads() -> None:
+    record = run_engine(load_scenario(ROOT / "scenarios" / "paper001_circle.yaml"))
+    exact = exact_of(record)
+    moving = ~record.reference.done.astype(bool)  # type: ignore[union-attr]  # an engine run has references
+    leading = ~exact.following & moving
+    assert leading.sum() > 0.7 * moving.sum()  # the PID's loop leads its reference most of the time
+    found = trace(make_estimator("window", {}, record.program), record.reference.position_m,  # type: ignore[union-attr]  # as above
+                  record.joint_states.position_m)
+    difference_um = np.abs(found.error_m - exact.error_m) / 1e-6
+    assert np.max(np.abs(exact.error_m[leading])) > 50e-6  # real errors, far above the estimator's
+    assert difference_um[leading].max() <= GOAL_MAX_UM and difference_um[exact.following].max() <= GOAL_MAX_UM
 
 
 def test_bench_prints_both_tables_and_writes_json(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,

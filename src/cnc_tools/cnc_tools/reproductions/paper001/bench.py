@@ -9,7 +9,8 @@ their state over through ``.npz`` files (``runs.learning_runs``). Printed:
    10 and 50 runs (networks, ILC), beside the paper's numbers, with each
    stack's change against our PID next to the paper's change against its PID;
 2. the goal of issue 8 (the circle's peak at least −48 % within 10 runs) per
-   stack, met or NOT met;
+   stack, met or NOT met, and the paper's network in every stable unit
+   reading (``reading_bench``) with where the paper's changes hold;
 3. sensitivities of our network and of the ILC (circle);
 4. Fig. 8: the learned network (and the ILC's feedforward) on the circle with
    the cutting load, beside the PID alone under the same load;
@@ -33,6 +34,7 @@ from typing import Any
 
 from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.reproductions.paper001.data import TABLES, ContourResult, paper_result
+from cnc_tools.reproductions.paper001.reading_bench import print_readings, reading_rows, reading_specs
 from cnc_tools.reproductions.paper001.runs import (
     LATE_FROM_S,
     STACKS,
@@ -392,15 +394,18 @@ def paper001_bench(options: argparse.Namespace) -> int:
     plan = plan_of(options)
     print(f"paper001: engine, T = 1 ms; learning sessions of {plan.runs} runs (state carried over in .npz files); "
           f"{plan.workers} process(es); files in {plan.out_dir}", flush=True)
-    sessions = run_sessions(main_specs(plan), plan.workers)
+    readings = reading_specs(plan.checkpoints, str(plan.out_dir / "states"), plan.quick)
+    sessions = run_sessions(main_specs(plan) + readings, plan.workers)
     sessions.update(run_sessions(cutting_specs(plan, sessions), plan.workers))
     tables = {contour: table_rows(contour, sessions, plan) for contour in CONTOURS}
     figures = {"goal": goal_rows(sessions, plan), "sensitivities": sensitivity_rows(sessions, plan),
-               "fig8": fig8_rows(sessions), "paper000": paper000_rows(sessions, plan)}
+               "fig8": fig8_rows(sessions), "paper000": paper000_rows(sessions, plan),
+               "readings": reading_rows(sessions, plan.checkpoints, plan.quick)}
     print_stacks()
     for contour in CONTOURS:
         print_table(contour, tables[contour], plan)
     print_goal(figures["goal"])
+    print_readings(figures["readings"])
     print_sensitivities(figures["sensitivities"], plan)
     print_fig8(figures["fig8"], plan)
     print_paper000(figures["paper000"])

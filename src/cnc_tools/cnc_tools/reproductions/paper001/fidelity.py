@@ -16,10 +16,12 @@ direction of reference motion), the situation paper 001's model assumes
 ("P(t) is always delayed from P*(t)", Fig. 1). **Ahead**: the actual has
 reached or passed the newest reference, as when the PID's integral carries
 the axes past a decelerating reference at the program's end or before an
-exact stop; no reference point lies ahead of the position then, the window
-estimator extends the last chord, and past the program's end the exact error
-is the distance to the end point, which no tangent-line estimator sees. The
-goals (:data:`GOAL_MAX_UM`, :data:`GOAL_RMS_UM`, :data:`GOAL_STEPS`) are
+exact stop, and on paper 001's own loop in most moving samples; no reference
+point lies ahead of the position then, and the window estimator continues
+the circle through its three newest points, so it stays exact while the
+program goes on, but past an open program's end (or an exact stop's vertex)
+the exact error is the distance to that point, which no estimator built on
+past references sees. The goals (:data:`GOAL_MAX_UM`, :data:`GOAL_RMS_UM`, :data:`GOAL_STEPS`) are
 judged on the following samples of the smooth contours; corners and the
 ahead samples are reported with their worst case and where it happens. Window steps
 are counted in steady state: the reference at a constant feed for the last

@@ -36,7 +36,7 @@ import numpy as np
 from scipy import signal
 
 from cnc_contour_control.axis.servo import NO_FERROR_TRIP
-from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.core.units import M_PER_MM, M_PER_UM
 from cnc_contour_control.laws.pid import pid_gains_from_per_sample
 from cnc_plant_sim.models.mass_friction import LENGTH_UNITS, MassFrictionAxisConfig, paper001_axes
@@ -105,6 +105,30 @@ READINGS: tuple[Reading, ...] = (
     Reading("si_plant_mm_gains_per_sample", "c in m, gains per mm and per sample (Ki 20/T, Kd 0.01·T)",
             "m", "mm", _PER_SAMPLE),
 )
+
+
+def reading_named(name: str) -> Reading:
+    """The reading of :data:`READINGS` called ``name``; ConfigError listing the valid names otherwise."""
+    for reading in READINGS:
+        if reading.name == name:
+            return reading
+    raise ConfigError(f"reading must be one of {[r.name for r in READINGS]}, got {name!r}")
+
+
+def stable_readings(scenario: Scenario, readings: Sequence[Reading] = READINGS) -> tuple[Reading, ...]:
+    """The readings whose sampled linear loop is stable on every axis of ``scenario``'s plant (|z| < 1).
+
+    The loop of :func:`discrete_poles` (friction left out): a reading outside
+    this set diverges or never settles whatever a compensator learns.
+    """
+    stable = []
+    for reading in readings:
+        plant = reading.apply(scenario).plant
+        radius = max(float(np.max(np.abs(discrete_poles(axis, reading, scenario.sample_time_s))))
+                     for axis in paper001_axes(plant.axes, plant.axis_overrides))
+        if radius < 1.0:
+            stable.append(reading)
+    return tuple(stable)
 
 
 # --------------------------------------------------------------------------- the linear loop

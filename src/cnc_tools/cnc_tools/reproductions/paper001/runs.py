@@ -38,7 +38,7 @@ from cnc_contour_control.core.errors import ConfigError, FaultError
 from cnc_contour_control.core.units import M_PER_MM
 from cnc_tools.analysis.scoring import contour_error_series
 from cnc_tools.reproductions.paper001.data import SCENARIOS, TABLE1_NETWORK
-from cnc_tools.reproductions.paper001.readings import measure
+from cnc_tools.reproductions.paper001.readings import measure, reading_named
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.executor import LocalExecutor
@@ -210,7 +210,9 @@ def learning_runs(scenario: Scenario, runs: int, folder: Path) -> Iterator[tuple
 class SessionSpec:
     """What a session runs: a scenario file (key of :data:`SCENARIO_FILES`), a stack, its changes, how many runs.
 
-    ``state_in`` starts run 1 from a learned state; ``freeze`` applies it without learning.
+    ``state_in`` starts run 1 from a learned state; ``freeze`` applies it without learning. ``reading`` names a
+    unit reading of :data:`~cnc_tools.reproductions.paper001.readings.READINGS` applied to the scenario (empty:
+    the scenario file's own, the reproduction's reading).
     """
 
     key: str
@@ -221,6 +223,7 @@ class SessionSpec:
     params: Mapping[str, Any] = field(default_factory=dict)
     state_in: str = ""
     freeze: bool = False
+    reading: str = ""
 
 
 @dataclass(frozen=True)
@@ -248,6 +251,8 @@ def run_session(spec: SessionSpec) -> Session:
     stack = STACKS[spec.stack]
     # the paper's runs have no trip: a session watches what learning does to the loop, ringing included
     base = load_scenario(project_root() / SCENARIO_FILES[spec.scenario], {"servo": NO_FERROR_TRIP})
+    if spec.reading:
+        base = reading_named(spec.reading).apply(base)
     scenario = stack_scenario(base, stack, spec.params, spec.state_in, freeze=spec.freeze)
     measures: list[RunMeasure] = []
     runs = learning_runs(scenario, spec.runs, Path(spec.folder))
