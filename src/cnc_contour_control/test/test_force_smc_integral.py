@@ -1,0 +1,68 @@
+"""The SMC with an integral in its boundary layer, and the switch's hysteresis (tier 1, core maths)."""
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.force import ForceRegulatorConfig, TurningModelConfig, make_force_law
+from cnc_contour_control.force.smc_integral import SmcIntegralConfig, SmcIntegralLaw
+
+MODEL = TurningModelConfig(depth_min_mm=1.0, depth_max_mm=3.0)
+PARAMS = {"eta_n_s2": 1.0e5, "integral_per_s": 2.0, "model": MODEL}
+DT_S = 0.01
+
+
+def steady_law(ratio: float) -> SmcIntegralLaw:
+    law = SmcIntegralLaw(SmcIntegralConfig(**PARAMS))
+    law.reset(ratio)
+    law.note_applied(ratio)
+    return law
+
+
+def test_within_the_dead_band_the_ratio_holds() -> None:
+    law = steady_law(0.7)
+    assert law.step(DT_S, 496.4, 500.0) == 0.7 and law.sliding
+
+
+@pytest.mark.parametrize("depth_mm", [1.0, 2.0, 3.0])
+def test_the_integral_moves_the_ratio_by_the_relative_error_at_any_depth(depth_mm: float) -> None:
+    ratio = MODEL.steady_ratio(450.0, depth_mm)
+    law = steady_law(ratio)
+    law.step(DT_S, 450.0, 500.0)  # a held force: the surface is λ x̃ = −1000 N/s, inside 4 Φ
+    assert law.sliding
+    assert law.ratio / ratio - 1.0 == pytest.approx(DT_S * 2.0 * 50.0 / 450.0, rel=1e-9)
+
+
+def test_a_depth_step_leaves_the_layer_and_cuts_the_feed() -> None:
+    law = steady_law(0.7)
+    law.step(DT_S, 500.0, 500.0)
+    requested = law.step(DT_S, 536.0, 500.0)  # 36 N in 10 ms: ẋ = 3600 N/s, s > 4 Φ = 2000 N/s
+    assert not law.sliding and requested < 0.0
+
+
+def test_back_in_the_layer_the_integral_starts_from_the_axis_feed() -> None:
+    law = steady_law(0.7)
+    law.step(DT_S, 500.0, 500.0)
+    law.step(DT_S, 536.0, 500.0)
+    law.note_applied(0.0)
+    law.step(DT_S, 536.0, 500.0)  # ẋ = 0, λ x̃ = 720 N/s: inside 4 Φ but outside Φ, still reaching
+    assert not law.sliding
+    law.step(DT_S, 510.0, 500.0)  # ẋ = −2600: |s| = 2400 > Φ
+    law.step(DT_S, 505.0, 500.0)  # ẋ = −500, λ x̃ = 100: |s| = 400 <= Φ = 500
+    feed = 0.7 * math.exp(-3 * DT_S / MODEL.interpolator_tau_s)  # three updates at 0 % since the cut
+    assert law.sliding and law.ratio == pytest.approx(feed, rel=1e-12), "5 N is within the 1 % dead band"
+
+
+@pytest.mark.parametrize(("params", "name"), [({"integral_per_s": -1.0}, "integral_per_s"),
+                                               ({"exit_factor": 0.5}, "exit_factor"),
+                                               ({"deadband_fraction": 0.9}, "deadband_fraction")])
+def test_a_bad_option_is_refused_naming_it(params: dict[str, float], name: str) -> None:
+    with pytest.raises(ConfigError, match=name):
+        make_force_law("smc_integral", params)
+
+
+def test_a_bad_hysteresis_is_refused_naming_it() -> None:
+    with pytest.raises(ConfigError, match="hysteresis_fraction"):
+        ForceRegulatorConfig(hysteresis_fraction=-0.1)
