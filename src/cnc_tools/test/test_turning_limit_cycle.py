@@ -10,21 +10,14 @@ import pytest
 from cnc_contour_control.force import ForceRegulator, ForceRegulatorConfig
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
-from cnc_tools.runs.scenario import Scenario, build_scenario, load_scenario, merge
+from cnc_tools.runs.scenario import load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
 TURNING = ROOT / "scenarios" / "paper004_turning.yaml"
 #: 2 mm, then 3 mm (where no level lands: 40 % gives 426 N, 50 % 532 N) from 1.5 s; 6 s.
 SHORT: dict[str, Any] = {"duration_s": 6.0, "plant": {"cutting": {"depth_schedule": [[0.0, 2.0], [1.5, 3.0]]}}}
-PAPER_LAW: dict[str, Any] = {"law": "smc", "hysteresis_fraction": 0.0,
-                             "law_params": {"lambda_per_s": 20.0, "eta_n_s2": 1.0e5, "epsilon_fraction": 0.05}}
-
-
-def with_papers_law() -> Scenario:
-    """The short run with the paper's SMC as the scenario shipped it before (no integral, no hysteresis)."""
-    raw = merge(load_scenario(TURNING, SHORT).raw, {})
-    raw["force_regulator"] = {**raw["force_regulator"], **PAPER_LAW}
-    return build_scenario(raw, base_dir=TURNING.parent, source=TURNING)
+#: The same run with the paper's SMC (η 1e5) and plain rounding.
+PAPERS_LAW = ROOT / "scenarios" / "paper004_turning_smc.yaml"
 
 
 def steady(run: RunRecord, start_s: float, end_s: float) -> tuple[float, float]:
@@ -53,7 +46,7 @@ def test_where_no_level_lands_the_mean_holds_with_few_changes(shipped: RunRecord
 
 
 def test_the_papers_law_in_the_same_run_bangs_the_switch() -> None:
-    run = run_engine(with_papers_law())
+    run = run_engine(load_scenario(PAPERS_LAW, SHORT))
     assert steady(run, 0.8, 1.5)[1] > 10.0 and steady(run, 3.0, 6.0)[1] > 10.0
 
 
