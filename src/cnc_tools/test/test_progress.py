@@ -2,6 +2,7 @@
 nothing when quiet; ``cnc-contour --version`` and ``tune``'s generations from real subprocesses."""
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import os
 import pty
@@ -150,6 +151,32 @@ def test_a_pipe_gets_plain_lines_at_tenths_and_intervals() -> None:
     assert len(tenths) == 10 and len(demo) == 12, demo  # start, each tenth, the end: not one per step
     assert [line.split(" · ")[0] for line in lines if line.startswith("no total")] == [
         "no total", "no total 5", "no total 10", "no total 12"]
+
+
+def test_an_exception_ends_the_line_with_stopped_not_done() -> None:
+    reader, writer = os.pipe()
+    clock = Clock()
+    with os.fdopen(writer, "w") as stream:
+        reporter = Reporter(stream, clock=clock)
+        with pytest.raises(KeyboardInterrupt), reporter.task("bench demo"), reporter.task("demo runs", 4) as runs:
+            runs.step()
+            clock.now_s += 3.0
+            raise KeyboardInterrupt
+        assert not reporter.tasks
+    with os.fdopen(reader) as written:
+        assert written.read().splitlines()[-1] == "bench demo › demo runs 1/4 · stopped after 3 s"
+
+
+def test_a_closed_stream_silences_the_reporter_not_the_command() -> None:
+    reader, writer = os.pipe()
+    os.close(reader)  # the reading end is gone: a write raises BrokenPipeError
+    with os.fdopen(writer, "w") as stream:
+        clock = Clock()
+        reporter = Reporter(stream, clock=clock)
+        _sweep(reporter, clock, runs=3)
+        assert reporter.tasks == []
+        with contextlib.suppress(BrokenPipeError):  # what the failed write left in the buffer
+            stream.close()
 
 
 def test_quiet_writes_nothing() -> None:

@@ -92,16 +92,16 @@ class Task:
         """Tenths of the total done (0 without a total)."""
         return 0 if not self.total else min(10, self.done * 10 // self.total)
 
-    def close(self) -> None:
-        """End the task (idempotent)."""
-        self.owner.closed(self)
+    def close(self, *, stopped: bool = False) -> None:
+        """End the task (idempotent); ``stopped``: by an exception (Ctrl-C, an error), not by finishing."""
+        self.owner.closed(self, stopped=stopped)
 
     def __enter__(self) -> Task:
         return self
 
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
                  trace: TracebackType | None) -> None:
-        self.close()
+        self.close(stopped=kind is not None)
 
 
 class Reporter:
@@ -134,6 +134,7 @@ class Reporter:
         self.redraw_s = redraw_s
         self._drawn_s = float("-inf")
         self._style: Literal["terminal", "lines", "quiet"] = "quiet"  # resolved when the outermost task opens
+        self._stopped: list[Task] | None = None  # the open tasks when an exception ended the deepest of them
         self.tasks: list[Task] = []
         self._last_line_s = float("-inf")
         self._drawn = False  # a status line is on the terminal
@@ -157,6 +158,7 @@ class Reporter:
         """Open a task (use it in a ``with`` block); it nests inside the tasks open now."""
         opened = Task(self, label, total)
         self.tasks.append(opened)
+        self._stopped = None
         if len(self.tasks) == 1:  # the style holds until the outermost task ends (one look at the stream)
             self._style = self.style()
             if self._style == "terminal":
@@ -167,26 +169,33 @@ class Reporter:
     def changed(self, changed: Task) -> None:
         """A task stepped: redraw, or write a line when the outermost task with a total reached another tenth
         of it, or when the interval says so."""
+        self._stopped = None  # an exception that ended an inner task was handled: the work goes on
         if self._style != "quiet" and changed in self.tasks:
             leading = next((t for t in self.tasks if t.total is not None), None)
             self._show(tenth=changed is leading and changed.tenths() > changed.tenths_shown)
 
-    def closed(self, task: Task) -> None:
-        """A task ended: its line ends with ``done`` when it was the outermost; an inner one clears the line."""
+    def closed(self, task: Task, *, stopped: bool = False) -> None:
+        """A task ended: the outermost's last line says ``done in`` (``stopped after`` when an exception ended
+        it); an inner one's end clears the terminal's line."""
         if task not in self.tasks:
             return
         style = self._style
         outermost = self.tasks[0] is task
-        if outermost and style == "terminal":
-            line = self.status(self.clock(), ending=True)[:max(10, self._width() - 1)]
-            self._write(("\n" if self._held else "") + f"\r{line}\x1b[K\n")
-            self._drawn = self._held = False
-            _unguard_stdout(self)
-        elif outermost and style == "lines":
-            self._write(self.status(self.clock(), ending=True) + "\n")
-        elif style == "terminal":
+        if stopped and self._stopped is None:  # the deepest task an exception ended: the last line names it
+            self._stopped = list(self.tasks)
+        if outermost and style != "quiet":
+            line = self.status(self.clock(), ending=True, stopped=stopped)
+            if style == "terminal":
+                self._write(("\n" if self._held else "") + f"\r{line[:max(10, self._width() - 1)]}\x1b[K\n")
+                self._drawn = self._held = False
+                _unguard_stdout(self)
+            else:
+                self._write(line + "\n")
+        elif style == "terminal" and not stopped:
             self.before_output()
         self.tasks = self.tasks[:self.tasks.index(task)]
+        if outermost:
+            self._stopped = None
 
     def before_output(self) -> None:
         """The command writes to the terminal: clear the status line if one is drawn."""
@@ -200,13 +209,14 @@ class Reporter:
         if line_ended and self.tasks and self._style == "terminal":
             self._show()
 
-    def status(self, now_s: float, *, ending: bool = False) -> str:
-        """The status line of the open tasks at ``now_s``."""
+    def status(self, now_s: float, *, ending: bool = False, stopped: bool = False) -> str:
+        """The status line of the open tasks at ``now_s`` (``ending``: the last one, ``stopped`` by an exception)."""
         if not self.tasks:
             return ""
         elapsed = format_duration(now_s - self.tasks[0].started_s)
-        parts = [" › ".join(t.text() for t in self.tasks),
-                 f"done in {elapsed}" if ending else f"{elapsed} elapsed"]
+        shown = self._stopped if stopped and self._stopped else self.tasks
+        parts = [" › ".join(t.text() for t in shown),
+                 (f"stopped after {elapsed}" if stopped else f"done in {elapsed}") if ending else f"{elapsed} elapsed"]
         left = next((r for r in (t.remaining_s(now_s) for t in self.tasks) if r is not None), None)
         if left is not None and not ending:
             parts.append(f"~{format_duration(left)} left")
@@ -237,8 +247,12 @@ class Reporter:
         return columns or FALLBACK_WIDTH
 
     def _write(self, text: str) -> None:
-        self.stream.write(text)
-        self.stream.flush()
+        """Write and flush; a stream that fails (a closed pipe) silences the reporter, never the command."""
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):
+            self._style = "quiet"
 
 
 class _StdoutGuard:
