@@ -133,3 +133,13 @@ def test_the_shipped_layout_is_current_and_names_only_advertised_channels(watche
     named = layout_topics(shipped)
     assert {"/live/xy", "/live/contour_error/exact/peaks", "/live/log", "/live/feed_override"} <= named
     assert named <= set(watched.channels), sorted(named - set(watched.channels))
+
+
+def test_the_override_channel_shows_the_schedules_request_and_the_applied_ratio(tmp_path: Path) -> None:
+    scenario = load_scenario(ROOT / "scenarios" / "feed_hold_circle.yaml")  # 100 % -> 50 % -> hold -> 100 %
+    watched = watch_engine_run(scenario, tmp_path / "run", ("/live/feed_override",), rate=5.0)
+    samples = [r.json() for r in watched.of("/live/feed_override")]
+    requested = {m["requested_ratio"] for m in samples}
+    assert {0.0, 0.5, 1.0} <= requested, sorted(requested)
+    applied = [m["applied_ratio"] for m in samples]
+    assert min(applied) == 0.0 and applied[-1] == 1.0 and 0.0 < max(applied) <= 1.0

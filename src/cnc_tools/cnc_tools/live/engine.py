@@ -76,8 +76,15 @@ class EngineLive:
             self._send(topics.CONTOUR_ERROR, self._estimate(board.estimate, stamp))
         if self.cuts:
             self._send(topics.CUTTING_FORCE, self._wrench(board))
-        self.feed.set_requested_override(board.stamp_ns, board.feed_override_request, board.feed_override_ratio,
+        self.feed.set_requested_override(board.stamp_ns, self._requested(board, stages), board.feed_override_ratio,
                                          self.wall_ns())
+
+    @staticmethod
+    def _requested(board: Board, stages: list[EngineStage]) -> float:
+        """The override ratio requested at the tick: the scenario's schedule if it has one, else the board's."""
+        live = getattr(next(s for s in stages if hasattr(s, "path_fields")), "live", None)
+        return float(live.request(board.stamp_ns, board.feed_override_request) if live is not None
+                     else board.feed_override_request)
 
     def _pace(self, stamp_ns: int) -> None:
         now = self.clock_ns()
