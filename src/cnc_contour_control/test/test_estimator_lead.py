@@ -14,7 +14,7 @@ import numpy as np
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from cnc_contour_control.estimators import make_estimator, signed_contour_error
+from cnc_contour_control.estimators import make_estimator, signed_contour_error, signed_segment_error
 from cnc_contour_control.estimators.window import ahead_error, line_error
 from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program, Segment
 
@@ -73,18 +73,25 @@ def test_window_within_1_um_leading_and_lagging(kind: str, radius_mm: float, hea
     program = Program("generated", ("x", "y", "z")[:segment.n_axes], (segment,))
     refs, positions, judged = _stream(segment, feed_mm_min / 60e3, lead_mm * 1e-3, offset_um * 1e-6)
     estimator = make_estimator("window", {}, program)
-    found = np.array([estimator.step(r, p).contour_error_m for r, p in zip(refs.tolist(), positions.tolist())])
+    estimates = [estimator.step(r, p) for r, p in zip(refs.tolist(), positions.tolist())]
+    found = np.array([e.contour_error_m for e in estimates])
     exact, _, _ = signed_contour_error(program, positions)
     worst = float(np.max(np.abs(found - exact)[judged]))
     assert worst <= GOAL_M, f"{kind}: |estimate − exact| {worst * 1e6:.3f} µm > 1 µm"
+    _, _, _, tangent_rad = signed_segment_error(segment, positions)
+    ahead = judged & (lead_mm > 0.05)  # clearly past the newest reference: the tangent's angle at the nearest point
+    turn = np.angle(np.exp(1j * (np.array([e.angle_rad for e in estimates]) - tangent_rad)))
+    assert np.all(np.abs(turn[ahead]) < 1e-6)
 
 
 def test_ahead_on_a_line_is_the_line_and_continues_the_chord_sign() -> None:
     newest, middle, first = (0.002, 0.001), (0.001, 0.0005), (0.0, 0.0)
     for pos in ((0.004, 0.0025), (0.003, 0.0011), (0.0025, 0.0008)):
-        error, angle = ahead_error(pos, first, middle, newest, (0, 1))
+        found = ahead_error(pos, first, middle, newest, (0, 1))
+        assert found is not None
         line, line_angle = line_error(pos, newest, middle, newest, (0, 1))
-        assert math.isclose(error, line, abs_tol=1e-15) and math.isclose(angle, line_angle, abs_tol=1e-12)
+        assert math.isclose(found[0], line, abs_tol=1e-15) and math.isclose(found[1], line_angle, abs_tol=1e-12)
+    assert ahead_error((0.0019, 0.0012), first, middle, newest, (0, 1)) is None  # not past the newest point
 
 
 def _closed(kind: str) -> Program:

@@ -139,11 +139,10 @@ class WindowEstimator:
         memory, capacity = self._memory, self._capacity
         near, other = memory[nearest % capacity], memory[second % capacity]
         earlier, later = (other, near) if second < nearest else (near, other)
-        if nearest == self._count - 1 and nearest >= max(2, self._count - capacity + 2):
-            first = memory[(nearest - 2) % capacity]
-            if sum(map(mul, map(sub, pos, near), map(sub, near, other))) > 0.0:  # past the newest point
-                error, angle = ahead_error(pos, first, other, near, self._plane)
-                return ContourEstimate(error, tracking, angle, nearest, other, near, window_size, steps)
+        if nearest == self._count - 1 and nearest >= 2:  # the ring holds the two before it (memory_points >= 3)
+            ahead = ahead_error(pos, memory[(nearest - 2) % capacity], other, near, self._plane)
+            if ahead is not None:
+                return ContourEstimate(ahead[0], tracking, ahead[1], nearest, other, near, window_size, steps)
         error, angle = self._line(pos, near, earlier, later, self._plane)
         return ContourEstimate(error, tracking, angle, nearest, other, near, window_size, steps)
 
@@ -211,8 +210,12 @@ def line_error_2(pos: Sequence[float], near: Sequence[float], earlier: Sequence[
 
 
 def ahead_error(pos: Sequence[float], first: Sequence[float], middle: Sequence[float], newest: Sequence[float],
-                plane: tuple[int, int]) -> tuple[float, float]:
+                plane: tuple[int, int]) -> tuple[float, float] | None:
     """Signed distance (m) from ``pos`` to the circle through three stored points, continued past ``newest``.
+
+    None when ``pos`` is not past ``newest`` (its offset from ``newest`` has no
+    positive component along the circle's tangent there): the chord line
+    then measures it (between the two newest points, or behind them).
 
     The circle is taken in ``plane`` with signed curvature κ (> 0 turning
     left) through ``first`` → ``middle`` → ``newest``. With ``u``, ``v`` the
@@ -234,17 +237,27 @@ def ahead_error(pos: Sequence[float], first: Sequence[float], middle: Sequence[f
     chord, previous = math.hypot(ca, cb), math.hypot(pa, pb)
     span = math.hypot(newest[a] - first[a], newest[b] - first[b])
     if chord * previous * span == 0.0:
-        return line_error(pos, newest, middle, newest, plane)
+        return line_error(pos, newest, middle, newest, plane) if _past(pos, middle, newest) else None
     kappa = 2.0 * (pa * cb - pb * ca) / (chord * previous * span)
-    tangent = math.atan2(cb, ca) + math.asin(max(-1.0, min(1.0, 0.5 * kappa * chord)))
-    ta, tb = math.cos(tangent), math.sin(tangent)
+    sin_half = max(-1.0, min(1.0, 0.5 * kappa * chord))  # the tangent at newest: the chord turned by half its arc
+    cos_half = math.sqrt(1.0 - sin_half * sin_half)
+    ta, tb = (ca * cos_half - cb * sin_half) / chord, (cb * cos_half + ca * sin_half) / chord
     da, db = pos[a] - newest[a], pos[b] - newest[b]
     u, v = da * ta + db * tb, db * ta - da * tb
-    turned = math.atan2(kappa * u, 1.0 - kappa * v)
-    error = (2.0 * v - kappa * (u * u + v * v)) / (1.0 + math.hypot(kappa * u, 1.0 - kappa * v)) + 0.0
+    if u <= 0.0:
+        return None
+    ku, kv = kappa * u, 1.0 - kappa * v  # (kv, ku) points along the arc turned from newest to the nearest point
+    error = (2.0 * v - kappa * (u * u + v * v)) / (1.0 + math.hypot(ku, kv)) + 0.0
+    angle = math.atan2(tb * kv + ta * ku, ta * kv - tb * ku)
     if len(pos) == 2:
-        return error, tangent + turned
-    return _out_of_plane(error, pos, middle, newest, plane, chord, turned / kappa if kappa else u), tangent + turned
+        return error, angle
+    along = math.atan2(ku, kv) / kappa if kappa else u
+    return _out_of_plane(error, pos, middle, newest, plane, chord, along), angle
+
+
+def _past(pos: Sequence[float], middle: Sequence[float], newest: Sequence[float]) -> bool:
+    """Whether ``pos`` lies past ``newest`` along the chord ``middle`` → ``newest`` (in space)."""
+    return sum(map(mul, map(sub, pos, newest), map(sub, newest, middle))) > 0.0
 
 
 def _out_of_plane(error: float, pos: Sequence[float], middle: Sequence[float], newest: Sequence[float],
