@@ -14,6 +14,7 @@ import sys
 import termios
 from collections.abc import Iterator
 from importlib import metadata
+from operator import methodcaller
 from pathlib import Path
 from typing import TextIO
 
@@ -21,6 +22,7 @@ import numpy as np
 import pytest
 
 from cnc_contour_control.core.errors import ConfigError
+from cnc_tools.runs.executor import LocalExecutor
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.progress import Reporter, format_duration, set_quiet
 from cnc_tools.tuning.problem import Constraint, DesignVariable
@@ -187,6 +189,13 @@ def test_quiet_writes_nothing() -> None:
         _sweep(reporter, clock, runs=3)
     with os.fdopen(reader) as written:
         assert written.read() == ""
+
+
+def test_a_pool_worker_is_quiet() -> None:
+    """Progress is the parent's: a spawned worker's reporter writes nothing, even with lines asked for."""
+    with LocalExecutor(2, progress=False) as pool:
+        styles = pool.map(methodcaller("style"), [Reporter(mode="lines"), Reporter(mode="terminal")])
+    assert styles == ["quiet", "quiet"] and Reporter(mode="lines").style() == "lines"
 
 
 def test_bad_options_are_refused_naming_them() -> None:
