@@ -69,6 +69,12 @@ def test_only_another_address_than_loopback_is_warned_about() -> None:
     assert "WARNING" in warned.getvalue() and "NOT loopback" in warned.getvalue()
 
 
+def test_a_port_in_use_is_a_usage_error_naming_it() -> None:
+    with LiveServer(LiveConfig(port=0)) as first:
+        with pytest.raises(ConfigError, match=f"--live-port {first.port} .*in use"):
+            LiveServer(LiveConfig(port=first.port))
+
+
 # --------------------------------------------------------------------------- an engine run, watched
 @pytest.fixture(scope="module")
 def watched(tmp_path_factory: pytest.TempPathFactory) -> Watched:

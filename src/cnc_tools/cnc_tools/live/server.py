@@ -90,11 +90,15 @@ class LiveServer:
         import foxglove  # loaded only when a server starts: the CLI stays light without --live
 
         self.context = foxglove.Context()
-        self.server = foxglove.start_server(
-            name=config.name, host=config.host, port=config.port, capabilities=list(capabilities) or None,
-            server_listener=listener, supported_encodings=list(supported_encodings) or None,
-            services=list(services) or None, context=self.context, playback_time_range=playback_time_range,
-            message_backlog_size=BACKLOG_MESSAGES)
+        try:
+            self.server = foxglove.start_server(
+                name=config.name, host=config.host, port=config.port, capabilities=list(capabilities) or None,
+                server_listener=listener, supported_encodings=list(supported_encodings) or None,
+                services=list(services) or None, context=self.context, playback_time_range=playback_time_range,
+                message_backlog_size=BACKLOG_MESSAGES)
+        except RuntimeError as err:  # foxglove's FoxgloveError: the port taken, the address unknown
+            raise ConfigError(f"live server: cannot listen on --live-host {config.host} --live-port {config.port} "
+                              f"({err}); choose another port (0: any free one)") from err
         self.channels: dict[str, Any] = {}
 
     @property
