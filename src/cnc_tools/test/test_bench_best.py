@@ -1,4 +1,4 @@
-"""Bench ``best``: the contenders' files run the paper's own case, the goals are judged right, paper 000's are met."""
+"""Bench ``best``: the contenders' files run the paper's own case, the goals are judged right, paper 000's hold."""
 from __future__ import annotations
 
 from typing import Any
@@ -6,7 +6,7 @@ from typing import Any
 import pytest
 import yaml
 
-from cnc_tools.bench.best import CONTOURS, Contour, Outcome, judge, run_contender
+from cnc_tools.bench.best import CONTOURS, Contour, Outcome, judge, judge_contour, run_contender
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.scenario import load_scenario
 
@@ -45,10 +45,21 @@ def test_goals_are_judged_against_their_bounds(ours: Outcome, met: tuple[bool, .
     assert tuple(goal.met for goal in judge(pid, paper, ours)) == met
 
 
-def test_paper000_our_stack_meets_every_goal() -> None:
-    """Paper 000's circle on the engine: PID, FLC, then 20 runs of PID + feedforward + ILC (about 1 s)."""
+def test_a_tuned_pid_adds_its_two_goals() -> None:
+    pid, paper, ours = Outcome(100.0, 60.0, 100.0, 1), Outcome(50.0, 30.0, 25.0, 1), Outcome(10.0, 5.0, 3.0, 1)
+    goals = judge(pid, paper, ours, tuned=Outcome(20.0, 10.0, 10.0, 1))
+    assert [(g.name, round(g.value, 6), g.met) for g in goals[4:]] == [
+        ("max reduction against the tuned PID", 0.5, False), ("mean reduction against the tuned PID", 0.7, False)]
+
+
+def test_paper000_our_stack_meets_the_goals_but_the_tuned_pid_max() -> None:
+    """Paper 000's circle on the engine: PIDs, FLC, then 20 runs of PID + feedforward + ILC (about 1 s).
+
+    Against the PID tuned by differential evolution (gains at the box's edge) the max goal is not met:
+    the friction at the quadrant reversals at T = 10 ms is left (docs/reproduction.md, "Our best stack").
+    """
     contour = CONTOURS[0]
-    pid, paper, ours = (run_contender(contender) for contender in contour.contenders)
-    assert ours.runs == contour.ours.runs == 20 and not ours.fault
-    goals = judge(pid, paper, ours)
-    assert all(goal.met for goal in goals), goals
+    outcomes = [run_contender(contender) for contender in contour.contenders]
+    assert outcomes[-1].runs == contour.ours.runs == 20 and not outcomes[-1].fault
+    goals = judge_contour(contour, outcomes)
+    assert [g.name for g in goals if not g.met] == ["max reduction against the tuned PID"], goals
