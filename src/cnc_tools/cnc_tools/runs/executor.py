@@ -121,7 +121,7 @@ class _Progress:
     def __exit__(self, kind: type[BaseException] | None, error: BaseException | None,
                  trace: TracebackType | None) -> None:
         if self.task is not None:
-            self.task.close()
+            self.task.close(stopped=kind is not None)
 
 
 class _Closing:
