@@ -98,6 +98,7 @@ def sweep_prediction(item: tuple[str, float, str, int]) -> dict[str, Any]:
     except ConfigError as err:
         return {"error": str(err)}
     return {"removal_at_fd": next(loop["removal_at_fd"] for loop in loops if loop["inertia_error"] == 0.0),
+            "removal_at_fd_worst": min(loop["removal_at_fd"] for loop in loops),
             "disturbance_peak": max(loop["disturbance_peak"] for loop in loops),
             "sensitivity_peak": max(loop["sensitivity_peak"] for loop in loops),
             "stable": all(bool(loop["stable"]) for loop in loops)}

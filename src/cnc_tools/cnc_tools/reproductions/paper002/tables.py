@@ -232,6 +232,7 @@ def worst_of_axes(per_axis: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
         return {"error": "; ".join(f"{axis}: {text}" for axis, text in refused.items()), "axes": dict(per_axis)}
     peak_axis = max(per_axis, key=lambda axis: per_axis[axis]["disturbance_peak"])
     return {"removal_at_fd": min(fig["removal_at_fd"] for fig in per_axis.values()),
+            "removal_at_fd_worst": min(fig["removal_at_fd_worst"] for fig in per_axis.values()),
             "disturbance_peak": per_axis[peak_axis]["disturbance_peak"], "disturbance_peak_axis": peak_axis,
             "sensitivity_peak": max(fig["sensitivity_peak"] for fig in per_axis.values()),
             "stable": all(bool(fig["stable"]) for fig in per_axis.values()), "axes": dict(per_axis)}
@@ -244,19 +245,22 @@ def _works(fig: Mapping[str, Any] | None) -> bool:
 
 
 def works_summary(predictions: Mapping[str, Mapping[float, Mapping[str, Any]]]) -> dict[str, dict[str, list[float]]]:
-    """Per law and axis (and ``"both"``), the f_d [Hz] of the design grid where it works (:func:`_works`)."""
+    """Per law and axis (and ``"both"``), the f_d [Hz] of the design grid where it works (:func:`_works`);
+    ``"worse"``: where it makes the f_d line worse on some axis at some inertia error (removal < 0)."""
     out: dict[str, dict[str, list[float]]] = {}
     for law, per_f in predictions.items():
         axes = sorted({axis for fig in per_f.values() for axis in fig.get("axes", {})})
         out[law] = {axis: [f for f, fig in per_f.items() if _works(fig.get("axes", {}).get(axis))] for axis in axes}
         out[law]["both"] = [f for f, fig in per_f.items() if _works(fig)]
+        out[law]["worse"] = [f for f, fig in per_f.items() if "error" not in fig and fig["removal_at_fd_worst"] < 0.0]
     return out
 
 
 def print_works(summary: Mapping[str, Mapping[str, Sequence[float]]], grid: Sequence[float]) -> None:
     """Where each law works on the design grid, per axis and on both."""
     print(f"  where each law works (design grid {grid[0]:g}-{grid[-1]:g} Hz: removes >= {100 * WORKS_REMOVAL:.0f} % "
-          f"at f_d, no band amplified by > 6 dB, stable with ±20 % inertia; each axis with its own model):")
+          f"at f_d, no band amplified by > 6 dB, stable with ±20 % inertia; each axis with its own model; "
+          "worse: the f_d line grows on some axis at some inertia error):")
     for law, by_axis in summary.items():
         for axis, freqs in by_axis.items():
             span = "nowhere" if not freqs else ", ".join(f"{f:g}" for f in freqs)
