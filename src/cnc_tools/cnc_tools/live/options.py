@@ -77,8 +77,10 @@ def live_session(args: argparse.Namespace, rate: float = 1.0, **extensions: Any)
 
 
 @contextmanager
-def engine_live(args: argparse.Namespace, scenario: Scenario) -> Iterator[dict[str, Callable[..., None]]]:
-    """The engine's options for ``run --engine``: ``{"on_tick": observer}`` with --live, else nothing."""
+def engine_live(args: argparse.Namespace, scenario: Scenario,
+                **extensions: Any) -> Iterator[dict[str, Callable[..., None]]]:
+    """The engine's options for ``run --engine``: ``{"on_tick": observer}`` with --live, else nothing
+    (``extensions``: :class:`LiveServer`'s listener, capabilities, ...)."""
     if not getattr(args, "live", False):
         yield {}
         return
@@ -87,7 +89,7 @@ def engine_live(args: argparse.Namespace, scenario: Scenario) -> Iterator[dict[s
     from cnc_tools.live.engine import EngineLive, check_rate
 
     rate = check_rate(args.live_rate)
-    with live_session(args, rate) as feed:
+    with live_session(args, rate, **extensions) as feed:
         observer = EngineLive(scenario, feed, rate)
         observer.start()
         try:
@@ -107,7 +109,8 @@ class GraphLive:
 
 
 @contextmanager
-def graph_live(args: argparse.Namespace, namespace: str, scenario: Scenario) -> Iterator[GraphLive]:
+def graph_live(args: argparse.Namespace, namespace: str, scenario: Scenario,
+               **extensions: Any) -> Iterator[GraphLive]:
     """For a graph run: with --live, a ``live`` node in this process reads the run's namespace and every stage
     waits for it (one extra subscriber), so the viewer sees every tick; the run's channels are offered at once."""
     if not getattr(args, "live", False):
@@ -119,7 +122,7 @@ def graph_live(args: argparse.Namespace, namespace: str, scenario: Scenario) -> 
     from cnc_tools.runs.dds import apply_loopback_policy
 
     apply_loopback_policy(os.environ)  # this process's reader joins the run's domain, on loopback as the nodes
-    with live_session(args) as feed:
+    with live_session(args, **extensions) as feed:
         for name, type_name in scenario.pipeline().recorded_topics().items():
             if type_name != topics.CLOCK.type_name:
                 feed.advertise(name, type_name)
@@ -131,7 +134,7 @@ def graph_live(args: argparse.Namespace, namespace: str, scenario: Scenario) -> 
 
 
 @contextmanager
-def replay_live(args: argparse.Namespace, recorded: Mapping[str, str]) -> Iterator[int]:
+def replay_live(args: argparse.Namespace, recorded: Mapping[str, str], **extensions: Any) -> Iterator[int]:
     """For ``replay --live``: a ``live`` node in this process on the bag's run namespace, its topics (``recorded``:
     name -> type) offered at once; yields the readers the replay waits for on each topic (at least this one)."""
     if not getattr(args, "live", False):
@@ -141,7 +144,7 @@ def replay_live(args: argparse.Namespace, recorded: Mapping[str, str]) -> Iterat
     from cnc_tools.live.ros import LiveThread
 
     namespace = run_namespace(recorded)
-    with live_session(args, float(getattr(args, "rate", 1.0))) as feed:
+    with live_session(args, float(getattr(args, "rate", 1.0)), **extensions) as feed:
         for name, type_name in recorded.items():
             if type_name != topics.CLOCK.type_name:
                 diagnostics = type_name == topics.DIAGNOSTICS.type_name
