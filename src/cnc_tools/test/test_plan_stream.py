@@ -181,3 +181,42 @@ def test_a_feed_override_follows_a_streaming_plan_without_finishing_it(monkeypat
         if tick == 100:  # 1 s into a 5.9 s circle: the follower extended the plan, it did not finish it
             assert not streamed.interpolator._stream.finished
     assert ours.done and theirs.done
+
+
+def test_a_live_reference_plans_in_a_thread_and_forgets_behind_the_tool(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every tick's sample equals the whole plan's; the planner's thread forgot what was behind the tool (its held
+    entries at the end are a fraction of the program's) and ended with the plan."""
+    from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig, OverrideFollower
+
+    monkeypatch.setattr(plan_stream, "FORGET_PHASES", 64)
+    program = CORPUS["circle-360-gon"][0]()
+    limits, config = limits_for(program), dataclasses.replace(bench_config(), look_ahead_segments=50)
+    live = LiveReference(program, limits, config, OverrideConfig())
+    whole = OverrideFollower(whole_plan(program, limits, config, monkeypatch), limits)
+    assert live.planner is not None
+    sample = live.step(0, 1.0)
+    expected = whole.advance(0.0, 1.0)
+    for tick in range(1, 10_000):
+        sample, expected = live.step(tick * 1_000_000, 1.0), whole.advance(1e-3, 1.0)
+        assert_allclose(sample.position_m, expected.position_m, rtol=0.0, atol=1e-12)
+        if sample.done:
+            break
+    assert sample.done and expected.done
+    live.planner.thread.join(5.0)
+    assert not live.planner.thread.is_alive()
+    stream, planned = live.planner.stream, len(whole.interpolator.program.segments)
+    assert stream.committed_segments == planned
+    assert stream._blocks.base > planned // 2 and len(stream.start_s) < whole.interpolator.phase_count // 2
+
+
+def test_a_segment_refused_in_the_planner_s_thread_is_raised_at_the_tick(monkeypatch: pytest.MonkeyPatch) -> None:
+    from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
+
+    program = _BLENDING.polygon(900)
+    fast = dataclasses.replace(program.segments[200], feed_m_s=1.0)  # past the first chunk's blocks (128 segments)
+    program = Program(program.name, program.axis_names, program.segments[:200] + (fast,) + program.segments[201:])
+    live = LiveReference(program, limits_for(program), InterpolatorConfig(look_ahead_segments=10), OverrideConfig())
+    assert live.planner is not None and live.planner.stream.committed_segments < 200
+    with pytest.raises(ProgramError, match="feed_mm_min must be <="):
+        for tick in range(100_000):
+            live.step(tick * 10_000_000, 1.0)

@@ -30,8 +30,8 @@ and acceleration *and* the first and second differences of the positions
 within ``acceleration_share`` of them.
 
 On line (:class:`LiveReference`, what the interpolator node and the engine
-both call each tick; a streaming plan is planned a small step ahead and forgotten behind the tool there,
-:mod:`cnc_contour_control.motion.plan_stream`): the requested ratio of tick k is the step schedule's
+both call each tick; a streaming plan is planned ahead of the tool in a thread and forgotten behind it,
+:mod:`cnc_contour_control.motion.plan_background`): the requested ratio of tick k is the step schedule's
 value at t_k when ``schedule_times_s`` is given (an operator turning the
 knob; 1 before its first time), else the latest ``feed_override`` message's
 ratio (:func:`message_ratio`: its ``applied_ratio``, or a bare request's
@@ -54,11 +54,9 @@ from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.motion.accel_decel import ReferenceFilter
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig, ReferenceSample
+from cnc_contour_control.motion.plan_background import BackgroundPlanner
 
 _BISECTIONS = 40
-#: How far (profile time, s) a streaming plan's committed phases reach ahead of the tool before a tick plans a
-#: step (:meth:`~cnc_contour_control.motion.plan_stream.StreamPlan.plan_ahead`): 125 ticks of 1 ms at 200 %.
-PLAN_LEAD_S = 0.25
 
 #: Where the interpolator's requested ratio comes from (the node's ``feed_override_source``):
 #: ``none`` no on-line override (the reference at the stamp); ``schedule`` the config's step schedule;
@@ -235,6 +233,9 @@ class LiveReference:
         self.follower = OverrideFollower(self.interpolator, limits, config)
         self._filter = ReferenceFilter(interpolator_config.accel_decel)
         self._last_ns: int | None = None
+        stream = self.interpolator._stream  # a streaming plan (window shorter than the program), else None
+        #: Plans a streaming profile ahead of the tool in its own thread (None: planned whole).
+        self.planner = BackgroundPlanner(stream, self) if stream is not None else None
 
     def request(self, stamp_ns: int, latest_ratio: float) -> float:
         """The ratio requested at tick ``stamp_ns``: the schedule's if there is one, else ``latest_ratio``."""
@@ -247,17 +248,20 @@ class LiveReference:
         profile at rest with the ratio requested there); the sample's
         ``feed_override_ratio`` is the applied ratio.
         """
+        if self.planner is None:
+            sample = self._advance(stamp_ns, requested_ratio)
+        else:  # sampled under the plan's lock; the planner hears where the tool is
+            with self.planner.condition:
+                sample = self._advance(stamp_ns, requested_ratio)
+                self.planner.tool_at(self.follower.profile_time_s)
+        self._last_ns = stamp_ns
+        return self._filtered(ns_to_s(stamp_ns), sample)
+
+    def _advance(self, stamp_ns: int, requested_ratio: float) -> ReferenceSample:
         if self._last_ns is None:
             self.follower.reset(requested_ratio)
-            sample = self.follower.advance(0.0, requested_ratio)
-        else:
-            sample = self.follower.advance(ns_to_s(stamp_ns - self._last_ns), requested_ratio)
-        self._last_ns = stamp_ns
-        stream = self.interpolator._stream  # a streaming plan (window shorter than the program), else None
-        if stream is not None:  # a tick's share of planning, and nothing kept behind the tool
-            stream.plan_ahead(self.follower.profile_time_s, PLAN_LEAD_S)
-            stream.forget_before(self.follower.profile_time_s)
-        return self._filtered(ns_to_s(stamp_ns), sample)
+            return self.follower.advance(0.0, requested_ratio)
+        return self.follower.advance(ns_to_s(stamp_ns - self._last_ns), requested_ratio)
 
     def _filtered(self, t_s: float, sample: ReferenceSample) -> ReferenceSample:
         """``sample`` through the acceleration/deceleration filter (unchanged for ``kind: none``)."""

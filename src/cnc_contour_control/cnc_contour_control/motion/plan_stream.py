@@ -29,17 +29,16 @@ What differs from planning whole: a segment the limits refuse (a feed over
 them, ``clamp_feed`` false) raises its :class:`ProgramError` when the stream
 reaches it, from :meth:`StreamPlan.extend_to`, not at construction.
 
-On line (:class:`~cnc_contour_control.motion.feed_override.LiveReference`, each tick) two calls keep the
-planner's cost per tick and its memory bounded by the window: :meth:`StreamPlan.plan_ahead` commits one small
-chunk (``STEP_SEGMENTS``, blending ``STEP_BLOCK`` programmed segments at a time) whenever the committed phases
-end less than its lead ahead of the tick, so a tick never plans a whole chunk of ``MIN_CHUNK_SEGMENTS``;
-:meth:`StreamPlan.forget_before` drops the phases and planned segments behind the tool (``FORGET_PHASES`` at a
-time), so the lists and arrays hold the window, the chunk in hand and what is sampled. The chunk size does not
-change the plan (the argument above holds for every ``C``); a forgotten time cannot be sampled again.
+On line (:class:`~cnc_contour_control.motion.feed_override.LiveReference`) a
+:class:`~cnc_contour_control.motion.plan_background.BackgroundPlanner` plans the chunks in a thread ahead of
+the tool (a tick samples, never plans) and calls :meth:`StreamPlan.forget_before`, which drops the phases
+and planned segments behind the tool (``FORGET_PHASES`` at a time): the lists and arrays hold the window, the
+chunk in hand and what is sampled. A forgotten time cannot be sampled again.
 """
 from __future__ import annotations
 
 import bisect
+import contextlib
 import math
 from dataclasses import dataclass
 from typing import Any
@@ -64,10 +63,6 @@ from cnc_contour_control.motion.segment_tangents import junction_turns_rad
 #: Fewest planned segments committed per chunk: a short window still plans in blocks worth a NumPy pass (at 1024
 #: streaming costs what the whole plan does per segment, 256 took 1.5 times as much; bench ``blending``).
 MIN_CHUNK_SEGMENTS = 1024
-#: Planned segments committed by one :meth:`StreamPlan.plan_ahead` step (a tick's share of planning), and
-#: programmed segments blended per block by such a step.
-STEP_SEGMENTS = 64
-STEP_BLOCK = 64
 #: Phases behind the tool that :meth:`StreamPlan.forget_before` lets gather before it drops them.
 FORGET_PHASES = 2048
 
@@ -119,10 +114,9 @@ class _Blocks:
         """Planned segments so far, forgotten ones included."""
         return self.base + len(self.segments)
 
-    def ensure(self, count: int, block: int | None = None) -> None:
-        """Plan programmed segments ``block`` at a time (default ``max(W, MIN_CHUNK_SEGMENTS)``) until at least
-        ``count`` planned ones exist or the program is exhausted."""
-        block = block or max(self.settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
+    def ensure(self, count: int) -> None:
+        """Plan programmed segments until at least ``count`` planned ones exist or the program is exhausted."""
+        block = max(self.settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
         while self.count < count and not self.exhausted:
             self._add(self._next, min(self._next + block, len(self.program.segments)))
 
@@ -241,6 +235,10 @@ class StreamPlan:
         self._chunk = max(settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
         self._phases: Phases | None = None
         self._forgotten_junctions = 0
+        #: Held while phases are published or forgotten (a :class:`~cnc_contour_control.motion.plan_background.
+        #: BackgroundPlanner`'s condition once attached, which also hears of each chunk).
+        self.guard: Any = contextlib.nullcontext()
+        self.background: Any = None
         self._plan_chunk()
 
     @property
@@ -248,11 +246,9 @@ class StreamPlan:
         """Planned segments whose speeds and phases are committed."""
         return self._forgotten_junctions + len(self.junction_speeds_m_s) - 1
 
-    def plan_ahead(self, t_s: float, lead_s: float) -> None:
-        """One small step of planning (``STEP_SEGMENTS``) if the committed phases end within ``lead_s`` (s) after
-        ``t_s`` (s): what a tick plans on line."""
-        if not self.finished and self.planned_until_s < t_s + lead_s:
-            self._plan_chunk(STEP_SEGMENTS, STEP_BLOCK)
+    def plan_chunk(self) -> None:
+        """Commit the next chunk (a :class:`~cnc_contour_control.motion.plan_background.BackgroundPlanner`'s step)."""
+        self._plan_chunk()
 
     def forget_before(self, t_s: float) -> None:
         """Drop the phases that end before ``t_s`` (s) and the planned segments before the first one kept, once
@@ -278,6 +274,8 @@ class StreamPlan:
 
     def extend_to(self, t_s: float) -> float:
         """Plan until the committed phases reach past ``t_s`` (s) or the end; the duration if known, else inf."""
+        if self.background is not None:  # planned in its thread: wait for it
+            return float(self.background.wait_until(t_s))
         while not self.finished and self.planned_until_s <= t_s:
             self._plan_chunk()
         return self.planned_until_s if self.finished else math.inf
@@ -286,12 +284,12 @@ class StreamPlan:
         """Plan to the end; the profile's duration, s."""
         return self.extend_to(math.inf)
 
-    def _plan_chunk(self, chunk: int | None = None, block: int | None = None) -> None:
-        """Commit the next ``chunk`` planned segments (default ``max(W, MIN_CHUNK_SEGMENTS)``)."""
-        chunk = chunk or self._chunk
+    def _plan_chunk(self) -> None:
+        """Commit the next chunk of planned segments: computed first, published under :attr:`guard`."""
+        chunk = self._chunk
         j, window = self.committed_segments, self.settings.look_ahead_segments
         blocks = self._blocks
-        blocks.ensure(j + chunk + window + 1, block)
+        blocks.ensure(j + chunk + window + 1)
         total = blocks.count
         end = min(j + chunk + window, total)
         last = blocks.exhausted and end == total
@@ -309,6 +307,10 @@ class StreamPlan:
         bands = SpeedBands(blocks.rows("edges", j, j + commit), blocks.rows("accel", j, j + commit))
         phases = banded_phases(blocks.rows("length", j, j + commit), speeds[:commit], speeds[1:commit + 1],
                                blocks.rows("cruise", j, j + commit), bands, dwell)
+        with self.guard:
+            self._publish(j, commit, speeds, last, phases)
+
+    def _publish(self, j: int, commit: int, speeds: FloatArray, last: bool, phases: Phases) -> None:
         self.start_s.extend((phases.start_s[:-1] + self.planned_until_s).tolist())
         self.s0_m.extend(phases.s0_m.tolist())
         self.v0_m_s.extend(phases.v0_m_s.tolist())
@@ -318,6 +320,8 @@ class StreamPlan:
         self.planned_until_s += float(phases.start_s[-1])
         self.finished = last
         self._phases = None
+        if self.background is not None:
+            self.guard.notify_all()
 
     @property
     def n_axes(self) -> int:
