@@ -256,7 +256,8 @@ def test_combined_arc_budget_is_the_friction_circle_by_hand() -> None:
 @pytest.mark.parametrize("make", [scallops, lines_and_arcs, lambda: polygon(36)])
 def test_combined_arc_budget_is_faster_within_the_limits(make: Callable[[], Program]) -> None:
     program = make()
-    split = blended(program, 0.01)
+    split = Interpolator(program, LIMITS_2, InterpolatorConfig(path_tolerance_mm=0.01, arc_combined_budget=False,
+                                                               arc_centripetal_fraction=0.5))
     combined = Interpolator(program, LIMITS_2, InterpolatorConfig(path_tolerance_mm=0.01, arc_combined_budget=True,
                                                                   arc_centripetal_fraction=0.8))
     assert combined.duration_s < split.duration_s

@@ -47,6 +47,8 @@ _REVERSAL_MARGIN_RAD = 1.0e-6
 #: Shortest chord of a blend arc, m: an :class:`ArcSegment` whose ends are within
 #: ``POSITION_TOLERANCE_M`` is a full circle, so smaller blends stay corners.
 _MIN_CHORD_M = 2.0 * POSITION_TOLERANCE_M
+#: Shares of the tolerance a fillet search is tried at until one finds a fillet.
+_FILLET_RETRY_SHARES = (1.0, 0.25, 0.0625, 0.015625)
 
 
 @dataclass(frozen=True)
@@ -142,8 +144,16 @@ def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, 
 
 
 def _curve_corner(k: int, before: Segment, after: Segment, turn: float, tolerance_m: float) -> Blend | None:
-    """The fillet of a line-arc or arc-arc corner (:func:`blend_fillet.plan_fillet`), or None."""
-    planned = plan_fillet(before, after, tolerance_m, turn)
+    """The fillet of a line-arc or arc-arc corner (:func:`blend_fillet.plan_fillet`), or None.
+
+    Where the search finds none within ``tolerance_m`` it tries a quarter of it, down to 1/64 (a smaller
+    fillet may fit where the search from a large one ends without one).
+    """
+    planned = None
+    for share in _FILLET_RETRY_SHARES:
+        planned = plan_fillet(before, after, share * tolerance_m, turn)
+        if planned is not None:
+            break
     if planned is None:
         return None
     shape, corner = planned.shape, after.start_m
@@ -164,12 +174,19 @@ def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float,
     corner = (turns > min_angle_rad) & (turns < math.pi - _REVERSAL_MARGIN_RAD) & free
     line_pair = corner & lines[:-1] & lines[1:]
     by_line = np.flatnonzero(line_pair)
-    by_line_table = _line_corners(program, by_line + 1, turns[by_line], tolerance_m) if by_line.size \
+    curved = np.flatnonzero(corner & ~line_pair) + 1
+    line_table = _line_corners(program, by_line + 1, turns[by_line], tolerance_m) if by_line.size \
         else BlendTable.empty(program.n_axes)
-    curves = [_curve_corner(int(k), segments[k - 1], segments[k], float(turns[k - 1]), tolerance_m)
-              for k in np.flatnonzero(corner & ~line_pair) + 1]
-    table = by_line_table.merged(BlendTable.from_blends([b for b in curves if b is not None], program.n_axes))
+    table = line_table.merged(_curve_corners(program, curved, turns, tolerance_m))
     return table if limits is None else table.subset(faster_than_stop(segments, table, limits))
+
+
+def _curve_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, tolerance_m: float) -> BlendTable:
+    """The fillets of the line-arc and arc-arc corners before segments ``junctions`` that get one."""
+    segments = program.segments
+    curves = [_curve_corner(k, segments[k - 1], segments[k], float(turns_rad[k - 1]), tolerance_m)
+              for k in junctions.tolist()]
+    return BlendTable.from_blends([b for b in curves if b is not None], program.n_axes)
 
 
 def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0.0,
