@@ -55,8 +55,8 @@ class EngineLive:
             if name == topics.PATH.name or name in per_tick:
                 feed.advertise(name, topics.type_of(name, self.axes))
         self._start_ns: int | None = None
-        #: Wall-clock lateness of each tick behind its due time, ns (the pacing's own record).
-        self.late_ns: list[int] = []
+        #: Ticks reached after their due wall time, and the latest of them behind it [ns] (the pacing's record).
+        self.late_ticks, self.max_late_ns = 0, 0
 
     def start(self) -> None:
         """The program's path (latched in a graph run), before the first tick."""
@@ -94,7 +94,8 @@ class EngineLive:
         if due > now:
             self.sleep((due - now) * 1e-9)
         else:
-            self.late_ns.append(now - due)
+            self.late_ticks += 1
+            self.max_late_ns = max(self.max_late_ns, now - due)
 
     def _header(self, stamp_ns: int, frame_id: str = FRAME_ID) -> Any:
         sec, nanosec = split_ns(stamp_ns)
