@@ -7,8 +7,7 @@ import math
 from pathlib import Path
 
 from cnc_tools.bench.registry import BENCHES
-from cnc_tools.reproductions.paper002.runs import METHODS
-from cnc_tools.reproductions.paper002.speed import SPARE_DOFS, design_times_s, step_costs_us
+from cnc_tools.reproductions.paper002.speed import SPARE_DOFS, TIMED, design_times_s, step_costs_us
 
 
 def test_every_law_is_timed_at_both_levels() -> None:
@@ -17,7 +16,7 @@ def test_every_law_is_timed_at_both_levels() -> None:
     for level in costs.values():
         # what each costs, and which costs more, is the bench's to compare side by side with the load beside it;
         # here only that every law was timed (a loaded machine can make any one step slow)
-        assert set(level) == set(METHODS) and all(math.isfinite(us) and us > 0.0 for us in level.values())
+        assert set(level) == set(TIMED) and all(math.isfinite(us) and us > 0.0 for us in level.values())
 
 
 def test_each_spindle_change_is_a_fresh_design() -> None:
@@ -34,4 +33,4 @@ def test_the_bench_writes_its_figures(tmp_path: Path, monkeypatch) -> None:
     out = tmp_path / "speed.json"
     assert BENCHES["paper002-speed"](argparse.Namespace(name="paper002-speed", quick=True, json=out)) == 0
     found = json.loads(out.read_text())
-    assert set(found["step_us"]["law step"]) == set(METHODS) and set(found["design_s"]) == set(SPARE_DOFS)
+    assert set(found["step_us"]["law step"]) == set(TIMED) and set(found["design_s"]) == set(SPARE_DOFS)
