@@ -44,6 +44,7 @@ class Plan:
     design_axes: tuple[str, ...]
     track_deviations: tuple[float, ...] = ()
     track_band: tuple[float, ...] = ()
+    track_inertia: tuple[float, ...] = ()
 
     @property
     def goal_laws(self) -> tuple[str, ...]:
@@ -81,7 +82,8 @@ def make_plan(quick: bool, out_dir: Path, json: Path | None, workers: int) -> Pl
     return Plan(False, out_dir, json, workers, circle_s=None, side_s=10.0, sweep_hz=sweep_hz,
                 prediction_hz=tuple(sorted({*sweep_hz, *(float(f) for f in range(20, 201, 10))})),
                 step_offsets=(-0.1, 0.1), grid_points=1000, design_axes=("x", "y"),
-                track_deviations=TRACK_GOAL_DEVIATIONS, track_band=tuple(k / 100 for k in range(-10, 11)))
+                track_deviations=TRACK_GOAL_DEVIATIONS, track_band=tuple(k / 100 for k in range(-10, 11)),
+                track_inertia=(-data.GOAL_INERTIA_ERROR, data.GOAL_INERTIA_ERROR))
 
 
 def main_cases(plan: Plan) -> list[Case]:
@@ -163,6 +165,13 @@ def track_cases(plan: Plan) -> list[Case]:
         for law in plan.track_laws:
             cases += [Case(f"{group}/{law}", "circle", law, plant_rpm=rpm, duration_s=plan.side_s),
                       Case(f"{group}/{law}/tracked", "circle", law, plant_rpm=rpm, duration_s=plan.side_s, track=True)]
+    for deviation in (plan.track_deviations[0], plan.track_deviations[-1]) if plan.track_inertia else ():
+        rpm = data.SPINDLE_RPM * (1.0 + deviation)
+        for eps in plan.track_inertia:
+            group = f"tracked{100 * deviation:+.0f}%,inertia{eps:+.1f}"
+            cases.append(Case(f"{group}/p", "circle", "p", plant_rpm=rpm, inertia_error=eps, duration_s=plan.side_s))
+            cases += [Case(f"{group}/{law}/tracked", "circle", law, plant_rpm=rpm, inertia_error=eps,
+                           duration_s=plan.side_s, track=True) for law in plan.track_laws]
     return cases
 
 

@@ -4,7 +4,8 @@ the loop figures of every design the tracker can pick.
 - runs (:func:`.cases.track_cases`): the circle with the plant's spindle held at 1500 rpm · (1 + δ), the servo
   commanding 1500 rpm and knowing nothing else; removal of the f_d line against the P loop, per PDC stack at its
   1500 rpm design and tracking (``/tracked``: the tracker, ``cnc_contour_control/disturbance/tracking.py``,
-  redesigns H on a 0.5 % grid within ±10 % of the commanded speed);
+  redesigns H on a 0.5 % grid within ±10 % of the commanded speed); the full bench also at the band's ends
+  with the plant's PI loops at ±20 % inertia (the model off, so the residual carries (P − P_n) v too);
 - design (:func:`.bench.band_entry`): each stack designed for 1500 rpm · (1 + δ) over the tracked band, each axis with
   its own model, the plant's inertia −20 %, nominal, +20 %: |S|∞ (max |e/r|), the disturbance peak, stability.
   The tracker moves the design slowly (its estimate averages over 0.1 s), so the loop is one of these frozen
@@ -47,10 +48,15 @@ def rows(results: Results, band: Sequence[Mapping[str, Any]], plan: Plan) -> lis
         peaks = {"sensitivity_peak": max(e["sensitivity_peak"] for e in mine),
                  "disturbance_peak": max(e["disturbance_peak"] for e in mine),
                  "stable": all(bool(e["stable"]) for e in mine)}
-        worst = min(v for v in tracked.values() if v is not None)
+        inertia = {f"{100 * d:+.0f}%,{eps:+.1f}": _removal(results, f"tracked{100 * d:+.0f}%,inertia{eps:+.1f}/{law}"
+                                                          "/tracked", f"tracked{100 * d:+.0f}%,inertia{eps:+.1f}/p")
+                   for d in plan.track_deviations for eps in plan.track_inertia}
+        found_inertia = [v for v in inertia.values() if v is not None]
+        worst = min(v for v in [*tracked.values(), *found_inertia] if v is not None)
         met = worst >= GOAL_TRACKED_REMOVAL and peaks["stable"] and peaks["sensitivity_peak"] <= data.GOAL_PEAK
-        out.append({"law": law, "label": METHODS[law], "held": held, "tracked": tracked, "worst_tracked": worst,
-                    **peaks, "met": bool(met)})
+        out.append({"law": law, "label": METHODS[law], "held": held, "tracked": tracked,
+                    "tracked_inertia": {k: v for k, v in inertia.items() if v is not None},
+                    "worst_tracked": worst, **peaks, "met": bool(met)})
     return out
 
 
@@ -67,9 +73,14 @@ def print_rows(found: Sequence[Mapping[str, Any]], plan: Plan) -> None:
           f"design; |S|∞, dist. peak: every design of the band {100 * band[0]:+.0f} to {100 * band[-1]:+.0f} % "
           f"({len(band)} points), both axes, inertia ±20 %")
     deviations = plan.track_deviations
+    inertia = list(found[0]["tracked_inertia"]) if found else []
     header = (["stack"] + [f"{100 * d:+.0f} % design" for d in deviations]
-              + [f"{100 * d:+.0f} % tracked" for d in deviations] + ["|S|∞", "dist. peak", "stable", "goal"])
+              + [f"{100 * d:+.0f} % tracked" for d in deviations] + [f"{k} tracked" for k in inertia]
+              + ["|S|∞", "dist. peak", "stable", "goal"])
     print(format_table(header, [[r["label"], *[_pct(r["held"][d]) for d in deviations],
-                                 *[_pct(r["tracked"][d]) for d in deviations], f"{r['sensitivity_peak']:.3f}",
+                                 *[_pct(r["tracked"][d]) for d in deviations],
+                                 *[_pct(r["tracked_inertia"].get(k)) for k in inertia], f"{r['sensitivity_peak']:.3f}",
                                  f"{r['disturbance_peak']:.3f}", "yes" if r["stable"] else "NO",
                                  goal_text(r["met"])] for r in found]))
+    if inertia:
+        print("  'δ,ε tracked': spindle δ off and the plant's PI loops with K_t/J / (1 + ε) (the model off by ε)")
