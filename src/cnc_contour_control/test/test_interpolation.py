@@ -92,7 +92,7 @@ def test_arc_feed_check_uses_the_maximum_over_the_arc() -> None:
 def test_circle_speed_obeys_the_centripetal_limit() -> None:
     program = load_program({"shape": "circle", "radius_mm": 20, "feed_mm_min": 1300})
     limits = AxisLimits((0.035, 0.035), (0.01, 0.01))
-    config = InterpolatorConfig(arc_centripetal_fraction=0.4)
+    config = InterpolatorConfig(arc_centripetal_fraction=0.4, arc_combined_budget=False)
     interpolator = Interpolator(program, limits, config)
     assert interpolator.segment_limits[0].speed_m_s == pytest.approx(math.sqrt(0.4 * 0.01 * 0.02))
     assert interpolator.segment_limits[0].acceleration_m_s2 == pytest.approx(0.6 * 0.01)

@@ -80,12 +80,13 @@ def blend_speed_m_s(table: BlendTable, feed_m_s: FloatArray, limits: CornerLimit
     return np.minimum(np.minimum(feed_m_s, vmax), np.sqrt(limits.centripetal_fraction * amax * table.radius_m))
 
 
-def corner_times_s(segments: Sequence[Segment], table: BlendTable, limits: CornerLimits
+def corner_times_s(segments: Sequence[Segment], table: BlendTable, limits: CornerLimits, free: bool = False
                    ) -> tuple[FloatArray, FloatArray]:
     """Time (s, ``(M,)`` each) of each corner's region with its blend and with an exact stop instead.
 
     The region runs from the middle of the segment before to the middle of the one after, entered and left at
-    the same speeds in both cases (the fastest both allow). With the blend it is
+    the same speeds in both cases (the fastest both allow; with ``free`` the neighbours' cruise speeds, as
+    between blended corners, where only the blend's time means anything). With the blend it is
     three pieces (the rest of the line before, the arc, the rest of the line after) whose junction speeds are
     planned as the planner does (a backward and a forward pass); the arc at most at :func:`blend_speed_m_s`
     with the split budget's tangential acceleration ``(1 - f) amax`` (lower bounds of the planner's).
@@ -101,7 +102,7 @@ def corner_times_s(segments: Sequence[Segment], table: BlendTable, limits: Corne
     vb = blend_speed_m_s(table, feed, limits)
     amax = np.asarray(limits.max_acceleration_m_s2, dtype=float)[table.plane].min(axis=1)
     ab, arc_m = (1.0 - limits.centripetal_fraction) * amax, table.radius_m * _arc_sweep_rad(table)
-    u1, u2 = np.minimum(v1, np.sqrt(2.0 * a1 * h1)), np.minimum(v2, np.sqrt(2.0 * a2 * h2))
+    u1, u2 = (v1, v2) if free else (np.minimum(v1, np.sqrt(2.0 * a1 * h1)), np.minimum(v2, np.sqrt(2.0 * a2 * h2)))
     w2 = np.minimum(vb, np.sqrt(u2 * u2 + 2.0 * a2 * l2))  # backward pass
     w1 = np.minimum(vb, np.sqrt(w2 * w2 + 2.0 * ab * arc_m))
     u1 = np.minimum(u1, np.sqrt(w1 * w1 + 2.0 * a1 * l1))
@@ -121,6 +122,30 @@ def faster_than_stop(segments: Sequence[Segment], table: BlendTable, limits: Cor
         return np.zeros(0, dtype=bool)
     blend_s, stop_s = corner_times_s(segments, table, limits)
     return np.asarray(blend_s < stop_s, dtype=bool)
+
+
+def quickest_radius(segments: Sequence[Segment], candidates: Sequence[BlendTable], limits: CornerLimits
+                    ) -> BlendTable:
+    """Per corner, the candidate blend (rows of ``candidates``, in order of preference) whose region is quickest
+    between cruising neighbours (:func:`corner_times_s` with ``free``); ties go to the earlier candidate."""
+    timed = [(table, corner_times_s(segments, table, limits, free=True)[0]) for table in candidates if len(table)]
+    if not timed:
+        return candidates[0]
+    junctions = np.unique(np.concatenate([table.junction for table, _ in timed]))
+    best = np.full(junctions.size, np.inf)
+    for table, blend_s in timed:
+        at = np.searchsorted(junctions, table.junction)
+        best[at] = np.minimum(best[at], blend_s)
+    chosen, taken = [], np.zeros(junctions.size, dtype=bool)
+    for table, blend_s in timed:
+        at = np.searchsorted(junctions, table.junction)
+        keep = (blend_s == best[at]) & ~taken[at]
+        taken[at[keep]] = True
+        chosen.append(table.subset(keep))
+    out = chosen[0]
+    for table in chosen[1:]:
+        out = out.merged(table)
+    return out
 
 
 def _arc_sweep_rad(table: BlendTable) -> FloatArray:

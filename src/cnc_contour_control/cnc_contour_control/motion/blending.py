@@ -25,8 +25,10 @@ out-of-plane line takes part. The blended program is a plain
 """
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,7 +37,7 @@ from numpy.typing import ArrayLike
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.blend_assembly import planned_segments
-from cnc_contour_control.motion.blend_choice import CornerLimits, faster_than_stop
+from cnc_contour_control.motion.blend_choice import CornerLimits, faster_than_stop, quickest_radius
 from cnc_contour_control.motion.blend_fillet import lift, plan_fillet
 from cnc_contour_control.motion.blend_table import Blend, BlendTable
 from cnc_contour_control.motion.geometry import Dwell, LineSegment, Program, Segment
@@ -47,8 +49,14 @@ _REVERSAL_MARGIN_RAD = 1.0e-6
 #: Shortest chord of a blend arc, m: an :class:`ArcSegment` whose ends are within
 #: ``POSITION_TOLERANCE_M`` is a full circle, so smaller blends stay corners.
 _MIN_CHORD_M = 2.0 * POSITION_TOLERANCE_M
+#: The radii of a line-line corner's blend compared between cruising neighbours
+#: (:func:`~cnc_contour_control.motion.blend_choice.quickest_radius`), as shares of the largest within the
+#: tolerance: where an axis's velocity limit caps the arc a smaller one is quicker.
+RADIUS_SCALES = (1.0, 0.5, 0.25, 0.125)
 #: Shares of the tolerance a fillet search is tried at until one finds a fillet.
 _FILLET_RETRY_SHARES = (1.0, 0.25, 0.0625, 0.015625)
+#: Shares of the tolerance :func:`quickest_blend` tries when the blended plan is slower than exact stop.
+_SMALLER_TOLERANCE_SHARES = (0.25, 0.0625)
 
 
 @dataclass(frozen=True)
@@ -118,16 +126,18 @@ def corner_trim_m(turn_rad: ArrayLike, tolerance_m: float, max_trim_m: ArrayLike
     return radius, radius * np.tan(half)
 
 
-def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, tolerance_m: float) -> BlendTable:
+def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, tolerance_m: float,
+                  scale: float = 1.0) -> BlendTable:
     """The tangent arcs of the line-line corners before segments ``junctions`` (closed form, all at once).
 
-    A corner whose lines move three or more axes, or whose arc's chord would be under 2 µm, is left out.
+    ``scale`` (in (0, 1]) shrinks each radius and trim from the largest within the tolerance. A corner whose
+    lines move three or more axes, or whose arc's chord would be under 2 µm, is left out.
     """
     segments = program.segments
     u1 = np.array([segments[k - 1].unit_vector for k in junctions]).reshape(len(junctions), program.n_axes)
     u2 = np.array([segments[k].unit_vector for k in junctions]).reshape(u1.shape)
     shorter = np.minimum([segments[k - 1].length_m for k in junctions], [segments[k].length_m for k in junctions])
-    radius, trim = corner_trim_m(turns_rad, tolerance_m, 0.5 * shorter)
+    radius, trim = (scale * value for value in corner_trim_m(turns_rad, tolerance_m, 0.5 * shorter))
     moving = (np.abs(u1) > _AXIS_EPS) | (np.abs(u2) > _AXIS_EPS)
     keep = np.flatnonzero((moving.sum(axis=1) == 2) & (2.0 * radius * np.sin(0.5 * turns_rad) > _MIN_CHORD_M))
     first = np.argmax(moving, axis=1)
@@ -175,8 +185,11 @@ def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float,
     line_pair = corner & lines[:-1] & lines[1:]
     by_line = np.flatnonzero(line_pair)
     curved = np.flatnonzero(corner & ~line_pair) + 1
-    line_table = _line_corners(program, by_line + 1, turns[by_line], tolerance_m) if by_line.size \
-        else BlendTable.empty(program.n_axes)
+    line_table = BlendTable.empty(program.n_axes)
+    if by_line.size:
+        candidates = [_line_corners(program, by_line + 1, turns[by_line], tolerance_m, scale)
+                      for scale in (RADIUS_SCALES if limits is not None else (1.0,))]
+        line_table = candidates[0] if limits is None else quickest_radius(segments, candidates, limits)
     table = line_table.merged(_curve_corners(program, curved, turns, tolerance_m))
     return table if limits is None else table.subset(faster_than_stop(segments, table, limits))
 
@@ -222,3 +235,26 @@ def blend_program(program: Program, tolerance_m: float, min_angle_rad: float = 0
     dwells = tuple(Dwell(first_after[d.before_segment], d.duration_s, d.source_line) for d in program.dwells)
     planned = Program(program.name, program.axis_names, tuple(segments), dwells, program.path_tolerance_m)
     return BlendedProgram(program, planned, blends, tolerance_m, tuple(sources))
+
+
+def quickest_blend(program: Program, tolerance_m: float, min_angle_rad: float, limits: CornerLimits,
+                   duration_s: Callable[[Program], float]) -> BlendedProgram:
+    """:func:`blend_program` whose plan is never slower than exact stop (``duration_s``: a planned program's time).
+
+    The per-corner choice judges each corner alone. Where the blended plan is slower than the program as
+    written, the blends within a quarter and a sixteenth of the tolerance are tried (a smaller arc can be
+    quicker where the path speeds up or turns sharply); the quickest plan is kept, exact stop if none beats it.
+    The result's ``tolerance_m`` is ``tolerance_m`` whichever was kept.
+    """
+    best = blend_program(program, tolerance_m, min_angle_rad, limits)
+    best_s = duration_s(best.planned)
+    if not len(best.table):
+        return best
+    stop_s = duration_s(program)
+    if best_s <= stop_s:
+        return best
+    for share in _SMALLER_TOLERANCE_SHARES:
+        smaller = blend_program(program, share * tolerance_m, min_angle_rad, limits)
+        if len(smaller.table) and (smaller_s := duration_s(smaller.planned)) < best_s:
+            best, best_s = dataclasses.replace(smaller, tolerance_m=tolerance_m), smaller_s
+    return best if best_s < stop_s else BlendedProgram.unblended(program, tolerance_m)

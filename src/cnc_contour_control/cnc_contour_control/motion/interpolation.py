@@ -49,7 +49,7 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.motion.accel_decel import AccelDecelConfig, ReferenceFilter
 from cnc_contour_control.motion.blend_choice import CornerLimits
-from cnc_contour_control.motion.blending import BlendedProgram, blend_program
+from cnc_contour_control.motion.blending import quickest_blend
 from cnc_contour_control.motion.geometry import Program, Segment
 from cnc_contour_control.motion.plan_arrays import (
     SpeedBands,
@@ -298,12 +298,12 @@ class Interpolator:
         self._stream = start_stream(self, program, limits, tolerance_m)
         if self._stream is not None:
             return
-        self.blended = blend_program(program, tolerance_m, tolerance_rad, CornerLimits(
+        self._plans: dict[int, dict[str, Any]] = {}
+        self.blended = quickest_blend(program, tolerance_m, tolerance_rad, CornerLimits(
             np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
-            self.config.arc_centripetal_fraction))
-        self._plan(self.blended.planned)
-        if len(self.blended.table):
-            self._keep_the_quicker(program)
+            self.config.arc_centripetal_fraction), self._planned_duration_s)
+        self.__dict__.update(self._plans.pop(id(self.blended.planned)))
+        del self._plans
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
 
     def __getattr__(self, name: str) -> Any:
@@ -342,15 +342,12 @@ class Interpolator:
         self._phase_accel_m_s2, self._phase_segment = phases.accel_m_s2.tolist(), phases.segment.tolist()
         self.duration_s = float(phases.start_s[-1])
 
-    def _keep_the_quicker(self, programmed: Program) -> None:
-        """Keep the exact-stop plan of ``programmed`` instead if it is quicker (``blend_choice`` judges corners
-        alone; this makes the whole plan never slower than exact stop)."""
-        blended_plan = dict(self.__dict__)
-        self._plan(programmed)
-        if self.duration_s < blended_plan["duration_s"]:
-            self.blended = BlendedProgram.unblended(programmed, self.blended.tolerance_m)
-        else:
-            self.__dict__.update(blended_plan)
+    def _planned_duration_s(self, program: Program) -> float:
+        """Plan ``program`` and keep that plan (:func:`~cnc_contour_control.motion.blending.quickest_blend` compares
+        plans: never slower than exact stop)."""
+        self._plan(program)
+        self._plans[id(program)] = {k: v for k, v in self.__dict__.items() if k != "_plans"}
+        return self.duration_s
 
     @property
     def phase_count(self) -> int:
