@@ -18,7 +18,8 @@ Then the same program as G-code (``G64 P0.01``, a 10 mm lead-in from the origin)
 real time at T = 1 ms, the loop composed in one process (``--compose loop``, paper 000's drives and PID, the
 override at 100 % from a schedule so the node steps a ``LiveReference``): the plant's late commands over
 ticks times axes, its mean tick period (a real-time plant's timer stretches under load: each tick steps the
-wall time elapsed) and whether the run ended whole.
+wall time elapsed) and whether the run ended whole; beside the same run planned whole before it starts (the
+default window), which has no planning on line: what load alone does.
 """
 from __future__ import annotations
 
@@ -122,8 +123,9 @@ def gcode(program: Program) -> str:
     return "\n".join(lines + ["M30", "%", ""])
 
 
-def graph_run(program: Program, run_dir: Path) -> dict[str, Any]:
-    """``program`` through the composed node graph in real time at T = 1 ms; the plant's late commands."""
+def graph_run(program: Program, run_dir: Path, window: int = WINDOW) -> dict[str, Any]:
+    """``program`` through the composed node graph in real time at T = 1 ms with a look-ahead of ``window``
+    planned segments; the plant's late commands and mean tick period."""
     from cnc_tools.runs.graph import run_graph  # the node graph's runner: only this part of the bench needs it
     from cnc_tools.runs.scenario import build_scenario
 
@@ -132,14 +134,15 @@ def graph_run(program: Program, run_dir: Path) -> dict[str, Any]:
     raw = read_yaml_mapping(project_root() / "scenarios" / "paper000_circle_high.yaml", "scenario file")
     raw.update({"name": "dense_cam", "sample_time_s": TICK_S, "mode": "realtime", "paper": None,
                 "program": {"axes": ["x", "y"], "gcode_file": "dense.ngc"},
-                "interpolator": {"look_ahead_segments": WINDOW},
+                "interpolator": {"look_ahead_segments": window},
                 "feed_override": {"max_ratio": 1.0, "schedule": [[0.0, 1.0]]}})
     scenario = build_scenario({k: v for k, v in raw.items() if v is not None}, base_dir=run_dir)
     result = run_graph(scenario, run_dir, compose="loop", timeout_s=3600.0)
     ticks = int(result.summary.get("ticks", 0))
     late = int(result.summary.get("late_commands", 0))
     simulated_s = float(result.summary.get("simulated_time_s", 0.0))
-    return {"graph_status": result.summary.get("status"), "graph_ticks": ticks, "graph_simulated_s": simulated_s,
+    return {"graph_window": window, "graph_status": result.summary.get("status"), "graph_ticks": ticks,
+            "graph_simulated_s": simulated_s,
             "graph_mean_period_s": simulated_s / max(ticks, 1), "graph_late_commands": late,
             "graph_late_share": late / max(ticks * 2, 1), "graph_faults": result.faults,
             "graph_load_1min": os.getloadavg()[0]}
@@ -162,14 +165,16 @@ def dense_cam(options: argparse.Namespace) -> dict[str, Any]:
           f["held_start"], f["held_max_first_half"], f["held_max_second_half"], f["held_end"],
           goal_text(f["planner_waits"] == 0), goal_text(f["feed_ratio_min"] >= FEED_GOAL),
           goal_text(f["held_max_second_half"] <= f["held_max_first_half"])]]))
-    run_dir = getattr(options, "out", None) or project_root() / "bags" / "bench" / "blending" / timestamp()
-    g = graph_run(program, Path(run_dir) / "dense_cam")
-    print(format_table(["composed graph, real time, T = 1 ms", "status", "ticks", "simulated s", "mean period ms",
-                        "late commands", "late share", "load (1 min)", "0 late"],
-                       [["loop", g["graph_status"], g["graph_ticks"], round(g["graph_simulated_s"], 2),
-                         round(g["graph_mean_period_s"] * 1e3, 3), g["graph_late_commands"],
-                         round(g["graph_late_share"], 5), round(g["graph_load_1min"], 1),
-                         goal_text(g["graph_late_commands"] == 0)]]))
-    if g["graph_faults"]:
-        print(f"  faults: {g['graph_faults']}")
-    return {**f, **g}
+    run_dir = Path(getattr(options, "out", None) or project_root() / "bags" / "bench" / "blending" / timestamp())
+    runs = [graph_run(program, run_dir / "dense_cam_stream"), graph_run(program, run_dir / "dense_cam_whole", 10**9)]
+    print(format_table(["composed graph (loop), real time, T = 1 ms", "status", "ticks", "simulated s",
+                        "mean period ms", "late commands", "late share", "load (1 min)", "0 late"],
+                       [[f"streamed, window {g['graph_window']}" if g["graph_window"] == WINDOW
+                         else "planned whole before the run", g["graph_status"], g["graph_ticks"],
+                         round(g["graph_simulated_s"], 2), round(g["graph_mean_period_s"] * 1e3, 3),
+                         g["graph_late_commands"], round(g["graph_late_share"], 5), round(g["graph_load_1min"], 1),
+                         goal_text(g["graph_late_commands"] == 0)] for g in runs]))
+    for g in runs:
+        if g["graph_faults"]:
+            print(f"  faults (window {g['graph_window']}): {g['graph_faults']}")
+    return {**f, "graph": runs}
