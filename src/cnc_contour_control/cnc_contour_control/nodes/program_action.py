@@ -292,8 +292,9 @@ class ProgramActionServer:
         else:
             self.session.start(program, live, tolerances)
             self._path = (program, path)
+            planned_s = live.interpolator.planned_end_s(0.0)  # a streaming plan is not finished here (inf)
             self.node.get_logger().info(f"RunProgram: {program.name!r}, {len(program.segments)} segments, "
-                                        f"{live.interpolator.duration_s:.3f} s planned")
+                                        + (f"{planned_s:.3f} s planned" if math.isfinite(planned_s) else "streamed"))
 
     def after_tick(self) -> None:
         """After each tick: take a finished plan, publish a program that started, hand over an outcome."""
