@@ -8,8 +8,11 @@ the current one. ROS-free and clock-free: stamps come in with the samples.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
+
+import numpy as np
 
 from cnc_contour_control.core.errors import ConfigError
 
@@ -17,6 +20,13 @@ T = TypeVar("T")
 
 #: Default window: 20 ms of stamp time, so at most 100 samples per simulated second.
 WINDOW_NS = 20_000_000
+
+
+def window_runs(stamps_ns: Any, window_ns: int) -> list[tuple[int, int]]:
+    """(start, end) index ranges of ascending ``stamps_ns`` that share a window."""
+    windows = np.asarray(stamps_ns, np.int64) // window_ns
+    bounds = [0, *(np.flatnonzero(windows[1:] != windows[:-1]) + 1).tolist(), int(windows.size)]
+    return list(zip(bounds[:-1], bounds[1:]))
 
 
 @dataclass
@@ -48,6 +58,23 @@ class PeakDecimator(Generic[T]):
             self._high = _Held(stamp_ns, value, payload)
         return out
 
+    def push_many(self, stamps_ns: Any, values: Any, make: Callable[[int], T]) -> list[tuple[T, int]]:
+        """:meth:`push` for a batch (ascending stamps, numpy arrays): the same samples kept, each with the index of
+        the batch sample that closed its window; ``make(i)`` builds a payload, only for a window's min and max."""
+        out: list[tuple[T, int]] = []
+        for start, end in window_runs(stamps_ns, self.window_ns):
+            window = int(stamps_ns[start]) // self.window_ns
+            if self._window is not None and window != self._window:
+                out.extend((payload, start) for payload in self.flush())
+            self._window = window
+            chunk = values[start:end]
+            low, high = start + int(np.argmin(chunk)), start + int(np.argmax(chunk))  # first of equals, as push
+            if self._low is None or values[low] < self._low.value:
+                self._low = _Held(int(stamps_ns[low]), float(values[low]), make(low))
+            if self._high is None or values[high] > self._high.value:
+                self._high = _Held(int(stamps_ns[high]), float(values[high]), make(high))
+        return out
+
     def flush(self) -> list[T]:
         """Close the current window: its min and max payloads in stamp order (the run's end calls it)."""
         low, high = self._low, self._high
@@ -75,6 +102,17 @@ class LastInWindow(Generic[T]):
         window = stamp_ns // self.window_ns
         out = self.flush() if self._window is not None and window != self._window else []
         self._window, self._last = window, payload
+        return out
+
+    def push_many(self, stamps_ns: Any, make: Callable[[int], T]) -> list[tuple[T, int]]:
+        """:meth:`push` for a batch (ascending stamps): the last payloads of the windows it closed, each with the
+        index of the batch sample that closed it; ``make(i)`` builds a payload, once per window run."""
+        out: list[tuple[T, int]] = []
+        for start, end in window_runs(stamps_ns, self.window_ns):
+            window = int(stamps_ns[start]) // self.window_ns
+            if self._window is not None and window != self._window:
+                out.extend((payload, start) for payload in self.flush())
+            self._window, self._last = window, make(end - 1)
         return out
 
     def flush(self) -> list[T]:

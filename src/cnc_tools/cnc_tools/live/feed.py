@@ -30,7 +30,7 @@ from cnc_contour_control.core.lockstep import join_ns
 from cnc_contour_control.motion.geometry import Program
 from cnc_tools.bagio.path_message import program_from_path
 from cnc_tools.bagio.typestore import project_typestore
-from cnc_tools.live.decimate import WINDOW_NS, LastInWindow, PeakDecimator
+from cnc_tools.live.decimate import WINDOW_NS, LastInWindow, PeakDecimator, window_runs
 from cnc_tools.live.scene import Scene
 from cnc_tools.live.server import LiveServer
 
@@ -87,6 +87,8 @@ class LiveFeed:
         self._override = LastInWindow[dict[str, Any]](self.window_ns)
         self._ref_mm: list[float] = [0.0, 0.0]
         self._override_now = {"requested_ratio": 1.0, "applied_ratio": 1.0}
+        #: Called first by :meth:`finish` (a sender thread drains its batches).
+        self.before_finish: list[Callable[[], None]] = []
         self._handlers: dict[str, Callable[[str, Any, int], None]] = {
             topics.PATH.name: self._on_path, topics.JOINT_STATES.name: self._on_joint_states,
             topics.REFERENCE.name: self._on_reference, topics.CONTOUR_ERROR.name: self._on_estimate,
@@ -133,12 +135,76 @@ class LiveFeed:
 
     def finish(self, log_time_ns: int) -> None:
         """Close every open window (the run ended) and send the last scene."""
+        for drain in self.before_finish:
+            drain()
         self._flush_exact(log_time_ns)
         for topic, decimator in self._peaks.items():
             self._emit(topic, decimator.flush(), log_time_ns)
         self._emit("/live/xy", self._xy.flush(), log_time_ns)
         self._emit("/live/feed_override", self._override.flush(), log_time_ns)
         self._send_scene(self._next_scene_ns, log_time_ns)
+
+    # ------------------------------------------------------------------ batches (the engine's sender thread)
+    def log_rows(self, name: str, type_name: str, rows: Any, log_ns: Any) -> None:
+        """Messages of topic ``name`` as CDR, one per row of ``rows`` (uint8), at log times ``log_ns``."""
+        channel = self.server.ros_channel(topics.qualify(CHANNEL_NAMESPACE, name), type_name)
+        for row, log_time_ns in zip(rows, log_ns.tolist()):
+            channel.log(row.tobytes(), log_time=log_time_ns)
+
+    def joint_states_many(self, stamps_ns: Any, log_ns: Any, position_m: Any, ref_position_m: Any) -> None:
+        """A batch of joint states (B x axes) and the reference at the same ticks: the exact contour error (full
+        rate and peaks), ``xy`` and the scene, as :meth:`publish` derives them one by one."""
+        times, stamps = log_ns.tolist(), stamps_ns.tolist()
+        pos_mm, ref_mm = position_m[:, :2] * 1e3, ref_position_m[:, :2] * 1e3
+        if pos_mm.shape[1] < 2:
+            pos_mm, ref_mm = (np.pad(a, ((0, 0), (0, 2 - a.shape[1]))) for a in (pos_mm, ref_mm))
+        xy = self._xy.push_many(stamps_ns, lambda i: {"stamp_ns": stamps[i], "x_mm": float(pos_mm[i, 0]),
+                                                     "y_mm": float(pos_mm[i, 1]), "ref_x_mm": float(ref_mm[i, 0]),
+                                                     "ref_y_mm": float(ref_mm[i, 1])})
+        self._emit_many("/live/xy", xy, times)
+        for start, _ in window_runs(stamps_ns, self.window_ns):
+            window = stamps[start] // self.window_ns
+            if self._window is not None and window != self._window:
+                self.scene.add_tool(position_m[start].tolist())
+            self._window = window
+        for k, stamp_ns in enumerate(stamps):
+            if stamp_ns >= self._next_scene_ns:
+                self._send_scene(stamp_ns, times[k])
+        if self.program is None:
+            return
+        error_m, index = self.program.contour_distance(np.asarray(position_m, float))
+        error_um, segments = (error_m * 1e6).tolist(), index.tolist()
+        exact = self.server.channels["/live/contour_error/exact"]
+        if exact.has_sinks():
+            for k, stamp_ns in enumerate(stamps):
+                exact.log({"stamp_ns": stamp_ns, "contour_error_um": error_um[k], "segment_index": int(segments[k])},
+                          log_time=times[k])
+        self.peaks_many("/live/contour_error/exact/peaks", EXACT_SCHEMA, stamps_ns, log_ns, error_m * 1e6,
+                        lambda i: {"stamp_ns": stamps[i], "contour_error_um": error_um[i],
+                                   "segment_index": int(segments[i])})
+
+    def peaks_many(self, topic: str, schema: dict[str, Any], stamps_ns: Any, log_ns: Any, values: Any,
+                   make: Callable[[int], dict[str, Any]]) -> None:
+        """A batch of one peak stream's samples: ``values`` judged, ``make(i)`` the message of sample i."""
+        decimator = self._peaks.get(topic)
+        if decimator is None:
+            self.server.json_channel(topic, schema)
+            decimator = self._peaks[topic] = PeakDecimator(self.window_ns)
+        self._emit_many(topic, decimator.push_many(stamps_ns, values, make), log_ns.tolist())
+
+    def overrides_many(self, stamps_ns: Any, log_ns: Any, requested: Any, applied: Any) -> None:
+        """A batch of the override requested and applied (the engine's board)."""
+        stamps, req, app = stamps_ns.tolist(), requested.tolist(), applied.tolist()
+        kept = self._override.push_many(stamps_ns, lambda i: {"stamp_ns": stamps[i], "requested_ratio": req[i],
+                                                              "applied_ratio": app[i]})
+        self._override_now.update(requested_ratio=req[-1], applied_ratio=app[-1])
+        self._emit_many("/live/feed_override", kept, log_ns.tolist())
+
+    def _emit_many(self, topic: str, kept: list[tuple[dict[str, Any], int]], times: list[int]) -> None:
+        channel = self.server.channels[topic]
+        if kept and channel.has_sinks():
+            for sample, k in kept:
+                channel.log(sample, log_time=times[k])
 
     # ------------------------------------------------------------------ handlers
     def _on_path(self, name: str, message: Any, log_time_ns: int) -> None:
