@@ -122,12 +122,18 @@ class OverrideConfig:
 
 
 def planning_limits(limits: AxisLimits, config: OverrideConfig) -> AxisLimits:
-    """The limits to plan with so every ratio up to ``max_ratio`` keeps ``limits`` (unchanged for <= 1)."""
+    """The limits to plan with so every ratio up to ``max_ratio`` keeps ``limits`` (unchanged for <= 1): velocity
+    ÷ k_max, acceleration ÷ k_max², jerk (if any) ÷ k_max³."""
     scale = max(config.max_ratio, 1.0)
     if scale == 1.0:
         return limits
-    return AxisLimits(tuple(v / scale for v in limits.max_velocity_m_s),
-                      tuple(a / (scale * scale) for a in limits.max_acceleration_m_s2))
+    changes: dict[str, tuple[float, ...]] = {
+        "max_velocity_m_s": tuple(v / scale for v in limits.max_velocity_m_s),
+        "max_acceleration_m_s2": tuple(a / (scale * scale) for a in limits.max_acceleration_m_s2)}
+    jerk = getattr(limits, "max_jerk_m_s3", None)  # jerk limits, where the limits have them: k³ j_plan <= j_max
+    if jerk is not None:
+        changes["max_jerk_m_s3"] = tuple(j / scale**3 for j in jerk)
+    return replace(limits, **changes)
 
 
 class OverrideFollower:
