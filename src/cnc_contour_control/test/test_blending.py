@@ -334,3 +334,35 @@ def test_a_feed_over_the_limits_is_refused_naming_the_g_code_line_with_blending(
     text = "G64 P0.01\nG1 X10 F1300\nG2 X14 Y0 I2 J-1 F2500\nG1 X20 F1300\n"
     with pytest.raises(ProgramError, match=r"line 3 \(segment \d+\): feed_mm_min must be <= 2000 .*, got 2500"):
         Interpolator(parse_gcode(text, ("x", "y")), LIMITS_2)
+
+
+def zigzag_150(segments: int = 30, length_m: float = 0.005) -> Program:
+    """The issue's zig-zag: lines of 5 mm along x, alternately up and down, turning by 150°."""
+    half = math.radians(15.0)
+    steps = np.array([[math.cos(half), math.sin(half) * (1 if i % 2 == 0 else -1)] for i in range(segments)])
+    return polyline(np.vstack([np.zeros(2), np.cumsum(length_m * steps, axis=0)]))
+
+
+@pytest.mark.parametrize("tolerance_mm", [0.01, 0.05, 0.2])
+def test_a_zigzag_of_150_degree_turns_is_never_slower_than_exact_stop(tolerance_mm: float) -> None:
+    """Blends there brake further ahead than a stop (√(f a R) < √(2 a R tan 75°)): the planner keeps the stops
+    or blends only where quicker; the tolerance is used to the path (the blend's distance to the lines is P)."""
+    program = zigzag_150()
+    exact = Interpolator(program, LIMITS_2).duration_s
+    plan = blended(program, tolerance_mm)
+    assert plan.duration_s <= exact
+    for blend in plan.blended.blends:
+        assert blend.deviation_m <= tolerance_mm * 1e-3 * (1 + 1e-12)
+    assert worst_deviation_m(plan) <= tolerance_mm * 1e-3 * (1 + 1e-9)
+
+
+def test_line_blends_use_the_whole_tolerance_measured_to_the_path() -> None:
+    """150° turn, P = 50 µm: R (1 - cos 75°) = P, so R = 67.5 µm (measured to the corner point: 17.5 µm); on a
+    174° corner the arc's largest distance from the two lines, sampled, is P."""
+    radius, _ = corner_trim_m(math.radians(150.0), 5e-5, 1.0)
+    assert radius == pytest.approx(5e-5 / (1.0 - math.cos(math.radians(75.0))))
+    plan = blend_program(polyline(np.array([[0.0, 0.0], [0.01, 0.0], [0.0, 0.001]])), 5e-5)
+    arc = plan.planned.segments[1]
+    assert isinstance(arc, ArcSegment)
+    deviation = plan.deviation_m(arc.point(np.linspace(0.0, arc.length_m, 2001)))
+    assert float(deviation.max()) == pytest.approx(5e-5, rel=1e-6)
