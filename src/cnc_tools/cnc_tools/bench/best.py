@@ -4,8 +4,8 @@ For papers 000-003 three contenders run on the paper's contour, each a scenario 
 and the shipped ones), so a user runs any of them with ``./dev run``:
 
 - the PID as the paper tuned it (paper 000 Table 4, paper 001 Table 1, paper 002's P position loop with
-  K_pp 40 /s, paper 003's standard K1, K2 with k = 30 /s), the shipped scenario; for paper 000 also a PID
-  we tuned on the circle by differential evolution (``cnc-contour tune``, the command in its file);
+  K_pp 40 /s, paper 003's standard K1, K2 with k = 30 /s), the shipped scenario; for papers 000 and 003
+  also one we tuned on the circle by differential evolution (``cnc-contour tune``, the command in its file);
 - the paper's best method, as we implement it (FLC, PID + network after the paper's 50 runs, MBDA + PDC,
   Table 2's optimal K1, K2);
 - our best stack: any combination the suite has (feedforward, tuned gains, ILC, PDC, DOB, where the
@@ -117,7 +117,8 @@ def _contours() -> tuple[Contour, ...]:
                 Contender("paper", "optimal K1 K2 (Table 2)", "scenarios/best/paper003_circle_optimal.yaml"),
                 Contender("ours", "optimal + ff + no accel/decel after + ILC",
                           "scenarios/best/paper003_circle_best.yaml", OUR_RUNS),
-                "radius reduction, mean of the 24-circle grid: optimal 90 um (standard 135)", None, None),
+                "radius reduction, mean of the 24-circle grid: optimal 90 um (standard 135)", None, None,
+                Contender("tuned", "P, k tuned by DE (PM 45 deg)", "scenarios/best/paper003_circle_pid_tuned.yaml")),
     )
 
 
