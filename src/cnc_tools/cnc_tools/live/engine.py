@@ -13,6 +13,7 @@ from __future__ import annotations
 import queue
 import threading
 import time
+from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -26,6 +27,7 @@ from cnc_contour_control.motion.interpolation import with_planning_tolerance
 from cnc_tools.bagio.synthetic import path_message
 from cnc_tools.live.cdr import CdrTemplate
 from cnc_tools.live.feed import AXIS_SCHEMA, ESTIMATED_SCHEMA, FORCE_SCHEMA, LiveFeed
+from cnc_tools.runs.engine import tick_count
 from cnc_tools.runs.engine_stages import Board, EngineStage
 from cnc_tools.runs.scenario import Scenario
 
@@ -35,6 +37,11 @@ MIN_RATE, MAX_RATE = 0.01, 1000.0
 FRAME_ID = "machine"
 #: Wall time between two batches handed to the sender thread [ns]: a tick waits at most this before it is sent.
 SEND_PERIOD_NS = 10_000_000
+#: A tick runs at once while it is at most this ahead of its wall time [ns], so the engine's thread sleeps once
+#: per few ticks, not every tick (a sleep and its wake-up cost more CPU than a tick).
+AHEAD_NS = 4_000_000
+#: Hand-off times kept for statistics (the last ~100 s at the default period).
+LAGS_KEPT = 10_000
 #: A servo's command parts in a batch row (``AxisCommand`` fields, as ``latest_parts`` names them).
 COMMAND_PARTS = ("command", "feedback", "feedforward", "compensation", "disturbance_estimate", "saturated", "error_m")
 #: Batches queued for the sender before the engine's thread waits for it (a stalled sender bounds the memory).
@@ -105,10 +112,11 @@ class EngineLive:
 
     def __init__(self, scenario: Scenario, feed: LiveFeed, rate: float = 1.0,
                  clock_ns: Callable[[], int] = time.monotonic_ns, wall_ns: Callable[[], int] = time.time_ns,
-                 sleep: Callable[[float], None] = time.sleep, send_period_ns: int = SEND_PERIOD_NS) -> None:
+                 sleep: Callable[[float], None] = time.sleep, send_period_ns: int = SEND_PERIOD_NS,
+                 ahead_ns: int = AHEAD_NS) -> None:
         self.scenario, self.feed, self.rate = scenario, feed, check_rate(rate)
         self.clock_ns, self.wall_ns, self.sleep = clock_ns, wall_ns, sleep
-        self.send_period_ns = int(send_period_ns)
+        self.send_period_ns, self.ahead_ns = int(send_period_ns), int(ahead_ns)
         self.types = feed.store.types
         self.axes = list(scenario.axes)
         per_tick = scenario.pipeline().per_tick_topics()
@@ -122,7 +130,11 @@ class EngineLive:
         self.late_ticks, self.max_late_ns = 0, 0
         self._batch = _Batch()
         self._batch_wall_ns = 0
+        self._last_tick = tick_count(scenario) - 1  # its batch leaves at once (the bag is written before finish)
         self._templates: dict[str, CdrTemplate] = {}
+        #: Per batch sent (the last :data:`LAGS_KEPT`): wall time from its first tick to its last message handed to
+        #: the server [ns] (the feed's share of a viewer's lag).
+        self.handoff_ns: deque[int] = deque(maxlen=LAGS_KEPT)
         self._sender = _Sender(self._send_batch)
         feed.before_finish.append(self.close)
 
@@ -134,9 +146,9 @@ class EngineLive:
     def __call__(self, board: Board, stages: list[EngineStage]) -> None:
         """Tick ``board.tick``: wait for its wall time, note its values; every ``send_period_ns`` of wall time the
         batch goes to the sender thread (the engine's thread never builds or sends a message)."""
-        self._pace(board.stamp_ns)
-        if not self._templates:
+        if not self._templates:  # before the pacing starts its clock: rosbags compiles a serialiser per type
             self._make_templates(board, stages)
+        self._pace(board.stamp_ns)
         now_ns = self.wall_ns()
         batch = self._batch
         batch.stamps_ns.append(board.stamp_ns)
@@ -150,13 +162,11 @@ class EngineLive:
         estimate = board.estimate
         if estimate is not None:
             if topics.CONTOUR_ERROR.name not in self._templates:
-                self._templates[topics.CONTOUR_ERROR.name] = CdrTemplate(
-                    self.feed.store, topics.CONTOUR_ERROR.type_name,
-                    self._estimate(estimate, self._header(board.stamp_ns)))
+                self._estimate_template(board)
             batch.estimates.append((len(batch.rows) - 1, [
                 estimate.contour_error_m, *estimate.tracking_error_m, estimate.segment_index, estimate.angle_rad,
                 *estimate.point_a_m, *estimate.point_b_m, estimate.window_size, estimate.steps]))
-        if now_ns - self._batch_wall_ns >= self.send_period_ns:
+        if now_ns - self._batch_wall_ns >= self.send_period_ns or board.tick == self._last_tick:
             self._sender.put(batch)
             self._batch, self._batch_wall_ns = _Batch(), now_ns
 
@@ -186,6 +196,14 @@ class EngineLive:
             self._templates[topics.CUTTING_FORCE.name] = CdrTemplate(store, topics.CUTTING_FORCE.type_name,
                                                                      self._wrench(board))
 
+        if board.estimate is not None:
+            self._estimate_template(board)
+
+    def _estimate_template(self, board: Board) -> None:
+        self._templates[topics.CONTOUR_ERROR.name] = CdrTemplate(
+            self.feed.store, topics.CONTOUR_ERROR.type_name, self._estimate(board.estimate,
+                                                                            self._header(board.stamp_ns)))
+
     def _requested(self, board: Board) -> float:
         """The override ratio requested at the tick: the scenario's schedule if it has one, else the board's."""
         live = self._live_request
@@ -197,9 +215,9 @@ class EngineLive:
         if self._start_ns is None:
             self._start_ns = now - int(stamp_ns / self.rate)
         due = self._start_ns + int(stamp_ns / self.rate)
-        if due > now:
+        if due - now > self.ahead_ns:
             self.sleep((due - now) * 1e-9)
-        else:
+        elif due < now:
             self.late_ticks += 1
             self.max_late_ns = max(self.max_late_ns, now - due)
 
@@ -235,6 +253,7 @@ class EngineLive:
                             lambda i: {"stamp_ns": stamps[i], "force_n": float(force[i])})
         if batch.estimates:
             self._send_estimates(batch, stamps_ns, log_ns)
+        self.handoff_ns.append(time.time_ns() - batch.log_ns[0])
 
     def _send_estimates(self, batch: _Batch, stamps_ns: Any, log_ns: Any) -> None:
         index = np.array([k for k, _ in batch.estimates], np.int64)

@@ -38,6 +38,8 @@ from cnc_tools.live.server import LiveServer
 CHANNEL_NAMESPACE = topics.DEFAULT_NAMESPACE
 #: Scene updates at most this often in stamp time (10 per simulated second).
 SCENE_PERIOD_NS = 100_000_000
+#: The exact contour error's peak stream.
+EXACT_PEAKS = "/live/contour_error/exact/peaks"
 #: Joint states held while the program (``path``) has not arrived yet.
 MAX_PENDING = 10_000
 #: ``diagnostic_msgs/DiagnosticStatus`` levels to foxglove log levels.
@@ -155,13 +157,15 @@ class LiveFeed:
         """A batch of joint states (B x axes) and the reference at the same ticks: the exact contour error (full
         rate and peaks), ``xy`` and the scene, as :meth:`publish` derives them one by one."""
         times, stamps = log_ns.tolist(), stamps_ns.tolist()
-        pos_mm, ref_mm = position_m[:, :2] * 1e3, ref_position_m[:, :2] * 1e3
-        if pos_mm.shape[1] < 2:
-            pos_mm, ref_mm = (np.pad(a, ((0, 0), (0, 2 - a.shape[1]))) for a in (pos_mm, ref_mm))
-        xy = self._xy.push_many(stamps_ns, lambda i: {"stamp_ns": stamps[i], "x_mm": float(pos_mm[i, 0]),
-                                                     "y_mm": float(pos_mm[i, 1]), "ref_x_mm": float(ref_mm[i, 0]),
-                                                     "ref_y_mm": float(ref_mm[i, 1])})
-        self._emit_many("/live/xy", xy, times)
+        if self.server.channels["/live/xy"].has_sinks():
+            pos_mm, ref_mm = position_m[:, :2] * 1e3, ref_position_m[:, :2] * 1e3
+            if pos_mm.shape[1] < 2:
+                pos_mm, ref_mm = (np.pad(a, ((0, 0), (0, 2 - a.shape[1]))) for a in (pos_mm, ref_mm))
+            self._emit_many("/live/xy", self._xy.push_many(stamps_ns, lambda i: {
+                "stamp_ns": stamps[i], "x_mm": float(pos_mm[i, 0]), "y_mm": float(pos_mm[i, 1]),
+                "ref_x_mm": float(ref_mm[i, 0]), "ref_y_mm": float(ref_mm[i, 1])}), times)
+        else:
+            self._xy.flush()
         for start, _ in window_runs(stamps_ns, self.window_ns):
             window = stamps[start] // self.window_ns
             if self._window is not None and window != self._window:
@@ -170,16 +174,17 @@ class LiveFeed:
         for k, stamp_ns in enumerate(stamps):
             if stamp_ns >= self._next_scene_ns:
                 self._send_scene(stamp_ns, times[k])
-        if self.program is None:
+        exact = self.server.channels["/live/contour_error/exact"]
+        if self.program is None or not (exact.has_sinks() or self.server.channels[EXACT_PEAKS].has_sinks()):
+            self._peaks.pop(EXACT_PEAKS, None)
             return
         error_m, index = self.program.contour_distance(np.asarray(position_m, float))
         error_um, segments = (error_m * 1e6).tolist(), index.tolist()
-        exact = self.server.channels["/live/contour_error/exact"]
         if exact.has_sinks():
             for k, stamp_ns in enumerate(stamps):
                 exact.log({"stamp_ns": stamp_ns, "contour_error_um": error_um[k], "segment_index": int(segments[k])},
                           log_time=times[k])
-        self.peaks_many("/live/contour_error/exact/peaks", EXACT_SCHEMA, stamps_ns, log_ns, error_m * 1e6,
+        self.peaks_many(EXACT_PEAKS, EXACT_SCHEMA, stamps_ns, log_ns, error_m * 1e6,
                         lambda i: {"stamp_ns": stamps[i], "contour_error_um": error_um[i],
                                    "segment_index": int(segments[i])})
 
@@ -188,16 +193,21 @@ class LiveFeed:
         """A batch of one peak stream's samples: ``values`` judged, ``make(i)`` the message of sample i."""
         decimator = self._peaks.get(topic)
         if decimator is None:
-            self.server.json_channel(topic, schema)
             decimator = self._peaks[topic] = PeakDecimator(self.window_ns)
+        if not self.server.json_channel(topic, schema).has_sinks():
+            decimator.flush()  # nobody watches: no window is kept (a viewer's first window starts when it joins)
+            return
         self._emit_many(topic, decimator.push_many(stamps_ns, values, make), log_ns.tolist())
 
     def overrides_many(self, stamps_ns: Any, log_ns: Any, requested: Any, applied: Any) -> None:
         """A batch of the override requested and applied (the engine's board)."""
         stamps, req, app = stamps_ns.tolist(), requested.tolist(), applied.tolist()
+        self._override_now.update(requested_ratio=req[-1], applied_ratio=app[-1])
+        if not self.server.channels["/live/feed_override"].has_sinks():
+            self._override.flush()
+            return
         kept = self._override.push_many(stamps_ns, lambda i: {"stamp_ns": stamps[i], "requested_ratio": req[i],
                                                               "applied_ratio": app[i]})
-        self._override_now.update(requested_ratio=req[-1], applied_ratio=app[-1])
         self._emit_many("/live/feed_override", kept, log_ns.tolist())
 
     def _emit_many(self, topic: str, kept: list[tuple[dict[str, Any], int]], times: list[int]) -> None:
