@@ -163,9 +163,9 @@ def _per_axis(values: list[float]) -> str:
 
 def _row(f: dict[str, Any]) -> list[object]:
     met = [goal_text(m) if m is not None else "-" for m in goals(f).values()]
-    return [f["program"], f["segments"], f["blends"], round(f["exact_stop_s"], 3), round(f["cycle_s"], 3),
-            round(f["toppra_s"], 3), round(f["cycle_s"] / f["toppra_s"], 3), round(f["cycle_s"] / f["exact_stop_s"], 3),
-            round(f["deviation_over_p"], 4), _per_axis(f["velocity_ratio"]), _per_axis(f["acceleration_ratio"]),
+    return [f["program"], f["segments"], f["blends"], f"{f['exact_stop_s']:.3f}", f"{f['cycle_s']:.3f}",
+            f"{f['toppra_s']:.3f}", f"{f['cycle_s'] / f['toppra_s']:.4f}", f"{f['cycle_s'] / f['exact_stop_s']:.4f}",
+            f"{f['deviation_over_p']:.4f}", _per_axis(f["velocity_ratio"]), _per_axis(f["acceleration_ratio"]),
             _per_axis(f["jerk_ratio"]), *met]
 
 

@@ -101,7 +101,7 @@ def override_sweep(quick: bool) -> list[dict[str, Any]]:
     """Print and return the sweep: every schedule on every sweep program (the first only with ``quick``)."""
     names = SWEEP_PROGRAMS[:1] if quick else SWEEP_PROGRAMS
     figures = [sweep_figures(CORPUS[name][0](), schedule) for name in names for schedule in SCHEDULES]
-    rows = [[f["program"], f["schedule"], f["max_ratio"], round(f["cycle_s"], 3), round(f["deviation_over_p"], 4),
+    rows = [[f["program"], f["schedule"], f["max_ratio"], f"{f['cycle_s']:.3f}", f"{f['deviation_over_p']:.4f}",
              " ".join(f"{v:.4f}" for v in f["velocity_ratio"]), " ".join(f"{a:.4f}" for a in f["acceleration_ratio"]),
              " ".join(f"{j:.4f}" for j in f["jerk_ratio"]), goal_text(f["deviation_over_p"] <= LIMIT_GOAL),
              goal_text(max(f["velocity_ratio"] + f["acceleration_ratio"]) <= LIMIT_GOAL),
