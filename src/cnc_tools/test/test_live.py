@@ -21,7 +21,8 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.analysis.scoring import contour_error_series
 from cnc_tools.bagio.bag import read_bag
 from cnc_tools.bagio.typestore import project_typestore
-from cnc_tools.live.decimate import WINDOW_NS, PeakDecimator
+from cnc_tools.live.cdr import CdrTemplate
+from cnc_tools.live.decimate import WINDOW_NS, LastInWindow, PeakDecimator
 from cnc_tools.live.engine import check_rate
 from cnc_tools.live.layout import LAYOUT_PATH, build_layout, layout_topics
 from cnc_tools.live.server import LiveConfig, LiveServer
@@ -48,6 +49,49 @@ def test_the_peak_streams_keep_every_window_extreme_and_send_at_most_two_per_win
         in_window = [v for k, v in kept if window <= k < window + per_window]
         assert min(chunk) in in_window and max(chunk) in in_window and len(in_window) <= 2
     assert [k for k, _ in kept] == sorted(k for k, _ in kept)
+
+
+@PROPERTY
+@given(st.lists(st.integers(-5, 5), min_size=1, max_size=200), st.integers(1, 30),
+       st.lists(st.integers(1, 40), min_size=1, max_size=20))
+def test_batches_keep_the_samples_one_by_one_pushes_keep(values: list[int], per_window: int, cuts: list[int]) -> None:
+    one, many = PeakDecimator[int](per_window), PeakDecimator[int](per_window)
+    last_one, last_many = LastInWindow[int](per_window), LastInWindow[int](per_window)
+    expected = [(p, k) for k, v in enumerate(values) for p in one.push(k, v, k)]  # (payload, closing sample)
+    expected_last = [(p, k) for k in range(len(values)) for p in last_one.push(k, k)]
+    got: list[tuple[int, int]] = []
+    got_last: list[tuple[int, int]] = []
+    start = 0
+    for size in [*cuts, len(values)]:  # batches of the given sizes, the rest in one
+        stamps = np.arange(start, min(start + size, len(values)))
+        if stamps.size:
+            payload = stamps.tolist().__getitem__  # sample i of the batch: its stamp
+            got += [(p, start + i) for p, i in many.push_many(stamps, np.array(values, float)[stamps], payload)]
+            got_last += [(p, start + i) for p, i in last_many.push_many(stamps, payload)]
+        start += size
+    assert got == expected and many.flush() == one.flush()  # ties: the first of equal values, as push
+    assert got_last == expected_last and last_many.flush() == last_one.flush()
+
+
+def test_cdr_templates_write_the_bytes_rosbags_writes() -> None:
+    store, values, k = project_typestore(), np.random.default_rng(7).normal(size=(5, 13)), np.arange(5)
+    kind, types = "cnc_contour_interfaces/msg/Reference", project_typestore().types
+
+    def message(i: int) -> object:
+        header = types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](
+            sec=i, nanosec=999_999_000 + i), frame_id="machine")
+        v = values[i]
+        return types[kind](header=header, axis_names=["x", "y", "z"], position_m=v[0:3], velocity_m_s=v[3:6],
+                           acceleration_m_s2=v[6:9], path_length_m=float(v[9]), segment_index=i * 7,
+                           feed_m_s=float(v[10]), programmed_feed_m_s=float(v[11]), feed_override_ratio=float(v[12]),
+                           done=bool(i % 2))
+
+    rows = CdrTemplate(store, kind, message(0)).fill(5, {
+        "header.stamp.sec": k, "header.stamp.nanosec": 999_999_000 + k, "position_m": values[:, 0:3],
+        "velocity_m_s": values[:, 3:6], "acceleration_m_s2": values[:, 6:9], "path_length_m": values[:, 9],
+        "segment_index": k * 7, "feed_m_s": values[:, 10], "programmed_feed_m_s": values[:, 11],
+        "feed_override_ratio": values[:, 12], "done": k % 2})
+    assert [row.tobytes() for row in rows] == [bytes(store.serialize_cdr(message(i), kind)) for i in range(5)]
 
 
 def test_bad_live_options_name_the_option_the_bound_and_the_value() -> None:
