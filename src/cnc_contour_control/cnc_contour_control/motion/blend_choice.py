@@ -116,6 +116,18 @@ def corner_times_s(segments: Sequence[Segment], table: BlendTable, limits: Corne
     return blend_s, stop_s
 
 
+def slower_arcs(segments: Sequence[Segment], table: BlendTable, limits: CornerLimits) -> NDArray[np.bool_]:
+    """Whether each blend arc's speed (:func:`blend_speed_m_s`) is below both neighbours' cruise speeds, ``(M,)``.
+
+    Only there can a smaller arc be quicker between cruising neighbours.
+    """
+    k = table.junction
+    speed, _ = _neighbour_limits([segments[i] for i in (k - 1).tolist()] + [segments[i] for i in k.tolist()], limits)
+    feed = np.minimum([segments[i].feed_m_s for i in (k - 1).tolist()], [segments[i].feed_m_s for i in k.tolist()])
+    lines_m_s = np.minimum(speed[:len(k)], speed[len(k):])
+    return np.asarray(blend_speed_m_s(table, feed, limits) < lines_m_s * (1.0 - 1e-9), dtype=bool)
+
+
 def faster_than_stop(segments: Sequence[Segment], table: BlendTable, limits: CornerLimits) -> NDArray[np.bool_]:
     """Whether each blend of ``table`` (corners of ``segments``) is quicker than an exact stop there, ``(M,)``."""
     if not len(table):

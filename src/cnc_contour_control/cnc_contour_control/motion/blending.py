@@ -37,7 +37,7 @@ from numpy.typing import ArrayLike
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.blend_assembly import planned_segments
-from cnc_contour_control.motion.blend_choice import CornerLimits, faster_than_stop, quickest_radius
+from cnc_contour_control.motion.blend_choice import CornerLimits, faster_than_stop, quickest_radius, slower_arcs
 from cnc_contour_control.motion.blend_fillet import lift, plan_fillet
 from cnc_contour_control.motion.blend_table import Blend, BlendTable
 from cnc_contour_control.motion.geometry import Dwell, LineSegment, Program, Segment
@@ -51,7 +51,8 @@ _REVERSAL_MARGIN_RAD = 1.0e-6
 _MIN_CHORD_M = 2.0 * POSITION_TOLERANCE_M
 #: The radii of a line-line corner's blend compared between cruising neighbours
 #: (:func:`~cnc_contour_control.motion.blend_choice.quickest_radius`), as shares of the largest within the
-#: tolerance: where an axis's velocity limit caps the arc a smaller one is quicker.
+#: tolerance, where the largest arc is slower than its lines (a shorter one can then be quicker, as where an
+#: axis's velocity limit caps the arc and not the lines).
 RADIUS_SCALES = (1.0, 0.5, 0.25, 0.125)
 #: Shares of the tolerance a fillet search is tried at until one finds a fillet.
 _FILLET_RETRY_SHARES = (1.0, 0.25, 0.0625, 0.015625)
@@ -187,11 +188,24 @@ def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float,
     curved = np.flatnonzero(corner & ~line_pair) + 1
     line_table = BlendTable.empty(program.n_axes)
     if by_line.size:
-        candidates = [_line_corners(program, by_line + 1, turns[by_line], tolerance_m, scale)
-                      for scale in (RADIUS_SCALES if limits is not None else (1.0,))]
-        line_table = candidates[0] if limits is None else quickest_radius(segments, candidates, limits)
+        line_table = _line_corners(program, by_line + 1, turns[by_line], tolerance_m)
+    if limits is not None and len(line_table):
+        line_table = _line_radii(program, line_table, turns, tolerance_m, limits)
     table = line_table.merged(_curve_corners(program, curved, turns, tolerance_m))
     return table if limits is None else table.subset(faster_than_stop(segments, table, limits))
+
+
+def _line_radii(program: Program, largest: BlendTable, turns_rad: FloatArray, tolerance_m: float,
+                limits: CornerLimits) -> BlendTable:
+    """``largest`` with each blend whose arc is slower than its lines replaced by the quickest of
+    :data:`RADIUS_SCALES` (:func:`~cnc_contour_control.motion.blend_choice.quickest_radius`)."""
+    capped = slower_arcs(program.segments, largest, limits)
+    if not capped.any():
+        return largest
+    junctions = largest.junction[capped]
+    candidates = [largest.subset(capped)] + [_line_corners(program, junctions, turns_rad[junctions - 1], tolerance_m,
+                                                           scale) for scale in RADIUS_SCALES[1:]]
+    return largest.subset(~capped).merged(quickest_radius(program.segments, candidates, limits))
 
 
 def _curve_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, tolerance_m: float) -> BlendTable:
