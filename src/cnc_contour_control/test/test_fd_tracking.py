@@ -84,6 +84,9 @@ def test_the_law_redesigns_for_the_tracked_speed_and_back_on_a_retune() -> None:
     assert law.design_rpm == pytest.approx(1590.0, abs=1500.0 * RESOLUTION)
     assert law.design.f_d_hz == pytest.approx(53.0, abs=50.0 * RESOLUTION)
     assert law.tracked_redesigns >= 1
+    assert law._tracker is not None and law._tracker.estimate_hz is not None
+    law.reset()  # a restart: the estimate starts over, H keeps the tracked design until a new estimate
+    assert law._tracker.estimate_hz is None and law.design_rpm != 1500.0
     config = law.config
     assert isinstance(config, PdcConfig) and config.spindle_rpm == 1500.0  # the commanded speed stays
     law.retune(config)

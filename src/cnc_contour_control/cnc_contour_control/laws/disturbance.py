@@ -345,8 +345,8 @@ class DisturbanceLaw:
             self._m = IirFilter(*mbda_pi(config.mbda_kp, config.mbda_ki, self._dt_s))
 
     def reset(self) -> None:
-        """Zero every filter and the previous corrections."""
-        for name in ("_pdc_model", "_h", "_q_inverse", "_q_command", "_mbda_model", "_m"):
+        """Zero every filter, the f_d tracker's state and the previous corrections (H keeps its last design)."""
+        for name in ("_pdc_model", "_h", "_q_inverse", "_q_command", "_mbda_model", "_m", "_tracker"):
             flt = getattr(self, name, None)
             if flt is not None:
                 flt.reset()
