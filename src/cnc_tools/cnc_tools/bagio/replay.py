@@ -21,6 +21,7 @@ by ``p`` times its duration.
 """
 from __future__ import annotations
 
+from bisect import bisect_left
 from collections.abc import Collection, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -217,6 +218,8 @@ class ReplaySchedule:
 
     def __init__(self, recording: Recording, config: ReplayConfig) -> None:
         self.config = config
+        #: Timeline time of the playlist's start: the bag's first log time plus the start offset, ns.
+        self.origin_ns = recording.messages[0].log_time_ns + round(config.start_offset_s * NS_PER_S)
         self._messages, offsets_ns = _playlist(recording, config.start_offset_s)
         self._offsets_ns, skipped_ns = skip_empty(offsets_ns, round(config.skip_empty_s * NS_PER_S))
         #: Log time skipped as empty, per pass, s.
@@ -266,6 +269,25 @@ class ReplaySchedule:
             self._advance()
         self.published += len(due_now)
         return due_now
+
+    def time_range_ns(self) -> tuple[int, int]:
+        """First and last timeline time of one pass, ns: log time from :attr:`origin_ns`, empty stretches skipped."""
+        return self.origin_ns, self.origin_ns + self._offsets_ns[-1]
+
+    def time_ns(self, elapsed_s: float) -> int:
+        """Timeline time at schedule time ``elapsed_s``, ns (within the pass when looping; at most the last)."""
+        span_ns = self._offsets_ns[-1]
+        offset_ns = round(elapsed_s * self.config.rate * NS_PER_S)
+        if self.config.loop and span_ns:
+            return self.origin_ns + offset_ns % span_ns
+        return self.origin_ns + min(max(offset_ns, 0), span_ns)
+
+    def seek(self, time_ns: int) -> float:
+        """Go to the first message at or after timeline time ``time_ns`` (clamped to the pass) in the current pass;
+        returns the schedule time that point is due at, s (continue the clock from there)."""
+        offset_ns = min(max(int(time_ns) - self.origin_ns, 0), self._offsets_ns[-1])
+        self._index = bisect_left(self._offsets_ns, offset_ns)
+        return self.passes * self.pass_s + offset_ns / NS_PER_S / self.config.rate
 
     def _advance(self) -> None:
         self._index += 1

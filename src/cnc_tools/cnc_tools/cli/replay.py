@@ -6,6 +6,7 @@ from pathlib import Path
 
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.topics import CLOCK, DIAGNOSTICS
+from cnc_tools.bagio.playback import PlaybackControl, PlaybackRequest
 from cnc_tools.bagio.replay import Recording, ReplayConfig, ReplaySchedule, load_recording
 from cnc_tools.live.options import add_live_arguments, replay_live
 
@@ -33,6 +34,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
                         help=f"give up (exit 3) when the readers are not there within S seconds "
                              f"(default {WAIT_TIMEOUT_S:g})")
     add_live_arguments(parser, rate=False)
+    parser.add_argument("--paused", action="store_true",
+                        help="with --live: start paused at the first message; the viewer's play starts it")
 
 
 def replay(args: argparse.Namespace) -> int:
@@ -41,6 +44,8 @@ def replay(args: argparse.Namespace) -> int:
         raise ConfigError(f"--wait-for-subscribers must be in [0, 1000], got {args.wait_for_subscribers}")
     if not 0.01 <= args.wait_timeout <= 1e6:
         raise ConfigError(f"--wait-timeout must be in [0.01, 1000000] s, got {args.wait_timeout}")
+    if args.paused and not args.live:
+        raise ConfigError("--paused needs --live (only a viewer can start a paused replay)")
     config = ReplayConfig(rate=args.rate, start_offset_s=args.start_offset, loop=args.loop, topics=tuple(args.topics),
                           skip_empty_s=args.skip_empty)
     recording = load_recording(args.bag, config.topics)
@@ -50,8 +55,11 @@ def replay(args: argparse.Namespace) -> int:
     if args.wait_for_subscribers:
         print(f"waiting up to {args.wait_timeout:g} s for {args.wait_for_subscribers} reader(s) of each of "
               f"{', '.join(awaited)}", flush=True)
-    with replay_live(args, recording.topics) as readers:
-        code = _spin(recording, config, readers, awaited, args.wait_timeout)
+    control = PlaybackControl(schedule.time_range_ns()) if args.live else None  # the viewer's play, pause, seek
+    if control is not None and args.paused:
+        control.submit(PlaybackRequest(playing=False, speed=config.rate))
+    with replay_live(args, recording.topics, control) as readers:
+        code = _spin(recording, config, readers, awaited, args.wait_timeout, control)
     if code == 0 and not recording.integrity.complete:
         return 1
     return code
@@ -67,7 +75,7 @@ def awaited_topics(recording: Recording, chosen: tuple[str, ...]) -> list[str]:
 
 
 def _spin(recording: Recording, config: ReplayConfig, min_subscribers: int, awaited: list[str],
-          wait_timeout_s: float) -> int:
+          wait_timeout_s: float, control: PlaybackControl | None = None) -> int:
     """Run the replay node in this process until the replay ends (rclpy is imported only here)."""
     from rclpy.parameter import Parameter
 
@@ -81,4 +89,4 @@ def _spin(recording: Recording, config: ReplayConfig, min_subscribers: int, awai
                  Parameter("min_subscribers", value=int(min_subscribers)),
                  Parameter("wait_topics", value=list(awaited)),
                  Parameter("wait_timeout_s", value=float(wait_timeout_s))]
-    return spin_node(lambda: ReplayNode(recording, namespace="/cnc", parameter_overrides=overrides), [])
+    return spin_node(lambda: ReplayNode(recording, control, namespace="/cnc", parameter_overrides=overrides), [])

@@ -19,6 +19,15 @@ SUBPROTOCOL = "foxglove.sdk.v1"
 #: Server -> client binary opcode of a message on a subscription: u8 op, u32 subscription, u64 log time.
 MESSAGE_DATA = 0x01
 _HEADER = struct.Struct("<BIQ")
+#: Server -> client playback state: u8 op, u8 status, u64 time [ns], f32 speed, u8 did_seek, u32 id length, id.
+PLAYBACK_STATE = 0x05
+_STATE = struct.Struct("<BBQfBI")
+#: Client -> server playback control request: u8 op, u8 command (0 play, 1 pause), f32 speed, u8 seek given,
+#: u64 seek time [ns], u32 id length, id.
+PLAYBACK_CONTROL = 0x03
+_CONTROL = struct.Struct("<BBfBQI")
+#: Playback statuses by their code on the wire.
+PLAYBACK_STATUSES = ("playing", "paused", "buffering", "ended")
 
 
 @dataclass(frozen=True)
@@ -35,6 +44,18 @@ class Received:
         return json.loads(self.payload)
 
 
+@dataclass(frozen=True)
+class Playback:
+    """A playback state from the server: status (``PLAYBACK_STATUSES``), timeline time [ns], speed, whether a seek
+    caused it, and the id of the request it answers ("" for none)."""
+
+    status: str
+    time_ns: int
+    speed: float
+    did_seek: bool
+    request_id: str
+
+
 class LiveClient:
     """A synchronous client: ``with LiveClient(url) as client: client.subscribe([...]); client.collect(...)``."""
 
@@ -49,6 +70,8 @@ class LiveClient:
         self._by_subscription: dict[int, str] = {}
         self.closed = False
         self.pending: list[Received] = []
+        self.playback: list[Playback] = []
+        self.statuses: list[dict[str, Any]] = []
 
     def _handle(self, frame: str | bytes, arrived_ns: int) -> None:
         if isinstance(frame, str):
@@ -57,7 +80,13 @@ class LiveClient:
                 self.server_info = op
             elif op.get("op") == "advertise":
                 self.channels.update({c["topic"]: c for c in op["channels"]})
+            elif op.get("op") == "status":
+                self.statuses.append(op)
             return
+        if frame and frame[0] == PLAYBACK_STATE:
+            _, status, time_ns, speed, did_seek, length = _STATE.unpack_from(frame)
+            request_id = bytes(frame[_STATE.size:_STATE.size + length]).decode()
+            self.playback.append(Playback(PLAYBACK_STATUSES[status], time_ns, speed, bool(did_seek), request_id))
         if frame and frame[0] == MESSAGE_DATA:
             _, subscription, log_time_ns = _HEADER.unpack_from(frame)
             self.pending.append(Received(self._by_subscription.get(subscription, "?"), log_time_ns, arrived_ns,
@@ -99,6 +128,19 @@ class LiveClient:
             self._by_subscription[subscription] = topic
             subscriptions.append({"id": subscription, "channelId": self.channels[topic]["id"]})
         self.socket.send(json.dumps({"op": "subscribe", "subscriptions": subscriptions}))
+
+    def control_playback(self, play: bool, speed: float, request_id: str, seek_ns: int | None = None) -> Playback:
+        """Ask the server to play or pause at ``speed`` (from ``seek_ns`` when given); its answer to ``request_id``."""
+        frame = _CONTROL.pack(PLAYBACK_CONTROL, 0 if play else 1, speed, seek_ns is not None, seek_ns or 0,
+                              len(request_id.encode())) + request_id.encode()
+        self.socket.send(frame)
+        deadline = time.monotonic() + 30.0
+        while not self.closed and time.monotonic() < deadline:
+            answers = [p for p in self.playback if p.request_id == request_id]
+            if answers:
+                return answers[-1]
+            self.poll(0.02)
+        raise CncError(f"the live server did not answer playback request {request_id!r} within 30 s")
 
     def collect(self, done: Callable[[list[Received]], bool], timeout_s: float) -> list[Received]:
         """Messages received until ``done(received)`` holds, the server closes, or ``timeout_s`` passes."""

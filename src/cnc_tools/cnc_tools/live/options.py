@@ -21,6 +21,7 @@ from cnc_tools.live.server import DEFAULT_HOST, DEFAULT_PORT, LiveConfig, LiveSe
 from cnc_tools.runs.scenario import Scenario
 
 if TYPE_CHECKING:
+    from cnc_tools.bagio.playback import PlaybackControl
     from cnc_tools.live.feed import LiveFeed
 
 #: Default of --live-linger, s.
@@ -134,22 +135,30 @@ def graph_live(args: argparse.Namespace, namespace: str, scenario: Scenario,
 
 
 @contextmanager
-def replay_live(args: argparse.Namespace, recorded: Mapping[str, str], **extensions: Any) -> Iterator[int]:
+def replay_live(args: argparse.Namespace, recorded: Mapping[str, str], control: PlaybackControl | None = None,
+                **extensions: Any) -> Iterator[int]:
     """For ``replay --live``: a ``live`` node in this process on the bag's run namespace, its topics (``recorded``:
-    name -> type) offered at once; yields the readers the replay waits for on each topic (at least this one)."""
+    name -> type) offered at once; yields the readers the replay waits for on each topic (at least this one).
+    ``control``: the replay's playback control, offered to the viewer (``live/playback.py``)."""
     if not getattr(args, "live", False):
         yield int(args.wait_for_subscribers)
         return
     from cnc_tools.bagio.recording import run_namespace
+    from cnc_tools.live.playback import ReplayPlayback
     from cnc_tools.live.ros import LiveThread
 
     namespace = run_namespace(recorded)
+    playback = None if control is None else ReplayPlayback(control)
+    if playback is not None:
+        extensions = {**playback.server_options(), **extensions}
     with live_session(args, float(getattr(args, "rate", 1.0)), **extensions) as feed:
+        if playback is not None:
+            playback.attach(feed.server)
         for name, type_name in recorded.items():
             if type_name != topics.CLOCK.type_name:
                 diagnostics = type_name == topics.DIAGNOSTICS.type_name
                 feed.advertise(topics.DIAGNOSTICS.name if diagnostics else topics.relative(namespace, name), type_name)
-        thread = LiveThread(feed, namespace)
+        thread = LiveThread(feed, namespace, time.time_ns if playback is None else playback.log_time_ns)
         try:
             yield max(1, int(args.wait_for_subscribers))
         finally:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 from cnc_contour_control.core import topics
@@ -34,8 +35,9 @@ SKIPPED_TYPES = frozenset({topics.CLOCK.type_name})
 class LiveNode(SuiteNode):
     """Subscribes to the suite's topics of its namespace and feeds them to a live server."""
 
-    def __init__(self, feed: LiveFeed | None = None, **kwargs: Any) -> None:
+    def __init__(self, feed: LiveFeed | None = None, clock: Callable[[], int] = time.time_ns, **kwargs: Any) -> None:
         super().__init__("live", **kwargs)
+        self.clock = clock  # log time of a forwarded message, ns (a replay's: its timeline time)
         host = self.declare("host", DEFAULT_HOST, describe(
             "address the live server binds (anything but loopback is warned about)", read_only=True))
         port = self.declare("port", DEFAULT_PORT, describe("TCP port of the live server (0: any free)", 0, 65535,
@@ -63,11 +65,11 @@ class LiveNode(SuiteNode):
     def _subscribe(self, name: str, relative: str, type_name: str) -> None:
         feed_name = topics.DIAGNOSTICS.name if type_name == topics.DIAGNOSTICS.type_name else relative
         qos = LATCHED_QOS if type_name == topics.PATH.type_name else LOCKSTEP_QOS
-        publish = self.feed.publish
+        publish, clock = self.feed.publish, self.clock
         self.feed.advertise(feed_name, type_name)
 
         def forward(cdr: bytes) -> None:
-            publish(feed_name, type_name, cdr, time.time_ns())
+            publish(feed_name, type_name, cdr, clock())
 
         self.create_subscription(message_class(type_name, name), name, self.guarded(forward), qos, raw=True)
         self.subscribed.add(name)
@@ -83,7 +85,7 @@ class LiveNode(SuiteNode):
 class LiveThread:
     """A :class:`LiveNode` in a thread of this process, on its own rclpy context (``cnc-contour run --live``)."""
 
-    def __init__(self, feed: LiveFeed, namespace: str) -> None:
+    def __init__(self, feed: LiveFeed, namespace: str, clock: Callable[[], int] = time.time_ns) -> None:
         import rclpy
         from rclpy.context import Context
         from rclpy.executors import SingleThreadedExecutor
@@ -91,7 +93,7 @@ class LiveThread:
 
         self.context = Context()
         rclpy.init(context=self.context, signal_handler_options=SignalHandlerOptions.NO)  # the runner's own stay
-        self.node = LiveNode(feed, namespace=namespace, context=self.context)
+        self.node = LiveNode(feed, clock, namespace=namespace, context=self.context)
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         self._stop = threading.Event()

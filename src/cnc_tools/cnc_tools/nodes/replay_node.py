@@ -1,4 +1,10 @@
-"""Replay node: republishes a bag's topics, raw, at their recorded times (as ``ros2 bag play``)."""
+"""Replay node: republishes a bag's topics, raw, at their recorded times (as ``ros2 bag play``).
+
+Given a :class:`~cnc_tools.bagio.playback.PlaybackControl` (``replay --live``), a viewer pauses, plays, seeks
+and sets the speed: a timer takes the requests every :data:`CONTROL_PERIOD_S` (the events executor has no guard
+conditions to wake it from another thread) and applies them on the node's thread between two publications, each
+answered with a report.
+"""
 from __future__ import annotations
 
 from typing import Any
@@ -14,6 +20,15 @@ from cnc_contour_control.nodes.common import (
     message_class,
     spin_node,
     wall_time_s,
+)
+from cnc_tools.bagio.playback import (
+    ENDED,
+    PAUSED,
+    PLAYING,
+    PlaybackClock,
+    PlaybackControl,
+    PlaybackReport,
+    PlaybackRequest,
 )
 from cnc_tools.bagio.replay import (
     RATE_BOUNDS,
@@ -31,6 +46,8 @@ from cnc_tools.bagio.replay import (
 _WAIT_PERIOD_S = 0.01
 #: Shortest timer period, ns (a zero period would spin).
 _MIN_PERIOD_NS = 1_000
+#: Wall seconds between two looks for a viewer's playback requests.
+CONTROL_PERIOD_S = 0.02
 #: Default of ``wait_timeout_s``: wall seconds playback waits for its readers before it is a fault.
 WAIT_TIMEOUT_S = 30.0
 
@@ -39,10 +56,11 @@ class ReplayNode(SuiteNode):
     """One raw publisher per recorded topic; a timer publishes each message's bytes when it is due.
 
     ``recording`` (optional) is a bag already loaded, e.g. by ``cnc-contour replay``; else the
-    ``bag`` parameter names the bag to load.
+    ``bag`` parameter names the bag to load. ``control`` (optional): a viewer's playback requests.
     """
 
-    def __init__(self, recording: Recording | None = None, **kwargs: Any) -> None:
+    def __init__(self, recording: Recording | None = None, control: PlaybackControl | None = None,
+                 **kwargs: Any) -> None:
         super().__init__("replay", **kwargs)
         bag = self.declare("bag", "" if recording is None else str(recording.source),
                            describe("bag folder (or .mcap file) to replay", read_only=True))
@@ -59,10 +77,14 @@ class ReplayNode(SuiteNode):
         self.schedule = ReplaySchedule(self.recording, config)
         self.outputs = {topic: self._publisher(topic, type_name) for topic, type_name in self.recording.topics.items()}
         self.awaited = self._awaited(wait_topics)
-        self.started_at_s: float | None = None
+        self.clock = PlaybackClock(config.rate)
         self.waiting_since_s = wall_time_s()
         self.get_logger().info(f"replaying {self.recording.describe()}: {self.schedule.describe()}")
         self._timer = self.create_timer(_WAIT_PERIOD_S, self.guarded(self._tick))
+        self.control = control
+        if control is not None:
+            self.create_timer(CONTROL_PERIOD_S, self.guarded(self._apply_requests))
+            self._apply_requests()  # those made before this node existed (replay --paused) act from the start
 
     def _declare_config(self) -> ReplayConfig:
         """Rate, start offset, loop and topics from the parameters, validated by the core."""
@@ -81,19 +103,59 @@ class ReplayNode(SuiteNode):
 
     def _tick(self) -> None:
         """Start once the readers are there, publish what is due, then sleep until the next message."""
-        started_s = self.started_at_s
-        if started_s is None:
+        if not self.clock.started:
             if not self._readers_ready():
                 return
-            started_s = self._start()
-        for message in self.schedule.step(wall_time_s() - started_s):
+            self._start()
+        self._publish_due()
+        self._sleep()
+
+    def _publish_due(self) -> None:
+        """Publish every message due by now."""
+        elapsed_s = self.clock.elapsed_s(wall_time_s())
+        for message in self.schedule.step(elapsed_s):
             self.outputs[message.topic].publish(message.data)
-        wait_s = self.schedule.wait_s(wall_time_s() - started_s)
+        if self.control is not None:
+            self.control.time_ns = self.schedule.time_ns(elapsed_s)
+
+    def _sleep(self) -> None:
+        """Wake when the next message is due (never while paused); finish when none is left."""
+        wait_s = self.schedule.wait_s(self.clock.elapsed_s(wall_time_s()))
         if wait_s is None:
             self._finish()
             return
-        self._timer.timer_period_ns = max(int(wait_s * 1e9), _MIN_PERIOD_NS)
+        wall_wait_s = self.clock.wall_wait_s(wait_s)
+        if wall_wait_s is None:
+            self._timer.cancel()
+            return
+        self._timer.timer_period_ns = max(int(wall_wait_s * 1e9), _MIN_PERIOD_NS)
         self._timer.reset()
+
+    def _apply_requests(self) -> None:
+        """Apply the viewer's requests (on this node's thread) and answer each."""
+        assert self.control is not None  # the timer exists only with a control
+        requests = self.control.take()
+        if requests and self.clock.started and self.clock.playing and not self.finished:
+            self._publish_due()  # what was due before the request goes out: the stream agrees with the report
+        for request in requests:
+            self.control.answer(request, self._apply(request))
+        if requests and self.clock.started and not self.finished:
+            self._sleep()
+
+    def _apply(self, request: PlaybackRequest) -> PlaybackReport:
+        now_s = wall_time_s()
+        try:
+            self.clock.set(request.playing, request.speed, now_s)
+        except ConfigError as err:
+            return self._report(request.request_id, refused=str(err))
+        if request.seek_ns is not None:
+            self.clock.seek(self.schedule.seek(request.seek_ns), now_s)
+        return self._report(request.request_id, did_seek=request.seek_ns is not None)
+
+    def _report(self, request_id: str = "", did_seek: bool = False, refused: str = "") -> PlaybackReport:
+        status = ENDED if self.finished else PLAYING if self.clock.playing else PAUSED
+        time_ns = self.schedule.time_ns(self.clock.elapsed_s(wall_time_s()))
+        return PlaybackReport(status, time_ns, self.clock.speed, did_seek, request_id, refused)
 
     def _awaited(self, wait_topics: tuple[str, ...]) -> dict[str, Any]:
         """The publishers whose readers playback waits for: those of ``wait_topics``, else every one."""
@@ -113,19 +175,22 @@ class ReplayNode(SuiteNode):
                              f"{self.wait_timeout_s:g} s on {what}")
         return not short
 
-    def _start(self) -> float:
+    def _start(self) -> None:
         """Note the wall time playback starts at; warn on /diagnostics if the bag is damaged."""
-        self.started_at_s = wall_time_s()
+        self.clock.start(wall_time_s())
         integrity = self.recording.integrity
         if not integrity.complete:
             self.report(DiagnosticStatus.WARN, f"replaying a damaged bag: {integrity.describe()}",
                         {"lost": lost_count(integrity)})
-        return self.started_at_s
+        if self.control is not None:
+            self.control.answer(None, self._report())
 
     def _finish(self) -> None:
         ok, text, values = replay_summary(self.schedule, self.recording)
         self._timer.cancel()
         self.finished = True  # before the report: whoever sees the report sees a finished node
+        if self.control is not None:
+            self.control.answer(None, self._report())
         self.report(DiagnosticStatus.OK if ok else DiagnosticStatus.WARN, text, values)
         self.get_logger().info(text)
 
