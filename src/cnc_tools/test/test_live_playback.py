@@ -18,7 +18,7 @@ import pytest
 
 from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.bagio.bag import BagIntegrity
-from cnc_tools.bagio.playback import PlaybackClock
+from cnc_tools.bagio.playback import PAUSED, PlaybackClock, PlaybackControl, PlaybackReport, PlaybackRequest
 from cnc_tools.bagio.replay import RawMessage, Recording, ReplayConfig, ReplaySchedule
 from cnc_tools.bagio.typestore import project_typestore
 from cnc_tools.live.client import LiveClient, Received
@@ -50,6 +50,26 @@ def test_a_speed_out_of_the_rate_bounds_is_refused_by_name_and_bound_and_changes
     with pytest.raises(ConfigError, match=r"replay\.rate must be"):
         clock.set(False, speed, 1.0)
     assert clock.playing and clock.speed == 1.0 and clock.elapsed_s(2.0) == 2.0
+
+
+def test_an_asker_gets_its_answer_and_an_answer_given_too_late_goes_to_the_report() -> None:
+    control = PlaybackControl((0, 10 * MS))
+    late: list[PlaybackReport] = []
+    control.report = late.append
+
+    def replay() -> None:  # the replay's thread: take each request as it comes and answer it
+        for _ in range(2):
+            while not (requests := control.take()):
+                time.sleep(0.001)
+            control.answer(requests[0], PlaybackReport(PAUSED, 5 * MS, requests[0].speed, request_id="r"))
+
+    thread = threading.Thread(target=replay)
+    thread.start()
+    answer = control.ask(PlaybackRequest(False, 2.0, request_id="r"), 10.0)
+    assert answer == PlaybackReport(PAUSED, 5 * MS, 2.0, request_id="r") and late == []
+    assert control.ask(PlaybackRequest(False, 3.0, request_id="r"), 0.0) is None  # gave up at once
+    thread.join(10.0)
+    assert [r.speed for r in late] == [3.0]
 
 
 def _recording(times_ms: list[float]) -> Recording:
