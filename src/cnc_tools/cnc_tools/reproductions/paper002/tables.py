@@ -75,9 +75,10 @@ def print_main(contour: str, rows: Sequence[Mapping[str, Any]], plan: Plan, wind
     length = "2.83 s of" if contour == "line" else ("the whole" if plan.circle_s is None else f"{plan.circle_s:g} s of")
     print(f"\n{contour} (120 mm/min; {length} run; constant speed {window[0]:.2f}-{window[1]:.2f} s): "
           "contour error [pulse = 1/2.4 µm]; the paper's RMS are from its line (Fig. 9)")
-    print("  floor: RMS of the same law without the periodic disturbance (friction, encoder; rounding a continuous "
-          "position alone gives 1/sqrt(12) = 0.289); periodic = sqrt(RMS² − floor²); f_d line: lock-in amplitude at "
-          "50 Hz; |S|∞, dist. peak, removal (model): design_report, K_pp 40/s, worst axis")
+    print("  floor: RMS of the same law without the periodic disturbance (on the line mostly friction at the start, "
+          "the axes sticking while the reference moves; the encoder adds little); periodic = sqrt(RMS² − floor²); "
+          "f_d line: lock-in amplitude at 50 Hz; |S|∞, dist. peak, removal (model): design_report, K_pp 40/s, "
+          "worst axis")
     print(format_table(
         ["run", "paper", "paper RMS", "RMS", "floor", "periodic", "f_d line", "f_d removed",
          "model removal", "|S|∞", "dist. peak"],
