@@ -76,7 +76,7 @@ class LiveNode(SuiteNode):
 
     def destroy_node(self) -> None:
         """Close the open windows; stop the server if this node started it."""
-        self.feed.finish(time.time_ns())
+        self.feed.finish(self.clock())
         if self.owns_server:
             self.feed.server.close()
         super().destroy_node()
