@@ -35,11 +35,13 @@ from cnc_tools.runs.scenario import Scenario
 MIN_RATE, MAX_RATE = 0.01, 1000.0
 #: Header frame of the suite's messages (as the bags').
 FRAME_ID = "machine"
-#: Wall time between two batches handed to the sender thread [ns]: a tick waits at most this before it is sent.
+#: Wall time between two batches handed to the sender thread [ns] when the engine does not sleep (late, or unpaced):
+#: a tick waits at most this before it is sent.
 SEND_PERIOD_NS = 10_000_000
 #: A tick runs at once while it is at most this ahead of its wall time [ns], so the engine's thread sleeps once
-#: per few ticks, not every tick (a sleep and its wake-up cost more CPU than a tick).
-AHEAD_NS = 4_000_000
+#: per burst of ticks, not every tick (a sleep and its wake-up cost more CPU than a tick); the burst's batch
+#: leaves before the sleep.
+AHEAD_NS = 10_000_000
 #: Hand-off times kept for statistics (the last ~100 s at the default period).
 LAGS_KEPT = 10_000
 #: A servo's command parts in a batch row (``AxisCommand`` fields, as ``latest_parts`` names them).
@@ -167,8 +169,11 @@ class EngineLive:
                 estimate.contour_error_m, *estimate.tracking_error_m, estimate.segment_index, estimate.angle_rad,
                 *estimate.point_a_m, *estimate.point_b_m, estimate.window_size, estimate.steps]))
         if now_ns - self._batch_wall_ns >= self.send_period_ns or board.tick == self._last_tick:
-            self._sender.put(batch)
-            self._batch, self._batch_wall_ns = _Batch(), now_ns
+            self._hand_off(now_ns)
+
+    def _hand_off(self, now_ns: int) -> None:
+        self._sender.put(self._batch)
+        self._batch, self._batch_wall_ns = _Batch(), now_ns
 
     def close(self) -> None:
         """Send what is left and stop the sender thread (the feed's ``finish`` calls it); an error the sender met is
@@ -216,6 +221,8 @@ class EngineLive:
             self._start_ns = now - int(stamp_ns / self.rate)
         due = self._start_ns + int(stamp_ns / self.rate)
         if due - now > self.ahead_ns:
+            if self._batch.rows:  # the ticks run so far leave now, not after the sleep
+                self._hand_off(self.wall_ns())
             self.sleep((due - now) * 1e-9)
         elif due < now:
             self.late_ticks += 1
@@ -232,6 +239,10 @@ class EngineLive:
         header = {"header.stamp.sec": sec, "header.stamp.nanosec": nanosec}
         position, ref = v[:, 0:n], v[:, 2 * n:3 * n]
         base = 5 * n  # path length, segment, feed, done, applied, requested, force
+        if not feed.watched():
+            feed.unwatched_many(stamps_ns, log_ns, position, float(v[-1, base + 5]), float(v[-1, base + 4]))
+            self.handoff_ns.append(time.time_ns() - batch.log_ns[0])
+            return
         self._log(topics.JOINT_STATES.name, rows, log_ns, {**header, "position": position, "velocity": v[:, n:2 * n]})
         self._log(topics.REFERENCE.name, rows, log_ns, {
             **header, "position_m": ref, "velocity_m_s": v[:, 3 * n:4 * n], "acceleration_m_s2": v[:, 4 * n:base],

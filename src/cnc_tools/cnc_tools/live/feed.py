@@ -166,14 +166,7 @@ class LiveFeed:
                 "ref_x_mm": float(ref_mm[i, 0]), "ref_y_mm": float(ref_mm[i, 1])}), times)
         else:
             self._xy.flush()
-        for start, _ in window_runs(stamps_ns, self.window_ns):
-            window = stamps[start] // self.window_ns
-            if self._window is not None and window != self._window:
-                self.scene.add_tool(position_m[start].tolist())
-            self._window = window
-        for k, stamp_ns in enumerate(stamps):
-            if stamp_ns >= self._next_scene_ns:
-                self._send_scene(stamp_ns, times[k])
+        self._trail_many(stamps_ns, log_ns, position_m)
         exact = self.server.channels["/live/contour_error/exact"]
         if self.program is None or not (exact.has_sinks() or self.server.channels[EXACT_PEAKS].has_sinks()):
             self._peaks.pop(EXACT_PEAKS, None)
@@ -187,6 +180,32 @@ class LiveFeed:
         self.peaks_many(EXACT_PEAKS, EXACT_SCHEMA, stamps_ns, log_ns, error_m * 1e6,
                         lambda i: {"stamp_ns": stamps[i], "contour_error_um": error_um[i],
                                    "segment_index": int(segments[i])})
+
+    def _trail_many(self, stamps_ns: Any, log_ns: Any, position_m: Any) -> None:
+        """The tool's trail (a point per window) and the scene every :data:`SCENE_PERIOD_NS`."""
+        stamps = stamps_ns.tolist()
+        for start, _ in window_runs(stamps_ns, self.window_ns):
+            window = stamps[start] // self.window_ns
+            if self._window is not None and window != self._window:
+                self.scene.add_tool(position_m[start].tolist())
+            self._window = window
+        if stamps[-1] >= self._next_scene_ns:
+            k = int(np.searchsorted(stamps_ns, self._next_scene_ns))
+            self._send_scene(stamps[k], int(log_ns[k]))
+
+    def watched(self) -> bool:
+        """True when a client subscribes to any channel."""
+        return any(channel.has_sinks() for channel in self.server.channels.values())
+
+    def unwatched_many(self, stamps_ns: Any, log_ns: Any, position_m: Any, requested: float, applied: float) -> None:
+        """A batch while no client subscribes to anything: only the trail and the override's state go on, and no
+        window is kept (a viewer's first window starts when it joins)."""
+        self._trail_many(stamps_ns, log_ns, position_m)
+        self._override_now.update(requested_ratio=requested, applied_ratio=applied)
+        for decimator in self._peaks.values():
+            decimator.flush()
+        self._xy.flush()
+        self._override.flush()
 
     def peaks_many(self, topic: str, schema: dict[str, Any], stamps_ns: Any, log_ns: Any, values: Any,
                    make: Callable[[int], dict[str, Any]]) -> None:
