@@ -2,6 +2,7 @@
 up by a protocol client (foxglove's PlaybackControl capability, no browser) while the stream follows."""
 from __future__ import annotations
 
+import functools
 import math
 import queue
 import struct
@@ -90,6 +91,21 @@ def test_seek_goes_to_the_first_message_at_or_after_the_time_and_the_timeline_is
 def test_a_looping_timeline_stays_within_one_pass() -> None:
     schedule = ReplaySchedule(_recording([0.0, 1.0, 2.0]), ReplayConfig(loop=True))
     assert schedule.time_ns(2.5e-3) == round(0.5 * MS)
+
+
+@pytest.mark.nodes
+def test_a_looping_replay_tells_the_viewer_when_it_starts_over(tmp_path: Path, synth: SimpleNamespace) -> None:
+    from cnc_contour_control.testing import InProcessNode, wait_until
+    from cnc_tools.nodes.replay_node import ReplayNode
+
+    bag = synth.write_run_bag(tmp_path / "run", synth.circle_program(), synth.circle_trajectory(0.02, 0.0, n=40))
+    control = PlaybackControl((0, 39 * MS))
+    reports: list[PlaybackReport] = []
+    control.report = reports.append
+    with InProcessNode(functools.partial(ReplayNode, control=control), {"bag": str(bag), "loop": True}):
+        wait_until(lambda: any(r.did_seek for r in reports), 30.0, "a report of the loop starting over")
+    wrap = next(r for r in reports if r.did_seek)
+    assert wrap.status == "playing" and 0 <= wrap.time_ns < 39 * MS and wrap.request_id == ""
 
 
 # --------------------------------------------------------------------------- the command, driven by a viewer

@@ -112,11 +112,13 @@ class ReplayNode(SuiteNode):
 
     def _publish_due(self) -> None:
         """Publish every message due by now."""
-        elapsed_s = self.clock.elapsed_s(wall_time_s())
+        elapsed_s, passes = self.clock.elapsed_s(wall_time_s()), self.schedule.passes
         for message in self.schedule.step(elapsed_s):
             self.outputs[message.topic].publish(message.data)
         if self.control is not None:
             self.control.time_ns = self.schedule.time_ns(elapsed_s)
+            if self.schedule.passes != passes:  # a loop started over: the viewer's time goes back, as by a seek
+                self.control.answer(None, self._report(did_seek=True))
 
     def _sleep(self) -> None:
         """Wake when the next message is due (never while paused); finish when none is left."""
