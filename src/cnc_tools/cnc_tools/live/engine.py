@@ -131,7 +131,6 @@ class EngineLive:
         #: Ticks reached after their due wall time, and the latest of them behind it [ns] (the pacing's record).
         self.late_ticks, self.max_late_ns = 0, 0
         self._batch = _Batch()
-        self._batch_wall_ns = 0
         self._last_tick = tick_count(scenario) - 1  # its batch leaves at once (the bag is written before finish)
         self._templates: dict[str, CdrTemplate] = {}
         #: Per batch sent (the last :data:`LAGS_KEPT`): wall time from its first tick to its last message handed to
@@ -168,12 +167,12 @@ class EngineLive:
             batch.estimates.append((len(batch.rows) - 1, [
                 estimate.contour_error_m, *estimate.tracking_error_m, estimate.segment_index, estimate.angle_rad,
                 *estimate.point_a_m, *estimate.point_b_m, estimate.window_size, estimate.steps]))
-        if now_ns - self._batch_wall_ns >= self.send_period_ns or board.tick == self._last_tick:
-            self._hand_off(now_ns)
+        if now_ns - batch.log_ns[0] >= self.send_period_ns or board.tick == self._last_tick:
+            self._hand_off()
 
-    def _hand_off(self, now_ns: int) -> None:
+    def _hand_off(self) -> None:
         self._sender.put(self._batch)
-        self._batch, self._batch_wall_ns = _Batch(), now_ns
+        self._batch = _Batch()
 
     def close(self) -> None:
         """Send what is left and stop the sender thread (the feed's ``finish`` calls it); an error the sender met is
@@ -222,7 +221,7 @@ class EngineLive:
         due = self._start_ns + int(stamp_ns / self.rate)
         if due - now > self.ahead_ns:
             if self._batch.rows:  # the ticks run so far leave now, not after the sleep
-                self._hand_off(self.wall_ns())
+                self._hand_off()
             self.sleep((due - now) * 1e-9)
         elif due < now:
             self.late_ticks += 1
