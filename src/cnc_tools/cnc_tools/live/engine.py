@@ -28,7 +28,7 @@ from cnc_tools.bagio.synthetic import path_message
 from cnc_tools.live.cdr import CdrTemplate
 from cnc_tools.live.feed import AXIS_SCHEMA, ESTIMATED_SCHEMA, FORCE_SCHEMA, LiveFeed
 from cnc_tools.runs.engine import tick_count
-from cnc_tools.runs.engine_stages import Board, EngineStage
+from cnc_tools.runs.engine_stages import Board, EngineStage, ServoStage
 from cnc_tools.runs.scenario import Scenario
 
 #: Bounds of --live-rate (simulated seconds per wall second).
@@ -157,8 +157,7 @@ class EngineLive:
         row = [*board.position_m, *board.velocity_m_s, *board.ref_position_m, *board.ref_velocity_m_s,
                *board.ref_acceleration_m_s2, *self._interpolator.path_fields(board.tick),
                board.feed_override_ratio, self._requested(board), board.cutting_force_n]
-        for parts in self._servo.latest_parts():
-            row.extend([parts[name] for name in COMMAND_PARTS])
+        row.extend(self._servo.latest_flat())
         batch.rows.append(row)
         estimate = board.estimate
         if estimate is not None:
@@ -185,7 +184,10 @@ class EngineLive:
     def _make_templates(self, board: Board, stages: list[EngineStage]) -> None:
         """The CDR templates of the run's messages, from the first tick's messages (their strings and lengths)."""
         self._interpolator = next(s for s in stages if hasattr(s, "path_fields"))
-        self._servo = next(s for s in stages if hasattr(s, "latest_parts"))
+        self._servo = next(s for s in stages if isinstance(s, ServoStage))
+        order = tuple(self._servo.latest_parts()[0])
+        if order != COMMAND_PARTS:
+            raise CncError(f"live: the servo stage's parts are {order}, the batch rows expect {COMMAND_PARTS}")
         self._live_request = getattr(self._interpolator, "live", None)
         stamp = self._header(board.stamp_ns)
         store, make = self.feed.store, self.types

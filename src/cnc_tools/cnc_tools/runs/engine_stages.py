@@ -313,6 +313,11 @@ class ServoStage:
         rows = self._flat[-width * len(self.servos):]
         return [dict(zip(_PARTS, rows[k * width:(k + 1) * width])) for k in range(len(self.servos))]
 
+    def latest_flat(self) -> list[float]:
+        """:meth:`latest_parts` as one list, axis after axis, each in :class:`ServoOutput`'s field order (no dicts:
+        the live view's per-tick call)."""
+        return self._flat[-len(_PARTS) * len(self.servos):]
+
     def finish(self) -> None:
         """Nothing to do after the run."""
 
