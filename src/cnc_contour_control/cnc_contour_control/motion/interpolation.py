@@ -37,20 +37,22 @@ import bisect
 import dataclasses
 import functools
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from cnc_contour_control.core.config import build_config, require_non_negative, require_positive
+from cnc_contour_control.core.config import build_config, require_non_negative
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.motion.accel_decel import AccelDecelConfig, ReferenceFilter
+from cnc_contour_control.motion.axis_limits import AxisLimits as AxisLimits
 from cnc_contour_control.motion.blend_choice import CornerLimits
-from cnc_contour_control.motion.blending import quickest_blend
+from cnc_contour_control.motion.blending import BlendedProgram, quickest_blend
 from cnc_contour_control.motion.geometry import Program, Segment
+from cnc_contour_control.motion.jerk_plan import JerkPlan
 from cnc_contour_control.motion.plan_arrays import (
     SpeedBands,
     banded_phases,
@@ -60,47 +62,6 @@ from cnc_contour_control.motion.plan_arrays import (
 from cnc_contour_control.motion.plan_stream import start_stream, whole_plan
 
 FloatArray = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class AxisLimits:
-    """Per-axis velocity and acceleration limits, one entry per axis.
-
-    Parameters
-    ----------
-    max_velocity_m_s : tuple of float
-        Largest axis speed, m/s, > 0.
-    max_acceleration_m_s2 : tuple of float
-        Largest axis acceleration, m/s^2, > 0.
-    """
-
-    max_velocity_m_s: tuple[float, ...] = param(
-        unit="m/s", read_only=True, description="largest speed of each axis, in axis order, each > 0")
-    max_acceleration_m_s2: tuple[float, ...] = param(
-        unit="m/s^2", read_only=True, description="largest acceleration of each axis, in axis order, each > 0")
-
-    def __post_init__(self) -> None:
-        velocity = _positive_tuple("max_velocity_m_s", self.max_velocity_m_s)
-        acceleration = _positive_tuple("max_acceleration_m_s2", self.max_acceleration_m_s2)
-        if len(velocity) != len(acceleration):
-            raise ConfigError(
-                f"max_acceleration_m_s2 must have one entry per axis ({len(velocity)}), got {len(acceleration)}")
-        object.__setattr__(self, "max_velocity_m_s", velocity)
-        object.__setattr__(self, "max_acceleration_m_s2", acceleration)
-
-    @property
-    def n_axes(self) -> int:
-        """Number of axes."""
-        return len(self.max_velocity_m_s)
-
-
-def _positive_tuple(name: str, values: ArrayLike) -> tuple[float, ...]:
-    if isinstance(values, (str, bytes)) or not isinstance(values, Iterable):
-        raise ConfigError(f"{name} must be a list with one value per axis, got {values!r}")
-    items: list[Any] = list(values)
-    if not items:
-        raise ConfigError(f"{name} must have at least one entry, got {values!r}")
-    return tuple(require_positive(f"{name}[{j}]", v) for j, v in enumerate(items))
 
 
 @dataclass(frozen=True)
@@ -295,8 +256,9 @@ class Interpolator:
         self.programmed_program = program
         self._profile_time_s, self._accel_decel = 0.0, ReferenceFilter(self.config.accel_decel)
         tolerance_m = planning_tolerance_m(program, self.config)
-        self._stream = start_stream(self, program, limits, tolerance_m)
-        if self._stream is not None:
+        self._jerk = None if limits.max_jerk_m_s3 is None else self._plan_jerk(program, tolerance_m)
+        self._stream = None if self._jerk is not None else start_stream(self, program, limits, tolerance_m)
+        if self._stream is not None or self._jerk is not None:
             return
         self._plans: dict[int, dict[str, Any]] = {}
         self.blended = quickest_blend(program, tolerance_m, tolerance_rad, CornerLimits(
@@ -305,6 +267,16 @@ class Interpolator:
         self.__dict__.update(self._plans.pop(id(self.blended.planned)))
         del self._plans
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
+
+    def _plan_jerk(self, program: Program, tolerance_m: float) -> JerkPlan:
+        """The jerk-limited mode (:mod:`~cnc_contour_control.motion.jerk_plan`): exact stops, no blends."""
+        plan = JerkPlan(program, self.limits, self.config.clamp_feed)
+        self.blended, self.program, self._view = BlendedProgram.unblended(program, tolerance_m), program, program
+        self.duration_s, self.cruise_speed_m_s = plan.duration_s, plan.peak_speed_m_s
+        self.tangential_acceleration_m_s2 = np.array([p.accel_m_s2 for p in plan.path_limits])
+        self.junction_speeds_m_s = np.zeros(len(program.segments) + 1)
+        self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
+        return plan
 
     def __getattr__(self, name: str) -> Any:
         """Streaming: the whole plan's attributes, planned to the end on first use (:func:`plan_stream.whole_plan`)."""
@@ -370,7 +342,10 @@ class Interpolator:
             raise ConfigError(f"t_s must be a number, got {t_s}")
         if t_s >= self.planned_end_s(t_s):
             return self._end_sample()
-        index, s_local, speed, accel = self._path_state(t_s)
+        if self._jerk is not None:
+            index, s_local, speed, accel = (v[0] for v in self._jerk.path_state([t_s])[:4])
+        else:
+            index, s_local, speed, accel = self._path_state(t_s)
         segment = self._view.segments[index]
         s_local = min(max(s_local, 0.0), segment.length_m)
         point, tangent, curvature = segment.frame(s_local)
@@ -402,6 +377,12 @@ class Interpolator:
             Positions, velocities, accelerations of shape ``(M, n_axes)``.
         """
         t = np.asarray(times_s, dtype=float).reshape(-1)
+        if self._jerk is not None:
+            index, s_local, speed, position, velocity, acceleration = self._jerk.axis_arrays(t)
+            done = t >= self.duration_s
+            position[done] = self._end_point_m
+            path = np.where(done, self._view.total_length_m, self._view.segment_start_m[index] + s_local)
+            return ReferenceTrajectory(t, position, velocity, acceleration, path, index, speed, done)
         end_s = self.planned_end_s(float(np.max(t, initial=0.0)))
         clipped = np.clip(t, 0.0, end_s)
         phases = self._phases if self._stream is None else self._stream.phases()

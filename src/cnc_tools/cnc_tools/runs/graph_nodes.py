@@ -180,7 +180,8 @@ def _interpolator_parameters(run: _Run, stage: Stage, node: str, axis: str | Non
     machine = {**(config_values(scenario.travel) if scenario.travel.active else {}),
                **(config_values(scenario.homing) if scenario.raw.get("homing") is not None else {})}
     return _merge(config_values(interpolator_run), config_values(scenario.interpolator),
-                  config_values(scenario.limits), {"feed_override": override} if scenario.override_active else {},
+                  {k: v for k, v in config_values(scenario.limits).items() if v is not None},  # no jerk: unset
+                  {"feed_override": override} if scenario.override_active else {},
                   {k: v for k, v in machine.items() if v != []})
 
 

@@ -44,7 +44,7 @@ OPTIONAL_STAGE_KEYS: tuple[str, ...] = ("estimator", "compensator", "force_regul
 _TOP_KEYS = ("name", "format_version", "description", "sample_time_s", "duration_s", "settle_s", "seed", "mode",
              "plant", "limits", "program", "servo", "interpolator", "paper", "feed_override", "homing",
              *OPTIONAL_STAGE_KEYS)
-_LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2", "travel_mm")
+_LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2", "max_jerk_mm_s3", "travel_mm")
 _HOMING_KEYS = ("position_mm", "feed_mm_min", "require_homing")
 
 
@@ -280,7 +280,16 @@ def _limits(section: Any, n_axes: int) -> AxisLimits:
         max_velocity_m_s=tuple(mm_min_to_m_s(require_feed_mm_min("max_velocity_mm_min", v, "scenario.limits"))
                                for v in velocity),
         max_acceleration_m_s2=tuple(mm_s2_to_m_s2(_acceleration_mm_s2(a)) for a in accel),
+        max_jerk_m_s3=_jerk_m_s3(section.get("max_jerk_mm_s3"), n_axes),
     )
+
+
+def _jerk_m_s3(value: Any, n_axes: int) -> tuple[float, ...] | None:
+    """``limits.max_jerk_mm_s3`` (one value or one per axis, each > 0) in m/s³; absent: no jerk limit."""
+    if value is None:
+        return None
+    return tuple(1.0e-3 * require_positive("max_jerk_mm_s3", j, "scenario.limits")
+                 for j in _per_axis(value, n_axes, "scenario.limits.max_jerk_mm_s3"))
 
 
 def _travel(section: Mapping[str, Any], axes: tuple[str, ...]) -> TravelLimits:
