@@ -107,14 +107,17 @@ class ReplayNode(SuiteNode):
             if not self._readers_ready():
                 return
             self._start()
-        self._publish_due()
+        self._publish_due(wall_time_s())
         self._sleep()
 
-    def _publish_due(self) -> None:
-        """Publish every message due by now."""
-        elapsed_s, passes = self.clock.elapsed_s(wall_time_s()), self.schedule.passes
-        for message in self.schedule.step(elapsed_s):
-            self.outputs[message.topic].publish(message.data)
+    def _publish_due(self, now_s: float, drain: bool = False) -> None:
+        """Publish the messages due by wall time ``now_s``: a batch, or with ``drain`` every one."""
+        elapsed_s, passes = self.clock.elapsed_s(now_s), self.schedule.passes
+        while batch := self.schedule.step(elapsed_s):
+            for message in batch:
+                self.outputs[message.topic].publish(message.data)
+            if not drain:
+                break
         if self.control is not None:
             self.control.time_ns = self.schedule.time_ns(elapsed_s)
             if self.schedule.passes != passes:  # a loop started over: the viewer's time goes back, as by a seek
@@ -136,16 +139,15 @@ class ReplayNode(SuiteNode):
     def _apply_requests(self) -> None:
         """Apply the viewer's requests (on this node's thread) and answer each."""
         assert self.control is not None  # the timer exists only with a control
-        requests = self.control.take()
+        requests, now_s = self.control.take(), wall_time_s()
         if requests and self.clock.started and self.clock.playing and not self.finished:
-            self._publish_due()  # what was due before the request goes out: the stream agrees with the report
+            self._publish_due(now_s, drain=True)  # what was due goes out first: the stream agrees with the answer
         for request in requests:
-            self.control.answer(request, self._apply(request))
+            self.control.answer(request, self._apply(request, now_s))
         if requests and self.clock.started and not self.finished:
             self._sleep()
 
-    def _apply(self, request: PlaybackRequest) -> PlaybackReport:
-        now_s = wall_time_s()
+    def _apply(self, request: PlaybackRequest, now_s: float) -> PlaybackReport:
         try:
             self.clock.set(request.playing, request.speed, now_s)
         except ConfigError as err:
