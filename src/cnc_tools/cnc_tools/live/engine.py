@@ -80,7 +80,18 @@ class _Sender:
         self.thread.start()
 
     def _run(self) -> None:
-        while (batch := self.queue.get()) is not None:
+        """Work batch after batch; batches that queued while it worked are merged into one (a sender behind the
+        engine catches up with fewer, larger numpy passes)."""
+        closing = False
+        while not closing and (batch := self.queue.get()) is not None:
+            while not self.queue.empty() and not closing:
+                more = self.queue.get_nowait()
+                closing = more is None
+                if more is not None:
+                    batch.estimates += [(k + len(batch.rows), values) for k, values in more.estimates]
+                    batch.stamps_ns += more.stamps_ns
+                    batch.log_ns += more.log_ns
+                    batch.rows += more.rows
             if self.error is None:
                 try:
                     self.work(batch)
