@@ -2,6 +2,7 @@
 up by a protocol client (foxglove's PlaybackControl capability, no browser) while the stream follows."""
 from __future__ import annotations
 
+import argparse
 import functools
 import math
 import queue
@@ -106,6 +107,15 @@ def test_a_looping_replay_tells_the_viewer_when_it_starts_over(tmp_path: Path, s
         wait_until(lambda: any(r.did_seek for r in reports), 30.0, "a report of the loop starting over")
     wrap = next(r for r in reports if r.did_seek)
     assert wrap.status == "playing" and 0 <= wrap.time_ns < 39 * MS and wrap.request_id == ""
+
+
+def test_paused_without_live_is_a_usage_error_naming_both_options() -> None:
+    from cnc_tools.cli.replay import configure, replay
+
+    parser = argparse.ArgumentParser()
+    configure(parser)
+    with pytest.raises(ConfigError, match="--paused needs --live"):
+        replay(parser.parse_args(["no-such-bag", "--paused"]))
 
 
 # --------------------------------------------------------------------------- the command, driven by a viewer
