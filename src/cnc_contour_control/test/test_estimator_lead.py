@@ -107,7 +107,7 @@ def _closed(kind: str) -> Program:
 
 
 @given(kind=st.sampled_from(["square", "quarters"]), past_mm=st.floats(0.2, 3.0), offset_um=st.floats(-150, 150))
-@settings(max_examples=20, deadline=None)
+@settings(max_examples=12, deadline=None)
 def test_path_estimator_past_the_closing_point_of_a_closed_program(kind: str, past_mm: float,
                                                                    offset_um: float) -> None:
     program = _closed(kind)
