@@ -6,8 +6,9 @@ import sys
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[2]
-#: Modules that may talk to ROS: nodes, test helpers, and the command line with its benchmarks.
-ROS_SIDE = ("nodes", "testing", "bench", "cli", "commands")
+#: Modules that may talk to ROS: nodes, test helpers, the command line with its benchmarks, and a package's
+#: own `ros` module (the live view's node: live/ros.py).
+ROS_SIDE = ("nodes", "testing", "bench", "cli", "commands", "ros")
 
 
 def core_modules() -> list[str]:
