@@ -269,12 +269,13 @@ class Interpolator:
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
 
     def _plan_jerk(self, program: Program, tolerance_m: float) -> JerkPlan:
-        """The jerk-limited mode (:mod:`~cnc_contour_control.motion.jerk_plan`): exact stops, no blends."""
-        plan = JerkPlan(program, self.limits, self.config.clamp_feed)
+        """The jerk-limited mode (:mod:`~cnc_contour_control.motion.jerk_plan`; its corners are not in
+        :attr:`program`)."""
+        plan = JerkPlan(program, self.limits, self.config.clamp_feed, tolerance_m)
         self.blended, self.program, self._view = BlendedProgram.unblended(program, tolerance_m), program, program
         self.duration_s, self.cruise_speed_m_s = plan.duration_s, plan.peak_speed_m_s
         self.tangential_acceleration_m_s2 = np.array([p.accel_m_s2 for p in plan.path_limits])
-        self.junction_speeds_m_s = np.zeros(len(program.segments) + 1)
+        self.junction_speeds_m_s = plan.junction_speeds_m_s
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
         return plan
 
@@ -343,9 +344,12 @@ class Interpolator:
         if t_s >= self.planned_end_s(t_s):
             return self._end_sample()
         if self._jerk is not None:
-            index, s_local, speed, accel = (v[0] for v in self._jerk.path_state([t_s])[:4])
-        else:
-            index, s_local, speed, accel = self._path_state(t_s)
+            row = self.sample_array([t_s])
+            return ReferenceSample(row.position_m[0], row.velocity_m_s[0], row.acceleration_m_s2[0],
+                                   float(row.path_length_m[0]), int(row.segment_index[0]), float(row.feed_m_s[0]),
+                                   self._view.segments[int(row.segment_index[0])].feed_m_s, False,
+                                   profile_time_s=max(t_s, 0.0))
+        index, s_local, speed, accel = self._path_state(t_s)
         segment = self._view.segments[index]
         s_local = min(max(s_local, 0.0), segment.length_m)
         point, tangent, curvature = segment.frame(s_local)

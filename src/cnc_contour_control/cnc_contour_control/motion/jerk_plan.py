@@ -1,9 +1,9 @@
-"""The jerk-limited planner mode (``AxisLimits.max_jerk_m_s3`` set): an S-curve per segment, rest to rest.
+"""The jerk-limited planner mode (``AxisLimits.max_jerk_m_s3`` set): S-curves along segments, corners at speed.
 
-Each segment is run from rest to rest by :class:`~cnc_contour_control.motion.jerk_profile.SCurve` under path
-limits ``V``, ``A``, ``J`` chosen so that every axis keeps its velocity, acceleration and jerk limit on every
-point of the segment. With ``t_j``, ``k_j`` and ``k'_j`` the largest ``|T_j|``, ``|K_j|`` and ``|dK_j/ds|`` of
-the segment (unit tangent ``T``, curvature vector ``K``) the axis values are bounded term by term:
+Each segment is run by :class:`~cnc_contour_control.motion.jerk_profile.SCurve` between its junctions'
+speeds under path limits ``V``, ``A``, ``J`` chosen so that every axis keeps its velocity, acceleration and jerk
+limit on every point of the segment. With ``t_j``, ``k_j`` and ``k'_j`` the largest ``|T_j|``, ``|K_j|`` and
+``|dK_j/ds|`` of the segment (unit tangent ``T``, curvature vector ``K``) the axis values are bounded term by term:
 
     |v_j| <= v t_j
     |a_j| <= |a_t| t_j + v² k_j
@@ -13,12 +13,13 @@ A line (``k = k' = 0``) gets ``V = min(feed, vmax_j / t_j)``, ``A = min(amax_j /
 An arc (helix: in-plane radius ``r``, angle rate ``ω = sweep / length``, ``κ = r ω²``, ``k' = κ ω`` on its
 plane's axes) gives half of each acceleration limit to each term and a third of each jerk limit to each:
 ``v² k_j <= amax_j / 2``, ``A t_j <= amax_j / 2``, ``v³ k'_j <= jmax_j / 3``, ``3 V A k_j <= jmax_j / 3``,
-``J t_j <= jmax_j / 3``. Every junction is an exact stop (speed and acceleration 0), so the acceleration
-never steps and the path is the programmed one (deviation 0); a dwell (G4) waits at its junction.
+``J t_j <= jmax_j / 3``; its junctions are exact stops (speed and acceleration 0). A line-line corner is
+passed at speed by a velocity blend (:mod:`~cnc_contour_control.motion.jerk_blend`) within the path tolerance;
+the acceleration never steps anywhere. A dwell (G4) waits at its junction, which is a stop.
 """
 from __future__ import annotations
 
-import bisect
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +29,8 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import Program, Segment
-from cnc_contour_control.motion.jerk_profile import SCurve
+from cnc_contour_control.motion.jerk_blend import Corner, CornerAxes, corner_speed_m_s, corner_time_s
+from cnc_contour_control.motion.jerk_profile import SCurve, reachable_m_s
 
 FloatArray = NDArray[np.float64]
 _TINY = 1.0e-300
@@ -70,67 +72,126 @@ def segment_path_limits(segment: Segment, limits: AxisLimits, clamp_feed: bool =
 
 
 class JerkPlan:
-    """The jerk-limited plan of ``program`` under ``limits`` (with ``max_jerk_m_s3``): one S-curve per segment.
+    """The jerk-limited plan of ``program`` under ``limits`` (with ``max_jerk_m_s3``) and a path tolerance.
 
-    :attr:`start_s` (``(n_segments + 1,)``) is each segment's start time, s, the last entry the plan's end;
-    :meth:`path_state` gives segment, local arc length, speed, acceleration and jerk at any times.
+    Line-line corners are passed at speed within ``tolerance_m`` (:mod:`~cnc_contour_control.motion.jerk_blend`);
+    every other junction, a dwell's, and every corner at tolerance 0 is an exact stop. Each segment's remaining
+    piece is an S-curve between its junctions' speeds; the junction speeds come from a backward and a forward
+    pass (each reachable from the next and the previous within the piece between).
     """
 
-    def __init__(self, program: Program, limits: AxisLimits, clamp_feed: bool = True) -> None:
+    def __init__(self, program: Program, limits: AxisLimits, clamp_feed: bool = True,
+                 tolerance_m: float = 0.0) -> None:
         if limits.max_jerk_m_s3 is None:
             raise ConfigError("max_jerk_m_s3 must be set for the jerk-limited planner, got None")
         self.program = program
         self.path_limits = [segment_path_limits(s, limits, clamp_feed) for s in program.segments]
-        self.curves = [SCurve(s.length_m, p.speed_m_s, p.accel_m_s2, p.jerk_m_s3)
-                       for s, p in zip(program.segments, self.path_limits)]
-        dwell = program.junction_dwell_s
-        starts, t = [], 0.0
+        self._axes = CornerAxes(np.asarray(limits.max_acceleration_m_s2), np.asarray(limits.max_jerk_m_s3))
+        self.junction_speeds_m_s = self._junction_speeds(tolerance_m)
+        self._trims = [self._corner_time(k) * 0.5 * float(self.junction_speeds_m_s[k])
+                       for k in range(len(program.segments) + 1)]
+        self.curves = [SCurve(max(seg.length_m - self._trims[k] - self._trims[k + 1], 0.0), p.speed_m_s,
+                              p.accel_m_s2, p.jerk_m_s3, float(self.junction_speeds_m_s[k]),
+                              float(self.junction_speeds_m_s[k + 1]))
+                       for k, (seg, p) in enumerate(zip(program.segments, self.path_limits))]
+        self._build_pieces()
+
+    def _change(self, k: int) -> FloatArray:
+        """``|u_k - u_(k-1)|`` per axis at junction ``k`` (between two lines)."""
+        before, after = self.program.segments[k - 1], self.program.segments[k]
+        return np.asarray(np.abs(after.tangent(0.0) - before.tangent(before.length_m)), dtype=float)
+
+    def _corner_time(self, k: int) -> float:
+        speed = float(self.junction_speeds_m_s[k])
+        return corner_time_s(speed, self._change(k), self._axes) if speed > 0.0 else 0.0
+
+    def _corner_caps_m_s(self, tolerance_m: float) -> FloatArray:
+        segments, dwell = self.program.segments, self.program.junction_dwell_s
+        caps = np.zeros(len(segments) + 1)
+        for k in range(1, len(segments)):
+            before, after = segments[k - 1], segments[k]
+            if isinstance(before, ArcSegment) or isinstance(after, ArcSegment) or dwell[k] > 0.0:
+                continue
+            u1, u2 = before.tangent(before.length_m), after.tangent(0.0)
+            turn = math.acos(min(max(float(np.dot(u1, u2)), -1.0), 1.0))
+            cap = corner_speed_m_s(turn, self._change(k), 0.5 * min(before.length_m, after.length_m),
+                                   tolerance_m, self._axes)
+            caps[k] = min(cap, self.path_limits[k - 1].speed_m_s, self.path_limits[k].speed_m_s)
+        return caps
+
+    def _junction_speeds(self, tolerance_m: float) -> FloatArray:
+        """Corner caps lowered so that each piece can change from one junction's speed to the next's."""
+        speeds = self._corner_caps_m_s(tolerance_m)
+        self.junction_speeds_m_s = speeds
+        trims = [self._corner_time(k) * 0.5 * float(speeds[k]) for k in range(len(speeds))]
+        room = [seg.length_m - trims[k] - trims[k + 1] for k, seg in enumerate(self.program.segments)]
+        for k in range(len(room) - 1, -1, -1):
+            p = self.path_limits[k]
+            speeds[k] = reachable_m_s(float(speeds[k + 1]), room[k], float(speeds[k]), p.accel_m_s2, p.jerk_m_s3)
+        for k in range(len(room)):
+            p = self.path_limits[k]
+            speeds[k + 1] = reachable_m_s(float(speeds[k]), room[k], float(speeds[k + 1]), p.accel_m_s2,
+                                          p.jerk_m_s3)
+        return speeds
+
+    def _build_pieces(self) -> None:
+        """Start time, duration, kind (0: a segment's S-curve, 1: a corner) and index of every piece."""
+        dwell, t = self.program.junction_dwell_s, 0.0
+        self.corners: dict[int, Corner] = {}
+        pieces: list[tuple[float, int, int]] = []
         for k, curve in enumerate(self.curves):
             t += float(dwell[k])
-            starts.append(t)
+            duration = self._corner_time(k)
+            if duration > 0.0:
+                segment = self.program.segments[k]
+                before = self.program.segments[k - 1]
+                self.corners[k] = Corner(segment.start_m, before.tangent(before.length_m), segment.tangent(0.0),
+                                         float(self.junction_speeds_m_s[k]), duration)
+                pieces.append((t, 1, k))
+                t += duration
+            pieces.append((t, 0, k))
             t += curve.duration_s
-        self.start_s = np.array(starts + [t + float(dwell[-1])])
-        self._start_list = starts
+        self._piece_start_s = np.array([p[0] for p in pieces])
+        self._piece_kind, self._piece_index = np.array([p[1] for p in pieces]), np.array([p[2] for p in pieces])
+        self._end_s = t + float(dwell[-1])
 
     @property
     def duration_s(self) -> float:
         """The plan's duration, s (the last dwell included)."""
-        return float(self.start_s[-1])
+        return self._end_s
 
     @property
     def peak_speed_m_s(self) -> FloatArray:
         """Each segment's peak path speed, m/s, ``(n_segments,)``."""
         return np.array([curve.peak_m_s for curve in self.curves])
 
-    def path_state(self, times_s: ArrayLike) -> tuple[NDArray[np.intp], FloatArray, FloatArray, FloatArray,
-                                                     FloatArray]:
-        """Segment index, local arc length (m), speed (m/s), acceleration (m/s²), jerk (m/s³) at ``times_s``."""
-        t = np.asarray(times_s, dtype=float).reshape(-1)
-        index = np.clip(np.searchsorted(self.start_s[:-1], t, side="right") - 1, 0, len(self.curves) - 1)
-        out = [np.zeros(t.size) for _ in range(4)]
-        for k in np.unique(index).tolist():
-            rows = np.flatnonzero(index == k)
-            for column, values in zip(out, self.curves[k].evaluate(t[rows] - self.start_s[k])):
-                column[rows] = values
-        return index.astype(np.intp), out[0], out[1], out[2], out[3]
-
-    def segment_at(self, t_s: float) -> int:
-        """The index of the segment running at ``t_s`` (s)."""
-        return min(max(bisect.bisect_right(self._start_list, t_s) - 1, 0), len(self.curves) - 1)
-
     def axis_arrays(self, times_s: ArrayLike) -> tuple[NDArray[np.intp], FloatArray, FloatArray, FloatArray,
                                                       FloatArray, FloatArray]:
         """Segment, local arc length (m), path speed (m/s) and axis position (m), velocity (m/s), acceleration
-        (m/s²) ``(M, n_axes)`` at ``times_s``."""
-        index, s_local, speed, accel, _ = self.path_state(times_s)
+        (m/s²) ``(M, n_axes)`` at ``times_s`` (s). On a corner: the segment of its nearer half, and the programmed
+        length at the same share of the corner."""
+        t = np.asarray(times_s, dtype=float).reshape(-1)
+        piece = np.clip(np.searchsorted(self._piece_start_s, t, side="right") - 1, 0, len(self._piece_start_s) - 1)
         n = self.program.n_axes
-        position, velocity, acceleration = (np.zeros((index.size, n)) for _ in range(3))
-        for k in np.unique(index).tolist():
-            rows = np.flatnonzero(index == k)
+        index, s_local, speed = np.zeros(t.size, dtype=np.intp), np.zeros(t.size), np.zeros(t.size)
+        position, velocity, acceleration = (np.zeros((t.size, n)) for _ in range(3))
+        for p in np.unique(piece).tolist():
+            rows = np.flatnonzero(piece == p)
+            k, local = int(self._piece_index[p]), t[rows] - self._piece_start_s[p]
+            if self._piece_kind[p] == 1:
+                corner = self.corners[k]
+                x, position[rows], velocity[rows], acceleration[rows] = corner.evaluate(local)
+                first = x < 0.5
+                index[rows] = np.where(first, k - 1, k)
+                s_local[rows] = np.where(first, self.program.segments[k - 1].length_m, 0.0) \
+                    + corner.trim_m * (2.0 * x - 1.0)
+                speed[rows] = np.linalg.norm(velocity[rows], axis=1)
+                continue
+            s, v, a, _ = self.curves[k].evaluate(local)
             segment = self.program.segments[k]
-            tangent = segment.tangent(s_local[rows])
-            position[rows] = segment.point(s_local[rows])
-            velocity[rows] = speed[rows, None] * tangent
-            acceleration[rows] = (accel[rows, None] * tangent
-                                  + (speed[rows] ** 2)[:, None] * segment.curvature_vector(s_local[rows]))
+            s = np.clip(s + self._trims[k], 0.0, segment.length_m)
+            tangent = segment.tangent(s)
+            index[rows], s_local[rows], speed[rows] = k, s, v
+            position[rows], velocity[rows] = segment.point(s), v[:, None] * tangent
+            acceleration[rows] = a[:, None] * tangent + (v * v)[:, None] * segment.curvature_vector(s)
         return index, s_local, speed, position, velocity, acceleration
