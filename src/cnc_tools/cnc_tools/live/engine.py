@@ -1,12 +1,15 @@
 """An engine run, live: every tick's messages to the live feed, the run paced to the wall clock.
 
-:class:`EngineLive` is the engine's ``on_tick`` observer (:func:`cnc_tools.runs.engine.run_engine`). At tick k
-it waits until ``k·T / rate`` wall seconds after the first tick (``rate`` 1: real time; the engine runs far faster
-than that, so it mostly sleeps), then builds the tick's messages from the board (the same fields, from the same
-floats, as the bag's, ``cnc_tools.bagio.record_bag``) and hands them to the :class:`~cnc_tools.live.feed.LiveFeed`:
-``joint_states``, ``reference``, every ``servo/<axis>/command``, ``contour_error`` (with an estimator) and
-``cutting_force`` (when the plant cuts); the feed override requested and applied come from the board. The
-program's ``path`` goes out before the first tick.
+:class:`EngineLive` is the engine's ``on_tick`` observer (:func:`cnc_tools.runs.engine.run_engine`). Tick k runs
+once it is at most :data:`AHEAD_NS` ahead of ``k·T / rate`` wall seconds after the first tick (``rate`` 1: real
+time; the engine runs far faster than that, so it runs a burst of ticks and sleeps). The engine's thread only notes
+each tick's values from the board; before each sleep (or every :data:`SEND_PERIOD_NS` when it does not sleep) the
+batch goes to a sender thread, which writes the messages of the whole batch (the same fields, from the same floats,
+as the bag's, ``cnc_tools.bagio.record_bag``; CDR by :class:`~cnc_tools.live.cdr.CdrTemplate`) for the subscribed
+channels and steps the derived streams of the :class:`~cnc_tools.live.feed.LiveFeed`: ``joint_states``,
+``reference``, every ``servo/<axis>/command``, ``contour_error`` (with an estimator) and ``cutting_force`` (when
+the plant cuts); the feed override requested and applied come from the board. The program's ``path`` goes out
+before the first tick; the feed's ``finish`` sends what is left and stops the thread.
 """
 from __future__ import annotations
 

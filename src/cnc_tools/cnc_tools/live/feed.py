@@ -266,12 +266,6 @@ class LiveFeed:
         self._override_now["requested_ratio"] = float(message.requested_ratio)
         self._push_override(stamp_of(message), log_time_ns)
 
-    def set_requested_override(self, stamp_ns: int, requested_ratio: float, applied_ratio: float,
-                               log_time_ns: int) -> None:
-        """The override of a run without ``feed_override`` messages (the engine's board)."""
-        self._override_now.update(requested_ratio=float(requested_ratio), applied_ratio=float(applied_ratio))
-        self._push_override(stamp_ns, log_time_ns)
-
     def _push_override(self, stamp_ns: int, log_time_ns: int) -> None:
         sample = {"stamp_ns": stamp_ns, **self._override_now}
         self._emit("/live/feed_override", self._override.push(stamp_ns, sample), log_time_ns)
