@@ -159,8 +159,8 @@ class EngineLive:
         self._send(topics.PATH, path_message(program))
 
     def __call__(self, board: Board, stages: list[EngineStage]) -> None:
-        """Tick ``board.tick``: wait for its wall time, note its values; every ``send_period_ns`` of wall time the
-        batch goes to the sender thread (the engine's thread never builds or sends a message)."""
+        """Tick ``board.tick``: wait for its wall time, note its values; before a sleep, or once its first tick is
+        ``send_period_ns`` old, the batch goes to the sender thread (the engine's thread builds and sends nothing)."""
         if not self._templates:  # before the pacing starts its clock: rosbags compiles a serialiser per type
             self._make_templates(board, stages)
         self._pace(board.stamp_ns)
