@@ -106,7 +106,7 @@ def _closed(kind: str) -> Program:
                                                  for a, b in zip(points, points[1:])))
 
 
-@given(kind=st.sampled_from(["square", "quarters"]), past_mm=st.floats(0.2, 3.0), offset_um=st.floats(-150, 150))
+@given(kind=st.sampled_from(["square", "quarters"]), past_mm=st.floats(0.5, 3.0), offset_um=st.floats(-150, 150))
 @settings(max_examples=12, deadline=None)
 def test_path_estimator_past_the_closing_point_of_a_closed_program(kind: str, past_mm: float,
                                                                    offset_um: float) -> None:
