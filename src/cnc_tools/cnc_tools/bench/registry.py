@@ -30,6 +30,7 @@ TARGETS: dict[str, str] = {
     "tune": "cnc_tools.bench.tune:tune_bench",
     "best": "cnc_tools.bench.best:best_bench",
     "blending": "cnc_tools.bench.blending:blending_bench",
+    "jerk": "cnc_tools.bench.jerk:jerk_bench",
     "laws": "cnc_tools.bench.laws:laws",
     "compensator": "cnc_tools.bench.compensator:compensator_bench",
     "estimator": "cnc_tools.bench.estimator:estimator_bench",
