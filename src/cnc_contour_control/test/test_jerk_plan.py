@@ -6,6 +6,7 @@ programmed path. ``CNC_JERK_PROGRAMS`` sets the hypothesis examples per kind (th
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 
@@ -58,6 +59,8 @@ def _check(program: Program, limits: AxisLimits, tolerance_mm: float = 0.05) -> 
     assert deviation_m.max() <= tolerance_mm * 1e-3 + 1e-15   # 1e-15 m: rounding of points on a line
     np.testing.assert_allclose(trajectory.position_m[-1], program.segments[-1].point(program.segments[-1].length_m))
     assert trajectory.done[-1] and not trajectory.done[3]
+    stop = Interpolator(program, limits, dataclasses.replace(config, path_tolerance_mm=0.0))
+    assert interpolator.duration_s <= stop.duration_s   # never slower than exact stop (under the jerk limit too)
     return interpolator
 
 

@@ -52,7 +52,7 @@ from cnc_contour_control.motion.axis_limits import AxisLimits as AxisLimits
 from cnc_contour_control.motion.blend_choice import CornerLimits
 from cnc_contour_control.motion.blending import BlendedProgram, quickest_blend
 from cnc_contour_control.motion.geometry import Program, Segment
-from cnc_contour_control.motion.jerk_plan import JerkPlan
+from cnc_contour_control.motion.jerk_plan import JerkPlan, quickest_jerk_plan
 from cnc_contour_control.motion.plan_arrays import (
     SpeedBands,
     banded_phases,
@@ -271,7 +271,7 @@ class Interpolator:
     def _plan_jerk(self, program: Program, tolerance_m: float) -> JerkPlan:
         """The jerk-limited mode (:mod:`~cnc_contour_control.motion.jerk_plan`; its corners are not in
         :attr:`program`)."""
-        plan = JerkPlan(program, self.limits, self.config.clamp_feed, tolerance_m)
+        plan = quickest_jerk_plan(program, self.limits, self.config.clamp_feed, tolerance_m)
         self.blended, self.program, self._view = BlendedProgram.unblended(program, tolerance_m), program, program
         self.duration_s, self.cruise_speed_m_s = plan.duration_s, plan.peak_speed_m_s
         self.tangential_acceleration_m_s2 = np.array([p.accel_m_s2 for p in plan.path_limits])

@@ -195,3 +195,18 @@ class JerkPlan:
             position[rows], velocity[rows] = segment.point(s), v[:, None] * tangent
             acceleration[rows] = a[:, None] * tangent + (v * v)[:, None] * segment.curvature_vector(s)
         return index, s_local, speed, position, velocity, acceleration
+
+
+#: Shares of the path tolerance :func:`quickest_jerk_plan` plans with (0: every corner an exact stop).
+TOLERANCE_SHARES = (1.0, 0.25, 0.0625, 0.0)
+
+
+def quickest_jerk_plan(program: Program, limits: AxisLimits, clamp_feed: bool, tolerance_m: float) -> JerkPlan:
+    """The quickest :class:`JerkPlan` at :data:`TOLERANCE_SHARES` of ``tolerance_m``: never slower than exact stop.
+
+    A sharp corner passed at speed within a small tolerance can take longer than stopping there (its speed is
+    low and its trim long); a smaller share passes it faster or stops.
+    """
+    plans = [JerkPlan(program, limits, clamp_feed, share * tolerance_m)
+             for share in (TOLERANCE_SHARES if tolerance_m > 0.0 else (0.0,))]
+    return min(plans, key=lambda plan: plan.duration_s)

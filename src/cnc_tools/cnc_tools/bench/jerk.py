@@ -3,7 +3,8 @@
 Per program of :mod:`cnc_tools.bench.blending_corpus`, at the blending bench's tolerance, limits and jerk limit
 (:data:`cnc_tools.bench.blending.MAX_JERK_M_S3`, the acceleration limit reached in 25 ms): the cycle time of the
 jerk-limited mode (:mod:`cnc_contour_control.motion.jerk_plan`) beside the planner without a jerk limit at the
-same tolerance and beside exact stop (G61, no jerk limit); the corners passed at speed; the worst velocity,
+same tolerance, beside exact stop (G61) without a jerk limit and with it (the mode at P 0); the corners
+passed at speed; the worst velocity,
 acceleration and jerk ratio by finite differences of the reference sampled every 1 ms
 (:func:`cnc_contour_control.motion.reference_check.limit_ratios`) and the worst deviation over P (exact, to the
 programmed segment of each sample).
@@ -37,6 +38,7 @@ def program_figures(program: Program) -> dict[str, Any]:
     return {"program": program.name, "segments": len(program.segments), "jerk_s": interpolator.duration_s,
             "blended_s": Interpolator(program, plain, bench_config()).duration_s,
             "exact_stop_s": Interpolator(program, plain, bench_config(0.0)).duration_s,
+            "jerk_exact_stop_s": Interpolator(program, jerk_limits, bench_config(0.0)).duration_s,
             "corners_at_speed": int(np.count_nonzero(corners > 0.0)), "junctions": len(corners),
             "velocity_ratio": float(np.max(ratios.velocity)), "acceleration_ratio": float(np.max(ratios.acceleration)),
             "jerk_ratio": float(np.max(ratios.jerk)),
@@ -47,6 +49,7 @@ def _row(f: dict[str, Any]) -> list[object]:
     limits_met = max(f["velocity_ratio"], f["acceleration_ratio"], f["jerk_ratio"]) <= LIMIT_GOAL
     return [f["program"], f["segments"], round(f["jerk_s"], 3), round(f["blended_s"], 3), round(f["exact_stop_s"], 3),
             round(f["jerk_s"] / f["blended_s"], 4), round(f["jerk_s"] / f["exact_stop_s"], 4),
+            round(f["jerk_s"] / f["jerk_exact_stop_s"], 4),
             f"{f['corners_at_speed']}/{f['junctions']}", round(f["velocity_ratio"], 4),
             round(f["acceleration_ratio"], 4), round(f["jerk_ratio"], 4), round(f["deviation_over_p"], 4),
             goal_text(limits_met and f["deviation_over_p"] <= LIMIT_GOAL)]
@@ -58,7 +61,8 @@ def jerk_bench(options: argparse.Namespace) -> int:
     figures = [program_figures(make()) for make, in_quick in CORPUS.values() if in_quick or not quick]
     print(f"jerk-limited mode at P {TOLERANCE_MM} mm, the blending bench's limits and jerk limit; times in s; "
           f"ratios by finite differences every {SAMPLE_S * 1e3:g} ms")
-    print(format_table(["program", "segments", "jerk", "no jerk", "G61", "/no jerk", "/G61", "corners at speed",
+    print(format_table(["program", "segments", "jerk", "no jerk", "G61", "/no jerk", "/G61", "/jerk G61",
+                        "corners at speed",
                         "v ratio", "a ratio", "jerk ratio", "dev/P", "limits, P"], [_row(f) for f in figures]))
     write_json(getattr(options, "json", None), {"bench": "jerk", "tolerance_mm": TOLERANCE_MM, "programs": figures,
                                                 "machine": machine()})
