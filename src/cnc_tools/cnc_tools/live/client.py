@@ -26,6 +26,9 @@ _STATE = struct.Struct("<BBQfBI")
 #: u64 seek time [ns], u32 id length, id.
 PLAYBACK_CONTROL = 0x03
 _CONTROL = struct.Struct("<BBfBQI")
+#: Client -> server message on a client channel: u8 op, u32 channel id, payload.
+CLIENT_MESSAGE = 0x01
+_CLIENT_HEADER = struct.Struct("<BI")
 #: Playback statuses by their code on the wire.
 PLAYBACK_STATUSES = ("playing", "paused", "buffering", "ended")
 
@@ -72,6 +75,8 @@ class LiveClient:
         self.pending: list[Received] = []
         self.playback: list[Playback] = []
         self.statuses: list[dict[str, Any]] = []
+        self.parameters: dict[str, list[dict[str, Any]]] = {}  # parameterValues answers by request id ("": none)
+        self._client_channels: dict[str, int] = {}
 
     def _handle(self, frame: str | bytes, arrived_ns: int) -> None:
         if isinstance(frame, str):
@@ -82,6 +87,8 @@ class LiveClient:
                 self.channels.update({c["topic"]: c for c in op["channels"]})
             elif op.get("op") == "status":
                 self.statuses.append(op)
+            elif op.get("op") == "parameterValues":
+                self.parameters[str(op.get("id") or "")] = op["parameters"]
             return
         if frame and frame[0] == PLAYBACK_STATE:
             _, status, time_ns, speed, did_seek, length = _STATE.unpack_from(frame)
@@ -141,6 +148,36 @@ class LiveClient:
                 return answers[-1]
             self.poll(0.02)
         raise CncError(f"the live server did not answer playback request {request_id!r} within 30 s")
+
+    def get_parameters(self, names: Iterable[str], request_id: str) -> dict[str, Any]:
+        """The server's parameters ``names`` (all when empty), by name."""
+        self.socket.send(json.dumps({"op": "getParameters", "parameterNames": list(names), "id": request_id}))
+        return self._parameter_answer(request_id)
+
+    def set_parameters(self, values: dict[str, Any], request_id: str) -> dict[str, Any]:
+        """Set parameters; the server's answer: every parameter's value after the request, by name."""
+        self.socket.send(json.dumps({"op": "setParameters", "id": request_id,
+                                     "parameters": [{"name": k, "value": v} for k, v in values.items()]}))
+        return self._parameter_answer(request_id)
+
+    def _parameter_answer(self, request_id: str) -> dict[str, Any]:
+        deadline = time.monotonic() + 30.0
+        while request_id not in self.parameters and not self.closed and time.monotonic() < deadline:
+            self.poll(0.02)
+        if request_id not in self.parameters:
+            raise CncError(f"the live server did not answer parameter request {request_id!r} within 30 s")
+        return {p["name"]: p.get("value") for p in self.parameters[request_id]}
+
+    def advertise(self, topic: str, schema_name: str, encoding: str = "json") -> None:
+        """Offer a channel to publish on (client publish)."""
+        channel = self._client_channels[topic] = len(self._client_channels) + 1
+        self.socket.send(json.dumps({"op": "advertise", "channels": [
+            {"id": channel, "topic": topic, "encoding": encoding, "schemaName": schema_name}]}))
+
+    def publish(self, topic: str, payload: bytes | dict[str, Any]) -> None:
+        """A message on an advertised channel (a mapping is sent as JSON)."""
+        data = json.dumps(payload).encode() if isinstance(payload, dict) else payload
+        self.socket.send(_CLIENT_HEADER.pack(CLIENT_MESSAGE, self._client_channels[topic]) + data)
 
     def collect(self, done: Callable[[list[Received]], bool], timeout_s: float) -> list[Received]:
         """Messages received until ``done(received)`` holds, the server closes, or ``timeout_s`` passes."""

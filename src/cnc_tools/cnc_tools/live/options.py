@@ -80,18 +80,22 @@ def live_session(args: argparse.Namespace, rate: float = 1.0, **extensions: Any)
 @contextmanager
 def engine_live(args: argparse.Namespace, scenario: Scenario,
                 **extensions: Any) -> Iterator[dict[str, Callable[..., None]]]:
-    """The engine's options for ``run --engine``: ``{"on_tick": observer}`` with --live, else nothing
-    (``extensions``: :class:`LiveServer`'s listener, capabilities, ...)."""
+    """The engine's options for ``run --engine``: ``{"on_tick": observer}`` with --live, else nothing; the viewer
+    may set gains and publish overrides (``live/talkback.py``; ``extensions``: :class:`LiveServer`'s listener,
+    capabilities, ... instead)."""
     if not getattr(args, "live", False):
         yield {}
         return
     from foxglove.messages import LogLevel
 
-    from cnc_tools.live.engine import EngineLive, check_rate
+    from cnc_tools.live.engine import check_rate
+    from cnc_tools.live.talkback import EngineTalkback, TalkingEngineLive
 
     rate = check_rate(args.live_rate)
-    with live_session(args, rate, **extensions) as feed:
-        observer = EngineLive(scenario, feed, rate)
+    talkback = EngineTalkback(scenario)  # the viewer's parameters and client publish (live/talkback.py)
+    with live_session(args, rate, **{**talkback.server_options(), **extensions}) as feed:
+        talkback.attach(feed.server)
+        observer = TalkingEngineLive(scenario, feed, rate, talkback=talkback)
         observer.start()
         try:
             yield {"on_tick": observer}

@@ -1,0 +1,290 @@
+"""The viewer talks back to an engine run: parameters and client publish (foxglove-sdk's ``Parameters`` and
+``ClientPublish`` capabilities), ROS-free.
+
+:class:`EngineTalkback` is the live server's listener for ``run --engine --live``. Parameters: every axis's servo
+gains as ``servo_<axis>.gains.<field>`` (the servo node's ``gains.*``) and, with a neural compensator, its learning
+rate ``compensator.params.eta`` (the compensator node's ``params.eta``). A set is checked on the server's thread by
+building the config the servo (compensator) node's on-set callback builds, so a refused value is answered with the
+node's reason (``pid.kp must be in [0.0, 1000000.0], got -1.0``) as a warning status, and the parameter keeps its
+value; an accepted one is applied by :meth:`apply` at the engine's next tick, on the engine's thread
+(``ServoController.retune``, as the servo node's post-set callback: the law's state stays).
+
+Client publish (JSON, or CDR with the suite's ROS 2 definitions), on the topics an operator's tools use:
+``/cnc/feed_override`` (``FeedOverride``: the ratio :func:`message_ratio` takes, refused as the interpolator's
+inbox refuses it: not finite or outside [0, max_ratio]), ``/cnc/feed_hold`` (``std_msgs/Bool``: true holds the
+feed, false resumes at the last ratio asked), ``/cnc/estop`` (``std_msgs/Bool``: true stops the run as a fault, its
+verdict ``faulted`` naming the e-stop) and ``/cnc/enable`` (``std_msgs/Bool``: an engine run has no axis enable;
+false is refused). Every refusal is a warning status naming the value and the bound.
+"""
+from __future__ import annotations
+
+import json
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
+
+from foxglove.websocket import (
+    Capability,
+    Client,
+    ClientChannel,
+    Parameter,
+    ServerListener,
+    StatusLevel,
+)
+
+from cnc_contour_control.axis.servo import ServoConfig
+from cnc_contour_control.core.errors import CncError, FaultError
+from cnc_contour_control.core.params import config_values, flat_specs
+from cnc_contour_control.graph.cross_axis import CompensatorSettings
+from cnc_contour_control.laws import law_config_class
+from cnc_contour_control.motion.feed_override import OverrideInbox, message_ratio
+from cnc_tools.bagio.typestore import project_typestore
+from cnc_tools.live.engine import EngineLive
+from cnc_tools.live.feed import LiveFeed
+from cnc_tools.runs.engine_cross_axis import CompensatorStage
+from cnc_tools.runs.engine_stages import Board, EngineStage, ServoStage
+from cnc_tools.runs.scenario import Scenario
+
+if TYPE_CHECKING:
+    from cnc_tools.live.server import LiveServer
+
+#: Topics a client may publish on, and their ROS 2 types (JSON carries the same fields).
+CLIENT_TOPICS = {"/cnc/feed_override": "cnc_contour_interfaces/msg/FeedOverride",
+                 "/cnc/feed_hold": "std_msgs/msg/Bool", "/cnc/estop": "std_msgs/msg/Bool",
+                 "/cnc/enable": "std_msgs/msg/Bool"}
+#: The compensator whose learning rate is a parameter, and that parameter.
+LEARNING_RATE = "compensator.params.eta"
+
+Action = Callable[[Board, list[EngineStage]], None]
+
+
+class Refused(CncError):
+    """A request the run does not take; its text goes to the client."""
+
+
+@dataclass(frozen=True)
+class _Gain:
+    """A servo gain as a parameter: the axis's index and the law's field."""
+
+    axis: int
+    field: str
+
+
+def decode(encoding: str, type_name: str, data: bytes) -> dict[str, Any]:
+    """A client's message as its fields (JSON object, or CDR of ``type_name``)."""
+    if encoding == "json":
+        try:
+            fields = json.loads(data)
+        except ValueError as err:
+            raise Refused(f"{type_name}: not JSON ({err})") from err
+        if not isinstance(fields, dict):
+            raise Refused(f"{type_name}: a JSON object is expected, got {fields!r}")
+        return fields
+    if encoding == "cdr":
+        try:
+            message: Any = project_typestore().deserialize_cdr(bytes(data), type_name)
+        except Exception as err:  # rosbags raises several kinds on a short or foreign buffer
+            raise Refused(f"{type_name}: not the CDR of the type ({err})") from err
+        return {name: getattr(message, name) for name in message.__dataclass_fields__}
+    raise Refused(f"message encoding must be json or cdr, got {encoding!r}")
+
+
+def number(fields: dict[str, Any], name: str, default: float | None = None) -> float:
+    """Field ``name`` as a float (``default`` when absent); anything else is refused naming it."""
+    value = fields.get(name, default)
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise Refused(f"{name} must be a number, got {value!r}")
+    return float(value)
+
+
+def flag(fields: dict[str, Any]) -> bool:
+    """``std_msgs/Bool``'s ``data``; anything but a boolean is refused."""
+    value = fields.get("data")
+    if not isinstance(value, bool):
+        raise Refused(f"data must be true or false, got {value!r}")
+    return value
+
+
+class EngineTalkback(ServerListener):
+    """Listener of the live server of an engine run: parameters and client publish (module docstring)."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        self.scenario = scenario
+        self.servos = list(scenario.servos)
+        self.values: dict[str, float | int | bool] = {}
+        self._gains: dict[str, _Gain] = {}
+        for k, config in enumerate(self.servos):
+            gains = config.law_config()
+            for spec in flat_specs(law_config_class(config.law)):
+                if spec.kind in (float, int, bool) and not spec.info.read_only and "." not in spec.name:
+                    name = f"servo_{config.axis_name}.gains.{spec.name}"
+                    self._gains[name] = _Gain(k, spec.name)
+                    self.values[name] = getattr(gains, spec.name)
+        self.compensator: CompensatorSettings | None = scenario.compensator
+        if self.compensator is not None and self.compensator.method == "neural":
+            self.values[LEARNING_RATE] = float(self.compensator.params["eta"])
+        override = scenario.override_config
+        self._override_source = ("force_regulator" if scenario.pipeline().has("force_regulator")
+                                 else "schedule" if override.has_schedule
+                                 else "topic" if scenario.feed_override is not None else "none")
+        self.max_ratio = override.max_ratio
+        self.requested_ratio, self.held = 1.0, False
+        self.pending: deque[Action] = deque()
+        self.server: LiveServer | None = None
+        self._channels: dict[tuple[int, int], tuple[str, str]] = {}
+
+    def server_options(self) -> dict[str, Any]:
+        """The :class:`LiveServer` keywords: this listener, the capabilities and the encodings a client may send."""
+        return {"listener": self, "capabilities": [Capability.Parameters, Capability.ClientPublish],
+                "supported_encodings": ["json", "cdr"]}
+
+    def attach(self, server: LiveServer) -> None:
+        """The server started with :meth:`server_options` (statuses before it are dropped)."""
+        self.server = server
+
+    def apply(self, board: Board, stages: list[EngineStage]) -> None:
+        """Apply what was accepted since the last tick (the engine's thread, after the tick's stages)."""
+        while self.pending:
+            self.pending.popleft()(board, stages)
+
+    # Parameters ------------------------------------------------------------------------------------------------
+
+    def on_get_parameters(self, client: Client, param_names: list[str],
+                          request_id: str | None = None) -> list[Parameter]:
+        """The values asked for (all when none is named); unknown names are left out."""
+        names = param_names or list(self.values)
+        return [Parameter(name, value=self.values[name]) for name in names if name in self.values]
+
+    def on_set_parameters(self, client: Client, parameters: list[Parameter],
+                          request_id: str | None = None) -> list[Parameter]:
+        """Each change checked as the node's on-set callback checks it; a refused one keeps its value and is said
+        as a warning status with the node's reason. The answer is every parameter's value after the request."""
+        for parameter in parameters:
+            try:
+                self._set(parameter.name, parameter.get_value())
+            except CncError as err:
+                self._status(f"parameter {parameter.name} refused: {err}", StatusLevel.Warning)
+        values = self.on_get_parameters(client, [])
+        if self.server is not None:
+            self.server.server.publish_parameter_values(values)
+        return values
+
+    def _set(self, name: str, value: Any) -> None:
+        if name not in self.values:
+            raise Refused(f"no such parameter; the run has {sorted(self.values)}")
+        if isinstance(value, bool) != isinstance(self.values[name], bool) or not isinstance(value, (int, float)):
+            raise Refused(f"{name} must be a {type(self.values[name]).__name__}, got {value!r}")
+        if name == LEARNING_RATE:
+            self._set_learning_rate(float(value))
+        else:
+            self._set_gain(name, self._gains[name], value)
+        self.values[name] = value
+
+    def _set_gain(self, name: str, gain: _Gain, value: float | int | bool) -> None:
+        """Build the servo config the servo node's on-set callback builds (its error is the refusal)."""
+        old = self.servos[gain.axis]
+        mapping = {**config_values(old), "law_params": {**old.law_params, gain.field: value}}
+        config = ServoConfig.from_mapping(mapping, context=f"servo[{old.axis_name}]")
+        self.servos[gain.axis] = config
+
+        def retune(board: Board, stages: list[EngineStage]) -> None:
+            next(s for s in stages if isinstance(s, ServoStage)).servos[gain.axis].retune(config)
+        self.pending.append(retune)
+
+    def _set_learning_rate(self, eta: float) -> None:
+        """Build the compensator settings the compensator node builds (its error is the refusal)."""
+        assert self.compensator is not None  # the parameter exists only with a neural compensator
+        mapping = {**config_values(self.compensator), "params": {**self.compensator.params, "eta": eta}}
+        self.compensator = settings = CompensatorSettings.from_mapping(mapping, context="compensator")
+
+        def relearn(board: Board, stages: list[EngineStage]) -> None:
+            stage = next(s for s in stages if isinstance(s, CompensatorStage))
+            stage.settings, compensator = settings, stage.compensator
+            compensator.config = replace(compensator.config, eta=eta)  # type: ignore[attr-defined]  # NeuralCompensator's
+        self.pending.append(relearn)
+
+    # Client publish --------------------------------------------------------------------------------------------
+
+    def on_client_advertise(self, client: Client, channel: ClientChannel) -> None:
+        """A client's channel: one of :data:`CLIENT_TOPICS`, else a warning status naming them."""
+        if channel.topic not in CLIENT_TOPICS:
+            self._status(f"client publish on {channel.topic} refused: the run takes {sorted(CLIENT_TOPICS)}",
+                         StatusLevel.Warning)
+            return
+        self._channels[(client.id, channel.id)] = (channel.topic, channel.encoding)
+
+    def on_message_data(self, client: Client, client_channel_id: int, data: bytes) -> None:
+        """A client's message: decoded, checked, queued for the next tick; a refusal is a warning status."""
+        topic, encoding = self._channels.get((client.id, client_channel_id), ("", ""))
+        if not topic:
+            return  # refused when it was advertised
+        try:
+            fields = decode(encoding, CLIENT_TOPICS[topic], data)
+            {"/cnc/feed_override": self._override, "/cnc/feed_hold": self._hold, "/cnc/estop": self._estop,
+             "/cnc/enable": self._enable}[topic](fields)
+        except CncError as err:
+            self._status(f"{topic} refused: {err}", StatusLevel.Warning)
+
+    def _override(self, fields: dict[str, Any]) -> None:
+        self._check_override_source()
+        ratio = message_ratio(number(fields, "requested_ratio"), number(fields, "applied_ratio", 0.0),
+                              number(fields, "quantum", 0.0))
+        inbox = OverrideInbox(False, self.max_ratio)  # the interpolator's own check
+        inbox.latest = self.requested_ratio
+        reason = inbox.add(0, ratio)
+        if reason is not None:
+            raise Refused(reason)
+        self.requested_ratio = ratio
+        self._request(0.0 if self.held else ratio)
+
+    def _hold(self, fields: dict[str, Any]) -> None:
+        self._check_override_source()
+        self.held = flag(fields)
+        self._request(0.0 if self.held else self.requested_ratio)
+
+    def _request(self, ratio: float) -> None:
+        def request(board: Board, stages: list[EngineStage]) -> None:
+            board.feed_override_request = ratio
+        self.pending.append(request)
+
+    def _check_override_source(self) -> None:
+        if self._override_source != "topic":
+            raise Refused({"none": "this run has no on-line feed override (give the scenario a feed_override "
+                                   "section)",
+                           "schedule": "this run's override follows its feed_override.schedule",
+                           "force_regulator": "this run's override is its force regulator's"}[self._override_source])
+
+    def _estop(self, fields: dict[str, Any]) -> None:
+        if not flag(fields):
+            return  # nothing latched to release: an e-stop ends an engine run
+
+        def stop(board: Board, stages: list[EngineStage]) -> None:
+            raise FaultError(f"e-stop from the live viewer (/cnc/estop true) at t = {board.stamp_ns * 1e-9:.6f} s: "
+                             "the machine stopped")
+        self.pending.append(stop)
+
+    def _enable(self, fields: dict[str, Any]) -> None:
+        if not flag(fields):
+            raise Refused("an engine run has no axis enable (the graph's ~/enable): data false refused; "
+                          "/cnc/feed_hold holds the feed, /cnc/estop stops the run")
+
+    def _status(self, text: str, level: StatusLevel) -> None:
+        if self.server is not None:
+            self.server.server.publish_status(text, level)
+
+
+
+class TalkingEngineLive(EngineLive):
+    """:class:`EngineLive` that first applies what the viewer asked for since the last tick."""
+
+    def __init__(self, scenario: Scenario, feed: LiveFeed, rate: float = 1.0, *,
+                 talkback: EngineTalkback) -> None:
+        super().__init__(scenario, feed, rate)
+        self.talkback = talkback
+
+    def __call__(self, board: Board, stages: list[EngineStage]) -> None:
+        """Tick ``board.tick``: the viewer's requests, then :meth:`EngineLive.__call__`."""
+        if self.talkback.pending:
+            self.talkback.apply(board, stages)
+        super().__call__(board, stages)
