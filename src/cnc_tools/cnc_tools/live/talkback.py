@@ -19,10 +19,11 @@ false is refused). Every refusal is a warning status naming the value and the bo
 from __future__ import annotations
 
 import json
+import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from foxglove.websocket import (
     Capability,
@@ -106,14 +107,14 @@ def flag(fields: dict[str, Any]) -> bool:
     return value
 
 
-class EngineTalkback(ServerListener):
-    """Listener of the live server of an engine run: parameters and client publish (module docstring)."""
+class Talkback(ServerListener):
+    """The listener's common part: the run's parameters and the client's channels, checked and decoded; the
+    subclass applies (:class:`EngineTalkback`, :class:`GraphTalkback`)."""
 
-    def __init__(self, scenario: Scenario) -> None:
-        self.scenario = scenario
-        self.servos = list(scenario.servos)
+    def __init__(self, scenario: Scenario | None) -> None:
         self.values: dict[str, float | int | bool] = {}
         self._gains: dict[str, _Gain] = {}
+        self.servos = [] if scenario is None else list(scenario.servos)
         for k, config in enumerate(self.servos):
             gains = config.law_config()
             for spec in flat_specs(law_config_class(config.law)):
@@ -121,16 +122,17 @@ class EngineTalkback(ServerListener):
                     name = f"servo_{config.axis_name}.gains.{spec.name}"
                     self._gains[name] = _Gain(k, spec.name)
                     self.values[name] = getattr(gains, spec.name)
-        self.compensator: CompensatorSettings | None = scenario.compensator
+        self.compensator = None if scenario is None else scenario.compensator
         if self.compensator is not None and self.compensator.method == "neural":
             self.values[LEARNING_RATE] = float(self.compensator.params["eta"])
-        override = scenario.override_config
-        self._override_source = ("force_regulator" if scenario.pipeline().has("force_regulator")
-                                 else "schedule" if override.has_schedule
-                                 else "topic" if scenario.feed_override is not None else "none")
-        self.max_ratio = override.max_ratio
+        self._override_source, self.max_ratio = "topic", math.inf  # a graph started by hand: its own checks
+        if scenario is not None:
+            override = scenario.override_config
+            self._override_source = ("force_regulator" if scenario.pipeline().has("force_regulator")
+                                     else "schedule" if override.has_schedule
+                                     else "topic" if scenario.feed_override is not None else "none")
+            self.max_ratio = override.max_ratio
         self.requested_ratio, self.held = 1.0, False
-        self.pending: deque[Action] = deque()
         self.server: LiveServer | None = None
         self._channels: dict[tuple[int, int], tuple[str, str]] = {}
 
@@ -142,11 +144,6 @@ class EngineTalkback(ServerListener):
     def attach(self, server: LiveServer) -> None:
         """The server started with :meth:`server_options` (statuses before it are dropped)."""
         self.server = server
-
-    def apply(self, board: Board, stages: list[EngineStage]) -> None:
-        """Apply what was accepted since the last tick (the engine's thread, after the tick's stages)."""
-        while self.pending:
-            self.pending.popleft()(board, stages)
 
     # Parameters ------------------------------------------------------------------------------------------------
 
@@ -173,15 +170,101 @@ class EngineTalkback(ServerListener):
     def _set(self, name: str, value: Any) -> None:
         if name not in self.values:
             raise Refused(f"no such parameter; the run has {sorted(self.values)}")
-        if isinstance(value, bool) != isinstance(self.values[name], bool) or not isinstance(value, (int, float)):
-            raise Refused(f"{name} must be a {type(self.values[name]).__name__}, got {value!r}")
+        old = self.values[name]
+        if isinstance(value, bool) != isinstance(old, bool) or not isinstance(value, (int, float)):
+            raise Refused(f"{name} must be a {type(old).__name__}, got {value!r}")
+        value = float(value) if isinstance(old, float) else value
+        self._apply_parameter(name, value)
+        self.values[name] = value
+
+    def _apply_parameter(self, name: str, value: float | int | bool) -> None:
+        """Apply an accepted parameter's new value, or raise :class:`Refused` (the subclass)."""
+        raise NotImplementedError
+
+    # Client publish --------------------------------------------------------------------------------------------
+
+    def on_client_advertise(self, client: Client, channel: ClientChannel) -> None:
+        """A client's channel: one of :data:`CLIENT_TOPICS`, else a warning status naming them."""
+        if channel.topic not in CLIENT_TOPICS:
+            self._status(f"client publish on {channel.topic} refused: the run takes {sorted(CLIENT_TOPICS)}",
+                         StatusLevel.Warning)
+            return
+        self._channels[(client.id, channel.id)] = (channel.topic, channel.encoding)
+
+    def on_message_data(self, client: Client, client_channel_id: int, data: bytes) -> None:
+        """A client's message: decoded, checked and applied; a refusal is a warning status."""
+        topic, encoding = self._channels.get((client.id, client_channel_id), ("", ""))
+        if not topic:
+            return  # refused when it was advertised
+        try:
+            fields = decode(encoding, CLIENT_TOPICS[topic], data)
+            if topic == "/cnc/feed_override":
+                self._override(fields)
+            elif topic == "/cnc/feed_hold":
+                self._check_override_source()
+                self.held = flag(fields)
+                self._request_ratio(0.0 if self.held else self.requested_ratio)
+            else:
+                (self._estop if topic == "/cnc/estop" else self._enable)(flag(fields))
+        except CncError as err:
+            self._status(f"{topic} refused: {err}", StatusLevel.Warning)
+
+    def _override(self, fields: dict[str, Any]) -> None:
+        self._check_override_source()
+        ratio = message_ratio(number(fields, "requested_ratio"), number(fields, "applied_ratio", 0.0),
+                              number(fields, "quantum", 0.0))
+        inbox = OverrideInbox(False, self.max_ratio)  # the interpolator's own check
+        inbox.latest = self.requested_ratio
+        reason = inbox.add(0, ratio)
+        if reason is not None:
+            raise Refused(reason)
+        self.requested_ratio = ratio
+        self._request_ratio(0.0 if self.held else ratio)
+
+    def _check_override_source(self) -> None:
+        if self._override_source != "topic":
+            raise Refused({"none": "this run has no on-line feed override (give the scenario a feed_override "
+                                   "section)",
+                           "schedule": "this run's override follows its feed_override.schedule",
+                           "force_regulator": "this run's override is its force regulator's"}[self._override_source])
+
+    def _request_ratio(self, ratio: float) -> None:
+        """Ask the interpolator for ``ratio`` (the subclass)."""
+        raise NotImplementedError
+
+    def _estop(self, value: bool) -> None:
+        """The e-stop set (true) or released (the subclass)."""
+        raise NotImplementedError
+
+    def _enable(self, value: bool) -> None:
+        """The axes enabled or disabled (the subclass)."""
+        raise NotImplementedError
+
+    def _status(self, text: str, level: StatusLevel) -> None:
+        if self.server is not None:
+            self.server.server.publish_status(text, level)
+
+
+class EngineTalkback(Talkback):
+    """Listener of the live server of an engine run: what it accepts is applied at the next tick (module
+    docstring)."""
+
+    def __init__(self, scenario: Scenario) -> None:
+        super().__init__(scenario)
+        self.pending: deque[Action] = deque()
+
+    def apply(self, board: Board, stages: list[EngineStage]) -> None:
+        """Apply what was accepted since the last tick (the engine's thread, after the tick's stages)."""
+        while self.pending:
+            self.pending.popleft()(board, stages)
+
+    def _apply_parameter(self, name: str, value: float | int | bool) -> None:
         if name == LEARNING_RATE:
             self._set_learning_rate(float(value))
         else:
-            self._set_gain(name, self._gains[name], value)
-        self.values[name] = value
+            self._set_gain(self._gains[name], value)
 
-    def _set_gain(self, name: str, gain: _Gain, value: float | int | bool) -> None:
+    def _set_gain(self, gain: _Gain, value: float | int | bool) -> None:
         """Build the servo config the servo node's on-set callback builds (its error is the refusal)."""
         old = self.servos[gain.axis]
         mapping = {**config_values(old), "law_params": {**old.law_params, gain.field: value}}
@@ -204,59 +287,13 @@ class EngineTalkback(ServerListener):
             compensator.config = replace(compensator.config, eta=eta)  # type: ignore[attr-defined]  # NeuralCompensator's
         self.pending.append(relearn)
 
-    # Client publish --------------------------------------------------------------------------------------------
-
-    def on_client_advertise(self, client: Client, channel: ClientChannel) -> None:
-        """A client's channel: one of :data:`CLIENT_TOPICS`, else a warning status naming them."""
-        if channel.topic not in CLIENT_TOPICS:
-            self._status(f"client publish on {channel.topic} refused: the run takes {sorted(CLIENT_TOPICS)}",
-                         StatusLevel.Warning)
-            return
-        self._channels[(client.id, channel.id)] = (channel.topic, channel.encoding)
-
-    def on_message_data(self, client: Client, client_channel_id: int, data: bytes) -> None:
-        """A client's message: decoded, checked, queued for the next tick; a refusal is a warning status."""
-        topic, encoding = self._channels.get((client.id, client_channel_id), ("", ""))
-        if not topic:
-            return  # refused when it was advertised
-        try:
-            fields = decode(encoding, CLIENT_TOPICS[topic], data)
-            {"/cnc/feed_override": self._override, "/cnc/feed_hold": self._hold, "/cnc/estop": self._estop,
-             "/cnc/enable": self._enable}[topic](fields)
-        except CncError as err:
-            self._status(f"{topic} refused: {err}", StatusLevel.Warning)
-
-    def _override(self, fields: dict[str, Any]) -> None:
-        self._check_override_source()
-        ratio = message_ratio(number(fields, "requested_ratio"), number(fields, "applied_ratio", 0.0),
-                              number(fields, "quantum", 0.0))
-        inbox = OverrideInbox(False, self.max_ratio)  # the interpolator's own check
-        inbox.latest = self.requested_ratio
-        reason = inbox.add(0, ratio)
-        if reason is not None:
-            raise Refused(reason)
-        self.requested_ratio = ratio
-        self._request(0.0 if self.held else ratio)
-
-    def _hold(self, fields: dict[str, Any]) -> None:
-        self._check_override_source()
-        self.held = flag(fields)
-        self._request(0.0 if self.held else self.requested_ratio)
-
-    def _request(self, ratio: float) -> None:
+    def _request_ratio(self, ratio: float) -> None:
         def request(board: Board, stages: list[EngineStage]) -> None:
             board.feed_override_request = ratio
         self.pending.append(request)
 
-    def _check_override_source(self) -> None:
-        if self._override_source != "topic":
-            raise Refused({"none": "this run has no on-line feed override (give the scenario a feed_override "
-                                   "section)",
-                           "schedule": "this run's override follows its feed_override.schedule",
-                           "force_regulator": "this run's override is its force regulator's"}[self._override_source])
-
-    def _estop(self, fields: dict[str, Any]) -> None:
-        if not flag(fields):
+    def _estop(self, value: bool) -> None:
+        if not value:
             return  # nothing latched to release: an e-stop ends an engine run
 
         def stop(board: Board, stages: list[EngineStage]) -> None:
@@ -264,15 +301,57 @@ class EngineTalkback(ServerListener):
                              "the machine stopped")
         self.pending.append(stop)
 
-    def _enable(self, fields: dict[str, Any]) -> None:
-        if not flag(fields):
+    def _enable(self, value: bool) -> None:
+        if not value:
             raise Refused("an engine run has no axis enable (the graph's ~/enable): data false refused; "
                           "/cnc/feed_hold holds the feed, /cnc/estop stops the run")
 
-    def _status(self, text: str, level: StatusLevel) -> None:
-        if self.server is not None:
-            self.server.server.publish_status(text, level)
 
+class GraphBus(Protocol):
+    """What :class:`GraphTalkback` asks of the graph (``live/ros.py`` ``RosBus``, on the ``live`` node)."""
+
+    def set_parameter(self, node: str, name: str, value: float | int | bool) -> str | None:
+        """Set ``name`` on the namespace's ``node``; the node's reason if it refused, else None."""
+
+    def publish_override(self, ratio: float) -> None:
+        """A ``FeedOverride`` with ``ratio`` on the namespace's ``feed_override``."""
+
+    def publish_estop(self, value: bool) -> None:
+        """``value`` on the namespace's ``estop``."""
+
+    def enable(self, value: bool) -> list[str]:
+        """``~/enable`` on every node that offers it; the refusals (node: reason)."""
+
+
+class GraphTalkback(Talkback):
+    """Listener of the live server of a graph run: parameters through the nodes' parameter services (the node
+    refuses, with its reason), client publish onto the suite's topics (``bus``, set once the ``live`` node runs)."""
+
+    def __init__(self, scenario: Scenario | None) -> None:
+        super().__init__(scenario)
+        self.bus: GraphBus | None = None
+
+    def _graph(self) -> GraphBus:
+        if self.bus is None:
+            raise Refused("the live node has not joined the graph yet")
+        return self.bus
+
+    def _apply_parameter(self, name: str, value: float | int | bool) -> None:
+        node, _, parameter = name.partition(".")
+        reason = self._graph().set_parameter(node, parameter, value)
+        if reason is not None:
+            raise Refused(reason)
+
+    def _request_ratio(self, ratio: float) -> None:
+        self._graph().publish_override(ratio)
+
+    def _estop(self, value: bool) -> None:
+        self._graph().publish_estop(value)
+
+    def _enable(self, value: bool) -> None:
+        refusals = self._graph().enable(value)
+        if refusals:
+            raise Refused("; ".join(refusals))
 
 
 class TalkingEngineLive(EngineLive):
