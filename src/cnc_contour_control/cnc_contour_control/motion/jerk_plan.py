@@ -87,23 +87,21 @@ class JerkPlan:
         self.program = program
         self.path_limits = [segment_path_limits(s, limits, clamp_feed) for s in program.segments]
         self._axes = CornerAxes(np.asarray(limits.max_acceleration_m_s2), np.asarray(limits.max_jerk_m_s3))
+        self._tangents = tangents = [(s.tangent(0.0), s.tangent(s.length_m)) for s in program.segments]
+        self._changes = [np.zeros(program.n_axes)] + [np.abs(tangents[k][0] - tangents[k - 1][1])
+                                                      for k in range(1, len(tangents))] + [np.zeros(program.n_axes)]
         self.junction_speeds_m_s = self._junction_speeds(tolerance_m)
-        self._trims = [self._corner_time(k) * 0.5 * float(self.junction_speeds_m_s[k])
-                       for k in range(len(program.segments) + 1)]
+        self._corner_times = [self._corner_time(k) for k in range(len(program.segments) + 1)]
+        self._trims = [t * 0.5 * float(v) for t, v in zip(self._corner_times, self.junction_speeds_m_s.tolist())]
         self.curves = [SCurve(max(seg.length_m - self._trims[k] - self._trims[k + 1], 0.0), p.speed_m_s,
                               p.accel_m_s2, p.jerk_m_s3, float(self.junction_speeds_m_s[k]),
                               float(self.junction_speeds_m_s[k + 1]))
                        for k, (seg, p) in enumerate(zip(program.segments, self.path_limits))]
         self._build_pieces()
 
-    def _change(self, k: int) -> FloatArray:
-        """``|u_k - u_(k-1)|`` per axis at junction ``k`` (between two lines)."""
-        before, after = self.program.segments[k - 1], self.program.segments[k]
-        return np.asarray(np.abs(after.tangent(0.0) - before.tangent(before.length_m)), dtype=float)
-
     def _corner_time(self, k: int) -> float:
         speed = float(self.junction_speeds_m_s[k])
-        return corner_time_s(speed, self._change(k), self._axes) if speed > 0.0 else 0.0
+        return corner_time_s(speed, self._changes[k], self._axes) if speed > 0.0 else 0.0
 
     def _corner_caps_m_s(self, tolerance_m: float) -> FloatArray:
         segments, dwell = self.program.segments, self.program.junction_dwell_s
@@ -112,9 +110,9 @@ class JerkPlan:
             before, after = segments[k - 1], segments[k]
             if isinstance(before, ArcSegment) or isinstance(after, ArcSegment) or dwell[k] > 0.0:
                 continue
-            u1, u2 = before.tangent(before.length_m), after.tangent(0.0)
+            u1, u2 = before.unit_vector, after.unit_vector
             turn = math.acos(min(max(float(np.dot(u1, u2)), -1.0), 1.0))
-            cap = corner_speed_m_s(turn, self._change(k), 0.5 * min(before.length_m, after.length_m),
+            cap = corner_speed_m_s(turn, self._changes[k], 0.5 * min(before.length_m, after.length_m),
                                    tolerance_m, self._axes)
             caps[k] = min(cap, self.path_limits[k - 1].speed_m_s, self.path_limits[k].speed_m_s)
         return caps
@@ -141,12 +139,10 @@ class JerkPlan:
         pieces: list[tuple[float, int, int]] = []
         for k, curve in enumerate(self.curves):
             t += float(dwell[k])
-            duration = self._corner_time(k)
+            duration = self._corner_times[k]
             if duration > 0.0:
-                segment = self.program.segments[k]
-                before = self.program.segments[k - 1]
-                self.corners[k] = Corner(segment.start_m, before.tangent(before.length_m), segment.tangent(0.0),
-                                         float(self.junction_speeds_m_s[k]), duration)
+                self.corners[k] = Corner(self.program.segments[k].start_m, self._tangents[k - 1][1],
+                                         self._tangents[k][0], float(self.junction_speeds_m_s[k]), duration)
                 pieces.append((t, 1, k))
                 t += duration
             pieces.append((t, 0, k))
