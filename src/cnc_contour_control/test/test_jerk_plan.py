@@ -197,3 +197,35 @@ def test_random_polylines_keep_every_limit(program: Program, limits: AxisLimits,
 def test_random_zigzags_keep_every_limit(turns: int, side_m: float, turn_deg: float, limits: AxisLimits,
                                          tolerance_mm: float) -> None:
     _check(_zigzag(turns, side_m, turn_deg), limits, tolerance_mm)
+
+
+@st.composite
+def _random_chain(draw: st.DrawFn) -> Program:
+    """Lines and arcs (circles in xy, helices when z rises) in any order, tangent or not, at one feed."""
+    point, segments = np.zeros(3), list[Segment]()
+    for _ in range(draw(st.integers(1, 5))):
+        if draw(st.booleans()):
+            step = np.array([draw(st.floats(-0.01, 0.01)), draw(st.floats(-0.01, 0.01)), 0.0])
+            if np.linalg.norm(step) < 1e-4:
+                step[0] += 1e-3
+            segments.append(LineSegment(point, point + step, FEED_M_S))
+        else:
+            radius, start_rad = draw(st.floats(5e-4, 0.01)), draw(st.floats(0.0, 2.0 * math.pi))
+            sweep = draw(st.floats(math.radians(10.0), math.radians(300.0)))
+            clockwise = draw(st.booleans())
+            center = point - radius * np.array([math.cos(start_rad), math.sin(start_rad), 0.0])
+            end_rad = start_rad - sweep if clockwise else start_rad + sweep
+            end = center + radius * np.array([math.cos(end_rad), math.sin(end_rad), 0.0])
+            end[2] = point[2] + draw(st.sampled_from([0.0, 0.0, 0.002]))
+            segments.append(ArcSegment(point, end, center, clockwise, (0, 1), FEED_M_S))
+        point = segments[-1].point(segments[-1].length_m)
+    return Program("chain", ("x", "y", "z"), tuple(segments))
+
+
+@SETTINGS
+@given(_random_chain(), st.tuples(*[st.floats(0.01, 0.1)] * 3), st.tuples(*[st.floats(0.05, 2.0)] * 3),
+       st.tuples(*[st.floats(1.0, 200.0)] * 3), st.floats(0.001, 0.5))
+def test_random_line_and_arc_chains_keep_every_limit(program: Program, velocity: tuple[float, ...],
+                                                     accel: tuple[float, ...], jerk: tuple[float, ...],
+                                                     tolerance_mm: float) -> None:
+    _check(program, AxisLimits(velocity, accel, jerk), tolerance_mm)
