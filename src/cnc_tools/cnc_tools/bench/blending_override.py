@@ -21,7 +21,8 @@ from cnc_contour_control.motion.feed_override import LiveReference, OverrideConf
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.interpolation import Interpolator
 from cnc_tools.analysis.tables import format_table, goal_text
-from cnc_tools.bench.blending import (
+from cnc_tools.bench.blending_corpus import CORPUS
+from cnc_tools.bench.blending_limits import (
     LIMIT_GOAL,
     SAMPLE_S,
     TOLERANCE_MM,
@@ -29,7 +30,6 @@ from cnc_tools.bench.blending import (
     limits_for,
     sampled_ratios,
 )
-from cnc_tools.bench.blending_corpus import CORPUS
 
 #: Programs of the sweep (the first alone with ``--quick``).
 SWEEP_PROGRAMS = ("zigzag-150", "circle-360-gon", "arc-scallops")

@@ -38,8 +38,8 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
 from cnc_contour_control.motion.geometry import Program
 from cnc_tools.analysis.tables import format_table, goal_text
-from cnc_tools.bench.blending import bench_config, limits_for
 from cnc_tools.bench.blending_corpus import FEED_M_S, polyline
+from cnc_tools.bench.blending_limits import bench_config, limits_for
 from cnc_tools.runs.folders import project_root, timestamp
 
 SEGMENTS = 150_000

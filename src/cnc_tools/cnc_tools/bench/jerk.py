@@ -1,7 +1,8 @@
 """Bench ``jerk``: the jerk-limited planner mode's cycle time on the blending bench's programs.
 
 Per program of :mod:`cnc_tools.bench.blending_corpus`, at the blending bench's tolerance, limits and jerk limit
-(:data:`cnc_tools.bench.blending.MAX_JERK_M_S3`, the acceleration limit reached in 25 ms): the cycle time of the
+(:data:`cnc_tools.bench.blending_limits.MAX_JERK_M_S3`, the acceleration limit reached in 25 ms): the cycle
+time of the
 jerk-limited mode (:mod:`cnc_contour_control.motion.jerk_plan`) beside the planner without a jerk limit at the
 same tolerance, beside exact stop (G61) without a jerk limit and with it (the mode at P 0); the corners
 passed at speed; the worst velocity,
@@ -21,8 +22,8 @@ from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.interpolation import Interpolator
 from cnc_contour_control.motion.reference_check import limit_ratios, sample_reference
 from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
-from cnc_tools.bench.blending import LIMIT_GOAL, SAMPLE_S, TOLERANCE_MM, bench_config, limits_for
 from cnc_tools.bench.blending_corpus import CORPUS
+from cnc_tools.bench.blending_limits import LIMIT_GOAL, SAMPLE_S, TOLERANCE_MM, bench_config, limits_for
 
 
 def program_figures(program: Program) -> dict[str, Any]:
