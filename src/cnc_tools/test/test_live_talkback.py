@@ -22,6 +22,8 @@ from cnc_tools.runs.scenario import Scenario, load_scenario
 ROOT = Path(__file__).resolve().parents[3]
 #: The override's follower ramps within the axis limits: 0.5 of 1200 mm/min at 250 mm/s² takes 40 ms (4 ticks).
 OVERRIDE_TICKS = 8
+#: What the servo node answers to ``gains.kp`` -1 (rclpy's range check of its descriptor), and so the engine.
+KP_REFUSED = "parameter servo_x.gains.kp refused: Parameter gains.kp out of range Min: 0.0, Max: 1000000.0, value: -1.0"
 
 
 class _Run:
@@ -75,9 +77,8 @@ def test_a_gain_set_from_the_viewer_retunes_the_law_and_an_out_of_range_one_keep
         assert before["servo_x.gains.kp"] == 5.0 and "servo_y.gains.ki" in before
         refused = client.set_parameters({"servo_x.gains.kp": -1.0}, "bad")
         assert refused["servo_x.gains.kp"] == 5.0
-        wait_for(client, lambda: bool(statuses(client, "got -1.0")), "refusal status")
-        assert statuses(client, "got -1.0") == [
-            "parameter servo_x.gains.kp refused: pid.kp must be in [0.0, 1000000.0], got -1.0"]
+        wait_for(client, lambda: bool(statuses(client, "kp refused")), "refusal status")
+        assert statuses(client, "kp refused") == [KP_REFUSED]
         assert client.set_parameters({"servo_x.gains.kp": 8.0}, "good")["servo_x.gains.kp"] == 8.0
         run.thread.start()  # the change was accepted before tick 0: it applies from tick 1 on
         run.wait()
@@ -145,3 +146,73 @@ def test_requests_the_run_cannot_take_are_refused_naming_why(topic: str, schema:
         wait_for(client, lambda: bool(statuses(client, reason)), "refusal")
         run.thread.start()
     assert run.error is None
+
+
+GRAPH_SERVO = {"axis": "x", "sample_time_s": 0.01, "law": "pid", "input_timeout_s": 30.0,
+               "gains.kp": 2.4, "gains.ki": 10.0, "gains.kd": 0.067}
+
+
+@contextmanager
+def graph_server(scenario: Scenario, namespace: str) -> Iterator[LiveClient]:
+    """graph_live's server for ``namespace`` (the live node on its own thread, the talkback onto the graph) and a
+    client connected to it; all closed however the test ends."""
+    from cnc_tools.live.decimate import WINDOW_NS
+    from cnc_tools.live.feed import LiveFeed
+    from cnc_tools.live.ros import LiveThread, RosBus
+    from cnc_tools.live.server import LiveConfig, LiveServer
+    from cnc_tools.live.talkback import GraphTalkback
+
+    talkback = GraphTalkback(scenario)
+    with LiveServer(LiveConfig(port=0), **talkback.server_options()) as server:
+        talkback.attach(server)
+        thread = LiveThread(LiveFeed(server, WINDOW_NS), namespace)
+        try:
+            talkback.bus = RosBus(thread.node)
+            with LiveClient(server.url) as client:
+                yield client
+        finally:
+            thread.close()
+
+
+@pytest.mark.nodes
+def test_a_graphs_gains_override_enable_and_e_stop_from_the_viewer() -> None:
+    import functools
+    import os
+
+    from std_msgs.msg import Bool
+
+    from cnc_contour_control.nodes.servo_node import ServoNode
+    from cnc_contour_control.testing import InProcessNode, TopicProbe
+    from cnc_contour_interfaces.msg import FeedOverride
+
+    namespace = f"/talkback_{os.getpid()}"
+    scenario = load_scenario(ROOT / "scenarios" / "feed_hold_circle.yaml", {"feed_override": {"schedule": []}})
+    servo_x = functools.partial(ServoNode, cli_args=["--ros-args", "-r", "__node:=servo_x"])
+    override, estop = f"{namespace}/feed_override", f"{namespace}/estop"
+    with TopicProbe({override: FeedOverride, estop: Bool}) as probe, \
+            InProcessNode(servo_x, GRAPH_SERVO, namespace) as servo, graph_server(scenario, namespace) as client:
+        assert client.get_parameters(["servo_x.gains.kp"], "get") == {"servo_x.gains.kp": 2.4}
+        assert client.set_parameters({"servo_x.gains.kp": -1.0}, "bad")["servo_x.gains.kp"] == 2.4
+        assert servo.node.get_parameter("gains.kp").value == 2.4
+        assert client.set_parameters({"servo_x.gains.kp": 3.0}, "good")["servo_x.gains.kp"] == 3.0
+        assert servo.node.controller.law.config.kp == 3.0
+        wait_for(client, lambda: bool(statuses(client, "kp refused")), "refusal status")
+        assert statuses(client, "kp refused") == [KP_REFUSED]  # the servo node's own reason
+        for topic, schema in (("/cnc/feed_override", "cnc_contour_interfaces/msg/FeedOverride"),
+                              ("/cnc/enable", "std_msgs/msg/Bool"), ("/cnc/estop", "std_msgs/msg/Bool")):
+            client.advertise(topic, schema)
+        client.publish("/cnc/feed_override", {"requested_ratio": float("nan")})
+        client.publish("/cnc/feed_override", {"requested_ratio": 0.5})
+        probe.wait_for(lambda: bool(probe.received(override)), 10.0, "the override")
+        assert [m.requested_ratio for m in probe.received(override)] == [0.5]
+        wait_for(client, lambda: bool(statuses(client, "got nan")), "NaN refused")
+        assert statuses(client, "got nan") == ["/cnc/feed_override refused: feed override ratio must be finite and "
+                                               "in [0, max_ratio = 1], got nan; holding 1"]
+        client.publish("/cnc/enable", {"data": False})
+        probe.wait_for(lambda: not servo.node.latch.enabled, 10.0, "the servo disabled")
+        client.publish("/cnc/estop", {"data": True})
+        probe.wait_for(lambda: servo.node.latch.latched, 10.0, "the servo's latch")
+        assert [m.data for m in probe.received(estop)] == [True]
+        client.publish("/cnc/enable", {"data": True})
+        wait_for(client, lambda: bool(statuses(client, "/cnc/enable refused")), "enable refused while latched")
+        assert f"{namespace}/servo_x/enable: " in statuses(client, "/cnc/enable refused")[0]

@@ -123,15 +123,19 @@ def graph_live(args: argparse.Namespace, namespace: str, scenario: Scenario,
         return
     import os
 
-    from cnc_tools.live.ros import LiveThread
+    from cnc_tools.live.ros import LiveThread, RosBus
+    from cnc_tools.live.talkback import GraphTalkback
     from cnc_tools.runs.dds import apply_loopback_policy
 
     apply_loopback_policy(os.environ)  # this process's reader joins the run's domain, on loopback as the nodes
-    with live_session(args, **extensions) as feed:
+    talkback = GraphTalkback(scenario)  # the viewer's parameters and client publish, onto the run's nodes
+    with live_session(args, **{**talkback.server_options(), **extensions}) as feed:
+        talkback.attach(feed.server)
         for name, type_name in scenario.pipeline().recorded_topics().items():
             if type_name != topics.CLOCK.type_name:
                 feed.advertise(name, type_name)
         thread = LiveThread(feed, namespace)
+        talkback.bus = RosBus(thread.node)
         try:
             yield GraphLive(1, feed)
         finally:

@@ -35,6 +35,7 @@ from foxglove.websocket import (
 )
 
 from cnc_contour_control.axis.servo import ServoConfig
+from cnc_contour_control.compensators import compensator_config_class
 from cnc_contour_control.core.errors import CncError, FaultError
 from cnc_contour_control.core.params import config_values, flat_specs
 from cnc_contour_control.graph.cross_axis import CompensatorSettings
@@ -54,6 +55,8 @@ if TYPE_CHECKING:
 CLIENT_TOPICS = {"/cnc/feed_override": "cnc_contour_interfaces/msg/FeedOverride",
                  "/cnc/feed_hold": "std_msgs/msg/Bool", "/cnc/estop": "std_msgs/msg/Bool",
                  "/cnc/enable": "std_msgs/msg/Bool"}
+#: rclpy's tolerance at a range's ends (``Node.PARAM_REL_TOL``).
+RANGE_REL_TOL = 1e-6
 #: The compensator whose learning rate is a parameter, and that parameter.
 LEARNING_RATE = "compensator.params.eta"
 
@@ -70,6 +73,20 @@ class _Gain:
 
     axis: int
     field: str
+
+
+def range_refusal(name: str, low: float | None, high: float | None, value: float | int) -> str | None:
+    """Why the node's parameter ``name`` refuses ``value`` by its descriptor's range, in rclpy's words (its
+    ``FloatingPointRange`` / ``IntegerRange`` check runs before the node's own callback), else None."""
+    low_v, high_v = -math.inf if low is None else low, math.inf if high is None else high
+    if isinstance(value, int) and not isinstance(value, bool):
+        low_v, high_v = (-(2**63) if low is None else math.ceil(low)), (2**63 - 1 if high is None else math.floor(high))
+        inside = low_v <= value <= high_v
+        return None if inside else f"Parameter {name} out of range. Min: {low_v}, Max: {high_v}, value: {value}"
+    edge = any(math.isclose(value, v, rel_tol=RANGE_REL_TOL) for v in (low_v, high_v))
+    if edge or low_v < value < high_v:
+        return None
+    return f"Parameter {name} out of range Min: {float(low_v)}, Max: {float(high_v)}, value: {value}"
 
 
 def decode(encoding: str, type_name: str, data: bytes) -> dict[str, Any]:
@@ -114,6 +131,7 @@ class Talkback(ServerListener):
     def __init__(self, scenario: Scenario | None) -> None:
         self.values: dict[str, float | int | bool] = {}
         self._gains: dict[str, _Gain] = {}
+        self._ranges: dict[str, tuple[float | None, float | None]] = {}  # the ROS descriptors' ranges
         self.servos = [] if scenario is None else list(scenario.servos)
         for k, config in enumerate(self.servos):
             gains = config.law_config()
@@ -122,9 +140,12 @@ class Talkback(ServerListener):
                     name = f"servo_{config.axis_name}.gains.{spec.name}"
                     self._gains[name] = _Gain(k, spec.name)
                     self.values[name] = getattr(gains, spec.name)
+                    self._ranges[name] = (spec.info.low, spec.info.high)
         self.compensator = None if scenario is None else scenario.compensator
         if self.compensator is not None and self.compensator.method == "neural":
             self.values[LEARNING_RATE] = float(self.compensator.params["eta"])
+            eta = next(spec for spec in flat_specs(compensator_config_class("neural")) if spec.name == "eta")
+            self._ranges[LEARNING_RATE] = (eta.info.low, eta.info.high)
         self._override_source, self.max_ratio = "topic", math.inf  # a graph started by hand: its own checks
         if scenario is not None:
             override = scenario.override_config
@@ -259,6 +280,10 @@ class EngineTalkback(Talkback):
             self.pending.popleft()(board, stages)
 
     def _apply_parameter(self, name: str, value: float | int | bool) -> None:
+        low, high = self._ranges[name]
+        reason = None if isinstance(value, bool) else range_refusal(name.partition(".")[2], low, high, value)
+        if reason is not None:
+            raise Refused(reason)
         if name == LEARNING_RATE:
             self._set_learning_rate(float(value))
         else:
