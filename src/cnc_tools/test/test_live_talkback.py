@@ -2,6 +2,7 @@
 back and refused with the servo node's reason; an override, a feed hold and an e-stop published."""
 from __future__ import annotations
 
+import math
 import threading
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -14,9 +15,11 @@ import pytest
 from cnc_tools.analysis.verdict import judge
 from cnc_tools.live.client import LiveClient, Received
 from cnc_tools.live.options import engine_live
+from cnc_tools.live.talkback import EngineTalkback
 from cnc_tools.live.watch import live_args
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import EngineFault, run_engine
+from cnc_tools.runs.engine_stages import Board
 from cnc_tools.runs.scenario import Scenario, load_scenario
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -216,3 +219,48 @@ def test_a_graphs_gains_override_enable_and_e_stop_from_the_viewer() -> None:
         client.publish("/cnc/enable", {"data": True})
         wait_for(client, lambda: bool(statuses(client, "/cnc/enable refused")), "enable refused while latched")
         assert f"{namespace}/servo_x/enable: " in statuses(client, "/cnc/enable refused")[0]
+
+
+def test_the_engines_range_refusal_is_rclpys_word_for_word() -> None:
+    import rclpy
+    from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+    from rclpy.context import Context
+    from rclpy.node import Node
+    from rclpy.parameter import Parameter
+
+    from cnc_tools.live.talkback import range_refusal
+
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        node = Node("range_words", context=context)
+        node.declare_parameter("eta", 0.5, ParameterDescriptor(floating_point_range=[
+            FloatingPointRange(from_value=0.0, to_value=1000.0)]))
+        node.declare_parameter("units", 5, ParameterDescriptor(integer_range=[
+            IntegerRange(from_value=1, to_value=1000)]))
+        for name, value in [("eta", -1.0), ("eta", math.nan), ("eta", math.inf), ("eta", 1000.0 * (1 + 1e-7)),
+                            ("eta", 2000.0), ("eta", 3.0), ("units", 0), ("units", 1000), ("units", 1001)]:
+            result = node.set_parameters([Parameter(name, value=value)])[0]
+            low, high = (0.0, 1000.0) if name == "eta" else (1, 1000)
+            assert range_refusal(name, low, high, value) == (None if result.successful else result.reason), value
+        node.destroy_node()
+    finally:
+        context.try_shutdown()
+
+
+def test_the_learning_rate_is_refused_out_of_its_range_and_reaches_the_compensator_at_the_next_tick() -> None:
+    from foxglove.websocket import Parameter
+
+    from cnc_tools.live.talkback import LEARNING_RATE
+    from cnc_tools.runs.engine_cross_axis import CompensatorStage
+
+    scenario = load_scenario(ROOT / "scenarios" / "paper001" / "paper000_circle_nn.yaml", {"duration_s": 0.05})
+    talkback = EngineTalkback(scenario)
+    stage = CompensatorStage(scenario, scenario.pipeline(), np.arange(50, dtype=np.int64))
+    eta = stage.compensator.config.eta  # type: ignore[attr-defined]  # the neural compensator's
+    assert talkback.values[LEARNING_RATE] == eta
+    answer = talkback.on_set_parameters(None, [Parameter(LEARNING_RATE, value=2000.0)])  # type: ignore[arg-type]  # the client is not read
+    assert {p.name: p.get_value() for p in answer}[LEARNING_RATE] == eta and not talkback.pending
+    talkback.on_set_parameters(None, [Parameter(LEARNING_RATE, value=eta / 10)])  # type: ignore[arg-type]  # as above
+    talkback.apply(Board(0.001), [stage])
+    assert stage.compensator.config.eta == eta / 10  # type: ignore[attr-defined]  # as above

@@ -1,20 +1,22 @@
-"""The viewer talks back to an engine run: parameters and client publish (foxglove-sdk's ``Parameters`` and
+"""The viewer talks back to a run: parameters and client publish (foxglove-sdk's ``Parameters`` and
 ``ClientPublish`` capabilities), ROS-free.
 
-:class:`EngineTalkback` is the live server's listener for ``run --engine --live``. Parameters: every axis's servo
-gains as ``servo_<axis>.gains.<field>`` (the servo node's ``gains.*``) and, with a neural compensator, its learning
-rate ``compensator.params.eta`` (the compensator node's ``params.eta``). A set is checked on the server's thread by
-building the config the servo (compensator) node's on-set callback builds, so a refused value is answered with the
-node's reason (``pid.kp must be in [0.0, 1000000.0], got -1.0``) as a warning status, and the parameter keeps its
-value; an accepted one is applied by :meth:`apply` at the engine's next tick, on the engine's thread
-(``ServoController.retune``, as the servo node's post-set callback: the law's state stays).
+:class:`Talkback` is the live server's listener. Parameters: every axis's servo gains as
+``servo_<axis>.gains.<field>`` (the servo node's ``gains.*``) and, with a neural compensator, its learning rate
+``compensator.params.eta`` (the compensator node's ``params.eta``). Client publish (JSON, or CDR with the suite's
+ROS 2 definitions) on the topics an operator's tools use: ``/cnc/feed_override`` (``FeedOverride``: the ratio
+:func:`message_ratio` takes, refused as the interpolator's inbox refuses it: not finite or outside
+[0, max_ratio]), ``/cnc/feed_hold`` (``std_msgs/Bool``: true holds the feed, false resumes at the last ratio
+asked), ``/cnc/estop`` and ``/cnc/enable`` (``std_msgs/Bool``). Every refusal is a warning status naming the value
+and the bound; a refused parameter keeps its value.
 
-Client publish (JSON, or CDR with the suite's ROS 2 definitions), on the topics an operator's tools use:
-``/cnc/feed_override`` (``FeedOverride``: the ratio :func:`message_ratio` takes, refused as the interpolator's
-inbox refuses it: not finite or outside [0, max_ratio]), ``/cnc/feed_hold`` (``std_msgs/Bool``: true holds the
-feed, false resumes at the last ratio asked), ``/cnc/estop`` (``std_msgs/Bool``: true stops the run as a fault, its
-verdict ``faulted`` naming the e-stop) and ``/cnc/enable`` (``std_msgs/Bool``: an engine run has no axis enable;
-false is refused). Every refusal is a warning status naming the value and the bound.
+:class:`EngineTalkback` (``run --engine --live``) checks a parameter as the node would (the descriptor's range in
+rclpy's words, :func:`range_refusal`, then the config the node's on-set callback builds) and applies what it
+accepts at the engine's next tick, on the engine's thread (``ServoController.retune``: the law's state stays); an
+e-stop ends the run as a fault (verdict ``faulted``); an engine has no enable, so false is refused.
+:class:`GraphTalkback` (``run --live``, the ``live`` node) hands the requests to a :class:`GraphBus` (``live/ros.py``
+``RosBus``): the nodes' parameter services, whose answer is the viewer's, the run's ``feed_override`` and ``estop``
+topics and every node's ``~/enable``.
 """
 from __future__ import annotations
 
