@@ -70,7 +70,7 @@ def statuses(client: LiveClient, text: str) -> list[str]:
 
 def wait_for(client: LiveClient, done: Callable[[], bool], what: str, timeout_s: float = 30.0) -> None:
     client.collect(lambda _: done(), timeout_s)
-    assert done(), f"no {what} within {timeout_s} s"
+    assert done(), f"no {what} within {timeout_s} s; statuses {client.statuses}, channels {sorted(client.channels)}"
 
 
 def test_a_gain_set_from_the_viewer_retunes_the_law_and_an_out_of_range_one_keeps_its_value() -> None:
@@ -174,6 +174,7 @@ def graph_server(scenario: Scenario, namespace: str) -> Iterator[LiveClient]:
             with LiveClient(server.url) as client:
                 yield client
         finally:
+            talkback.close()
             thread.close()
 
 
@@ -206,7 +207,7 @@ def test_a_graphs_gains_override_enable_and_e_stop_from_the_viewer() -> None:
             client.advertise(topic, schema)
         client.publish("/cnc/feed_override", {"requested_ratio": float("nan")})
         client.publish("/cnc/feed_override", {"requested_ratio": 0.5})
-        probe.wait_for(lambda: bool(probe.received(override)), 10.0, "the override")
+        wait_for(client, lambda: bool(probe.received(override)), "the override")
         assert [m.requested_ratio for m in probe.received(override)] == [0.5]
         wait_for(client, lambda: bool(statuses(client, "got nan")), "NaN refused")
         assert statuses(client, "got nan") == ["/cnc/feed_override refused: feed override ratio must be finite and "
@@ -264,3 +265,26 @@ def test_the_learning_rate_is_refused_out_of_its_range_and_reaches_the_compensat
     talkback.on_set_parameters(None, [Parameter(LEARNING_RATE, value=eta / 10)])  # type: ignore[arg-type]  # as above
     talkback.apply(Board(0.001), [stage])
     assert stage.compensator.config.eta == eta / 10  # type: ignore[attr-defined]  # as above
+
+
+@pytest.mark.nodes
+def test_a_graphs_learning_rate_from_the_viewer_reaches_the_compensator_node() -> None:
+    import os
+
+    from cnc_contour_control.nodes.compensator_node import CompensatorNode
+    from cnc_contour_control.testing import InProcessNode
+
+    namespace = f"/talkback_nn_{os.getpid()}"
+    scenario = load_scenario(ROOT / "scenarios" / "paper001" / "paper000_circle_nn.yaml")
+    assert scenario.compensator is not None
+    params = {"axes": ["x", "y"], "sample_time_s": 0.01, "method": "neural", "input_timeout_s": 30.0,
+              "params.eta": scenario.compensator.params["eta"]}  # the node as the run's graph starts it
+    with InProcessNode(CompensatorNode, params, namespace) as node, graph_server(scenario, namespace) as client:
+        eta = node.node.compensator.config.eta
+        assert client.get_parameters(["compensator.params.eta"], "get") == {"compensator.params.eta": eta}
+        assert client.set_parameters({"compensator.params.eta": 2000.0}, "bad")["compensator.params.eta"] == eta
+        assert client.set_parameters({"compensator.params.eta": eta / 10}, "good")["compensator.params.eta"] == eta / 10
+        assert node.node.compensator.config.eta == eta / 10
+        wait_for(client, lambda: bool(statuses(client, "eta refused")), "refusal status")
+        assert statuses(client, "eta refused") == ["parameter compensator.params.eta refused: Parameter params.eta out "
+                                                   "of range Min: 0.0, Max: 1000.0, value: 2000.0"]

@@ -8,6 +8,7 @@ the next run can start from it (``state_in``).
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import replace
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -63,9 +64,12 @@ class CompensatorNode(SuiteNode):
         self.watch_inputs(self.matcher, "compensator")
 
     def _retune(self, settings: CompensatorSettings) -> None:
-        """Only ``freeze`` may change while running (the rest is read-only)."""
+        """``freeze`` and the neural network's learning rate ``params.eta`` apply while running (the rest is taken
+        at the start)."""
         self.settings = settings
         self.compensator.frozen = settings.freeze
+        if settings.method == "neural":
+            self.compensator.config = replace(self.compensator.config, eta=settings.params["eta"])
 
     def _step(self, items: dict[str, Any]) -> None:
         stamp_ns = self.matcher.last_released_ns

@@ -139,6 +139,7 @@ def graph_live(args: argparse.Namespace, namespace: str, scenario: Scenario,
         try:
             yield GraphLive(1, feed)
         finally:
+            talkback.close()
             thread.close()
 
 

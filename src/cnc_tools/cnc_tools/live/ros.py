@@ -110,8 +110,8 @@ class RosBus:
         self._lock = threading.Lock()
 
     def _send(self, topic: str, message: Any) -> None:
-        """``message`` on ``topic`` once every reader the graph shows matched (a new writer's first message is
-        otherwise lost to a reader not matched yet); acknowledged by all, or an error naming the topic."""
+        """``message`` on ``topic`` once the graph shows a reader and every reader matched (a new writer's first
+        message is otherwise lost to a reader not matched yet); acknowledged by all, or an error naming the topic."""
         from rclpy.duration import Duration
 
         with self._lock:
@@ -120,7 +120,9 @@ class RosBus:
                 publisher = self._publishers[topic] = self.node.create_publisher(type(message), topic, 10)
         name = publisher.topic_name
         deadline = time.monotonic() + DISCOVERY_TIMEOUT_S
-        while publisher.get_subscription_count() < self.node.count_subscribers(name) and time.monotonic() < deadline:
+        while not 0 < self.node.count_subscribers(name) <= publisher.get_subscription_count():
+            if time.monotonic() > deadline:
+                raise CncError(f"no reader of {name} within {DISCOVERY_TIMEOUT_S} s (is the graph running?)")
             time.sleep(0.01)  # discovery runs in DDS's threads: nothing to wait on from here
         publisher.publish(message)
         if not publisher.wait_for_all_acked(Duration(seconds=ANSWER_TIMEOUT_S)):

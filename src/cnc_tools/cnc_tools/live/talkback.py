@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import json
 import math
+import queue
+import threading
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -352,11 +354,16 @@ class GraphBus(Protocol):
 
 class GraphTalkback(Talkback):
     """Listener of the live server of a graph run: parameters through the nodes' parameter services (the node
-    refuses, with its reason), client publish onto the suite's topics (``bus``, set once the ``live`` node runs)."""
+    refuses, with its reason), client publish onto the suite's topics (``bus``, set once the ``live`` node runs).
+
+    A published message is handed to a thread of its own, which waits for the graph (discovery, acknowledgements)
+    and says a refusal as a status: the server's thread only checks and queues."""
 
     def __init__(self, scenario: Scenario | None) -> None:
         super().__init__(scenario)
         self.bus: GraphBus | None = None
+        self._jobs: queue.SimpleQueue[tuple[str, Callable[[GraphBus], Any]] | None] = queue.SimpleQueue()
+        self._worker: threading.Thread | None = None
 
     def _graph(self) -> GraphBus:
         if self.bus is None:
@@ -369,16 +376,38 @@ class GraphTalkback(Talkback):
         if reason is not None:
             raise Refused(reason)
 
+    def _later(self, topic: str, job: Callable[[GraphBus], Any]) -> None:
+        """Run ``job`` on the bus in the worker thread (started on first use); its error is a status."""
+        self._graph()
+        if self._worker is None:
+            self._worker = threading.Thread(target=self._work, name="live-talkback", daemon=True)
+            self._worker.start()
+        self._jobs.put((topic, job))
+
+    def _work(self) -> None:
+        while (item := self._jobs.get()) is not None:
+            topic, job = item
+            try:
+                refusals = job(self._graph())
+                if refusals:
+                    raise Refused("; ".join(refusals))
+            except CncError as err:
+                self._status(f"{topic} refused: {err}", StatusLevel.Warning)
+
+    def close(self) -> None:
+        """Stop the worker thread after the requests queued."""
+        if self._worker is not None:
+            self._jobs.put(None)
+            self._worker.join()
+
     def _request_ratio(self, ratio: float) -> None:
-        self._graph().publish_override(ratio)
+        self._later("/cnc/feed_override", lambda bus: bus.publish_override(ratio))
 
     def _estop(self, value: bool) -> None:
-        self._graph().publish_estop(value)
+        self._later("/cnc/estop", lambda bus: bus.publish_estop(value))
 
     def _enable(self, value: bool) -> None:
-        refusals = self._graph().enable(value)
-        if refusals:
-            raise Refused("; ".join(refusals))
+        self._later("/cnc/enable", lambda bus: bus.enable(value))
 
 
 class TalkingEngineLive(EngineLive):
