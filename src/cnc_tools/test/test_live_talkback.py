@@ -216,7 +216,7 @@ def test_a_graphs_gains_override_enable_and_e_stop_from_the_viewer() -> None:
         probe.wait_for(lambda: not servo.node.latch.enabled, 10.0, "the servo disabled")
         client.publish("/cnc/estop", {"data": True})
         probe.wait_for(lambda: servo.node.latch.latched, 10.0, "the servo's latch")
-        assert [m.data for m in probe.received(estop)] == [True]
+        probe.wait_for(lambda: [m.data for m in probe.received(estop)] == [True], 10.0, "the e-stop, once")
         client.publish("/cnc/enable", {"data": True})
         wait_for(client, lambda: bool(statuses(client, "/cnc/enable refused")), "enable refused while latched")
         assert f"{namespace}/servo_x/enable: " in statuses(client, "/cnc/enable refused")[0]
