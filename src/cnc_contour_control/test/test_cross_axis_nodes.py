@@ -145,3 +145,16 @@ def test_compensator_node_refuses_a_bad_state_file_naming_it(tmp_path: Path, con
     with pytest.raises(CncError) as err:
         InProcessNode(CompensatorNode, {**COMPENSATOR_PARAMS, "state_in": str(path)})
     assert all(w in str(err.value) for w in words), str(err.value)
+
+
+def test_a_running_compensator_refuses_a_method_parameter_it_would_not_take() -> None:
+    """Only freeze and the network's learning rate change while it runs; any other params.* is refused, named."""
+    from rclpy.parameter import Parameter
+
+    with InProcessNode(CompensatorNode, COMPENSATOR_PARAMS) as node:
+        eta = node.node.compensator.config.eta
+        refused = node.node.set_parameters([Parameter("params.output_limit", value=0.5)])[0]
+        assert not refused.successful and "params.output_limit" in refused.reason and "params.eta" in refused.reason
+        assert node.node.get_parameter("params.output_limit").value != 0.5
+        taken = node.node.set_parameters([Parameter("params.eta", value=eta / 2)])[0]
+        assert taken.successful and node.node.compensator.config.eta == eta / 2

@@ -12,6 +12,8 @@ from dataclasses import replace
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 
 from cnc_contour_control.compensators import CompensatorSample, compensator_config_class
@@ -29,6 +31,9 @@ from cnc_contour_control.nodes.conversions import (
 from cnc_contour_control.nodes.method_params import method_parameters
 from cnc_contour_control.nodes.parameters import declare_config
 from cnc_contour_interfaces.msg import Compensation, ContourError, Reference
+
+#: The one method parameter a running compensator takes (the neural network's learning rate).
+LIVE_LEARNING_RATE = "params.eta"
 
 
 class CompensatorNode(SuiteNode):
@@ -49,6 +54,7 @@ class CompensatorNode(SuiteNode):
         self.settings: CompensatorSettings = parameters.declare()
         self.compensator = self.settings.make(self.axes, run.sample_time_s)
         parameters.watch(self._retune)
+        self.add_on_set_parameters_callback(self._refuse_fixed)
         self.sample = CompensatorSample()
         self.sample.tick = -1
         self.last_stamp_ns: int | None = None
@@ -70,6 +76,17 @@ class CompensatorNode(SuiteNode):
         self.compensator.frozen = settings.freeze
         if settings.method == "neural":
             self.compensator.config = replace(self.compensator.config, eta=settings.params["eta"])
+
+    def _refuse_fixed(self, parameters: list[Parameter]) -> SetParametersResult:
+        """Refuse a change of a method parameter the running compensator would not take (all but the neural
+        network's ``params.eta``): set and ignored, it would read as applied."""
+        live = {LIVE_LEARNING_RATE} if self.settings.method == "neural" else set()
+        fixed = sorted(p.name for p in parameters if p.name.startswith("params.") and p.name not in live)
+        if not fixed:
+            return SetParametersResult(successful=True)
+        return SetParametersResult(successful=False, reason=(
+            f"{', '.join(fixed)}: taken when the compensator starts; while it runs only freeze"
+            f"{' and ' + LIVE_LEARNING_RATE if live else ''} change (start the node with the new value)"))
 
     def _step(self, items: dict[str, Any]) -> None:
         stamp_ns = self.matcher.last_released_ns
