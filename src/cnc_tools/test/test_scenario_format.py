@@ -1,6 +1,7 @@
 """Tier 1: the scenario format's version, and gains written per sample before format 2 refused with the conversion."""
 from __future__ import annotations
 
+import pickle
 from pathlib import Path
 
 import pytest
@@ -60,3 +61,6 @@ def test_per_sample_gains_run_as_time_units_trip_the_default_following_error_bou
     verdict = judge(record)
     assert verdict.status == "faulted" and "following error" in verdict.describe(), verdict.describe()
     assert record.summary["simulated_time_s"] < 2.0, "tripped early, before the error grew to centimetres"
+    back = pickle.loads(pickle.dumps(fault.value))  # as a pool's worker returns it
+    assert isinstance(back, EngineFault) and str(back) == str(fault.value)
+    assert back.record.summary == record.summary

@@ -66,6 +66,11 @@ class EngineFault(FaultError):
         super().__init__(message)
         self.record = record
 
+    def __reduce__(self) -> tuple[type[EngineFault], tuple[str, RunRecord]]:
+        """Pickled with its record: a pool's worker hands the fault back whole (an exception pickles only its
+        ``args``, and a two-argument ``__init__`` could not be called with them: the pool broke)."""
+        return (EngineFault, (str(self.args[0]), self.record))
+
 
 class Clock(Protocol):
     """Wall seconds, only to time the run."""
