@@ -99,10 +99,3 @@ def test_user_data_goes_over_shared_memory_not_loopback_udp(tmp_path: Path) -> N
     shipped = _user_data_over_udp(profile_path())
     assert shipped["rtps_datagrams"] > 0 and shipped["dropped"] == 0, shipped  # the capture saw the discovery
     assert shipped["user_data_submessages"] == 0, shipped
-
-
-def test_discovery_between_participants_of_a_process_goes_through_the_transports() -> None:
-    """USER_DATA_ONLY (the profile's comment says why): with Fast DDS's default, FULL, deleting a writer could
-    deadlock Fast DDS 2.14 inside rclpy's destroy_node."""
-    root = ET.parse(profile_path()).getroot()
-    assert root.findtext(f"{NS}library_settings/{NS}intraprocess_delivery") == "USER_DATA_ONLY"
