@@ -30,6 +30,8 @@ import pytest
 SEGMENTS_BEFORE = pytest.StashKey[set]()
 #: This process's claim on its domain, held open for the process's life.
 DOMAIN_CLAIMS: list[object] = []
+#: A second domain of this process, where no other participant lives (test_parameters' many short-lived nodes).
+QUIET_DOMAIN_ENV = "CNC_QUIET_DOMAIN_ID"
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -42,6 +44,9 @@ def pytest_configure(config: pytest.Config) -> None:
     claim = claim_free_domain_id()
     DOMAIN_CLAIMS.append(claim)
     apply_loopback_policy(os.environ, claim.domain_id)
+    quiet = claim_free_domain_id()  # a second one of its own, for nodes that must meet no other participant
+    DOMAIN_CLAIMS.append(quiet)
+    os.environ[QUIET_DOMAIN_ENV] = str(quiet.domain_id)
     if not os.environ.get("PYTEST_XDIST_WORKER"):
         from cnc_tools.runs.shm import fast_dds_segments
 
