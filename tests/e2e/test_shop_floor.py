@@ -64,7 +64,7 @@ MACHINE = ("plant", "servo_x", "servo_y")
 PANEL = ["--nodes", *MACHINE]  # cnc-contour machine: the nodes to wait for
 FIRST = "G1 X5 F1200\nG3 X10 Y5 I0 J5\n"   # a line and a quarter arc from the origin, ends at (10, 5) mm
 SECOND = "G1 X40 F1200\n"                   # 30 mm along y = 5 mm: 50 %, hold, 100 %
-THIRD = "G1 X10 F1200\n"                    # 30 mm back: cancelled halfway
+THIRD = "G1 X10 F600\n"                     # 30 mm back in 3 s: cancelled halfway, 1.5 s before its end
 TRIPPED = "G1 X40 F1200\n"                  # servo x's gains at 0: the trip stops it
 LAST = "G1 X0 Y0 F1200\n"                   # home, after reset and enable
 Y_PATH_M = 5e-3
