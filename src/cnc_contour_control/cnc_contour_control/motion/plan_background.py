@@ -13,7 +13,8 @@ by the caller), never plans itself.
 
 The thread's Python work holds the interpreter lock; at the default switch interval (5 ms) a tick waiting
 for it would be late. Starting a planner lowers the process's switch interval to ``SWITCH_INTERVAL_S``
-(never raises it). The thread ends with the plan, when the object that owns the stream is collected, or at
+(never raises it) and puts it back once the last planner thread ends. The thread ends with the plan, when
+the object that owns the stream is collected, or at
 :meth:`close`; a :class:`~cnc_contour_control.core.errors.CncError` it meets (a segment the limits refuse) is
 raised again by the next :meth:`wait_until`.
 """
@@ -32,6 +33,32 @@ SWITCH_INTERVAL_S = 1.0e-4
 #: How far the committed phases reach ahead of the tool (profile time, s) before the thread plans a chunk.
 LEAD_S = 0.5
 _IDLE_WAIT_S = 0.5
+
+
+class _SwitchInterval:
+    """The process's switch interval at :data:`SWITCH_INTERVAL_S` while any planner thread runs, and back to what
+    it was once the last one ends (a test process or a host making many plans keeps Python's 5 ms otherwise)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._running = 0
+        self._before_s = sys.getswitchinterval()
+
+    def lower(self) -> None:
+        with self._lock:
+            if self._running == 0:
+                self._before_s = sys.getswitchinterval()
+                sys.setswitchinterval(min(self._before_s, SWITCH_INTERVAL_S))
+            self._running += 1
+
+    def restore(self) -> None:
+        with self._lock:
+            self._running -= 1
+            if self._running == 0:
+                sys.setswitchinterval(self._before_s)
+
+
+_switch_interval = _SwitchInterval()
 
 
 class BackgroundPlanner:
@@ -56,8 +83,7 @@ class BackgroundPlanner:
         self.waits = 0
         self._owner = weakref.ref(owner)
         stream.guard, stream.background = self.condition, self
-        if sys.getswitchinterval() > SWITCH_INTERVAL_S:
-            sys.setswitchinterval(SWITCH_INTERVAL_S)
+        _switch_interval.lower()
         self.thread = threading.Thread(target=self._run, name=f"plan-{stream.n_axes}-axes", daemon=True)
         self.thread.start()
 
@@ -96,6 +122,12 @@ class BackgroundPlanner:
         return self._closed or self.stream.finished or self._owner() is None
 
     def _run(self) -> None:
+        try:
+            self._plan()
+        finally:
+            _switch_interval.restore()
+
+    def _plan(self) -> None:
         try:
             while True:
                 with self.condition:
