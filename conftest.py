@@ -147,3 +147,13 @@ def pytest_runtest_teardown(item: pytest.Item, nextitem: pytest.Item | None) -> 
         started = Path(log).read_text(encoding="utf-8")
         Path(log).unlink()
         pytest.fail(f"a core-tier test started DDS participants (mark it nodes or e2e):\n{started}", pytrace=False)
+
+
+@pytest.fixture(autouse=True)
+def _no_progress_task_left_open() -> Generator[None, None, None]:
+    """Each test starts with no progress task open: a bench that raised inside ``track`` leaves its task open until
+    its generator is collected (the traceback pytest keeps holds it), and the next test's lines would nest in it."""
+    from cnc_tools.runs.progress import reporter
+
+    reporter().tasks.clear()
+    yield
