@@ -30,6 +30,8 @@ that window can brake to rest (:func:`~cnc_contour_control.motion.plan_arrays.lo
 With a path tolerance (``path_tolerance_mm``, or G64 P) the profile is planned over the blended program
 (:mod:`cnc_contour_control.motion.blending`; :attr:`Interpolator.program`; the one written:
 :attr:`Interpolator.programmed_program`), or as written if that is quicker (never slower than exact stop).
+With a jerk limit (``AxisLimits.max_jerk_m_s3``) ``jerk_mode`` ``fir`` passes that plan through a moving average
+(:mod:`cnc_contour_control.motion.jerk_fir`), ``scurve`` plans S-curves (:mod:`cnc_contour_control.motion.jerk_plan`).
 """
 from __future__ import annotations
 
@@ -44,14 +46,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from cnc_contour_control.core.config import build_config, require_non_negative
+from cnc_contour_control.core.config import require_non_negative
 from cnc_contour_control.core.errors import ConfigError
-from cnc_contour_control.core.params import check_ranges, param
-from cnc_contour_control.motion.accel_decel import AccelDecelConfig, ReferenceFilter
+from cnc_contour_control.motion.accel_decel import ReferenceFilter
 from cnc_contour_control.motion.axis_limits import AxisLimits as AxisLimits
 from cnc_contour_control.motion.blend_choice import CornerLimits
 from cnc_contour_control.motion.blending import BlendedProgram, quickest_blend
 from cnc_contour_control.motion.geometry import Program, Segment
+from cnc_contour_control.motion.interpolator_config import JERK_MODES as JERK_MODES
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig as InterpolatorConfig
+from cnc_contour_control.motion.jerk_fir import capped_program, filtered_array, fir_settings, stop_holds_s
 from cnc_contour_control.motion.jerk_plan import JerkPlan, quickest_jerk_plan
 from cnc_contour_control.motion.plan_arrays import (
     SpeedBands,
@@ -62,90 +66,6 @@ from cnc_contour_control.motion.plan_arrays import (
 from cnc_contour_control.motion.plan_stream import start_stream, whole_plan
 
 FloatArray = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class InterpolatorConfig:
-    """Options of the feed-profile planner.
-
-    Parameters
-    ----------
-    corner_angle_tolerance_deg : float
-        Junctions whose tangent directions differ by at most this angle are
-        tangent-continuous (no stop), deg, in [0, 10]. Such a junction steps
-        the axis velocities by up to ``feed * angle`` (see the module notes).
-    arc_centripetal_fraction : float
-        Share of each axis's acceleration budget given to centripetal
-        acceleration on arcs, in [0.01, 0.99]; the rest is for speed changes.
-        (Near 0 or 1 one of the two budgets vanishes and an arc crawls.)
-    arc_combined_budget : bool
-        If True, an arc's tangential acceleration is bounded together with its
-        centripetal one, ``sqrt(a_t**2 + (v**2 κ)**2) <= amax`` per axis
-        (:mod:`cnc_contour_control.motion.arc_budget`), instead of only the split
-        ``(1 - f) amax``: faster speed changes on arcs, same limits.
-    arc_speed_bands : int
-        With ``arc_combined_budget``: bands of speed on each arc, in [1, 64],
-        each with the budget at its highest speed
-        (:func:`cnc_contour_control.motion.arc_budget.speed_bands`), so that an arc
-        speeds up and brakes harder the slower it goes. 1: one constant
-        tangential acceleration per arc (the budget at its cruise speed).
-    look_ahead_segments : int
-        Segments the planner sees ahead of each junction, in [1, 1e9]: the
-        speed there must allow a stop at the end of the last one (a look-ahead
-        buffer; :func:`cnc_contour_control.motion.plan_arrays.look_ahead_caps_m_s`).
-        The default (1e6) is longer than any braking distance of today's
-        programs: their plan is unchanged.
-    path_tolerance_mm : float
-        Largest distance of a corner blend from the programmed corner, mm, in
-        [0, 1000] (G64 P; :mod:`cnc_contour_control.motion.blending`). 0 plans the
-        program as written; a program's own ``path_tolerance_m`` (G64 P, G61)
-        takes precedence.
-    clamp_feed : bool
-        If True, slow a segment whose programmed feed exceeds the axis velocity
-        limits; if False, refuse the program.
-    accel_decel : AccelDecelConfig or Mapping
-        Acceleration/deceleration after interpolation (paper 003's T_ip), applied by
-        :meth:`Interpolator.reference` (:mod:`cnc_contour_control.motion.accel_decel`).
-    """
-
-    corner_angle_tolerance_deg: float = param(
-        1.0e-4, unit="deg", low=0.0, high=10.0, read_only=True,
-        description="junctions whose tangents differ by at most this angle are passed without a stop")
-    arc_centripetal_fraction: float = param(
-        0.8, low=0.01, high=0.99, read_only=True,
-        description="share of each axis's acceleration for centripetal use on arcs (the rest changes speed)")
-    arc_combined_budget: bool = param(
-        True, read_only=True,
-        description="bound an arc's tangential and centripetal acceleration together (faster speed changes on arcs)")
-    arc_speed_bands: int = param(
-        8, low=1, high=64, read_only=True,
-        description="with arc_combined_budget: speed bands per arc, each with the acceleration budget at its top "
-                    "speed")
-    look_ahead_segments: int = param(
-        1_000_000, low=1, high=1.0e9, read_only=True,
-        description="segments planned ahead of each junction; the speed there allows a stop at the last one's end")
-    path_tolerance_mm: float = param(
-        0.0, unit="mm", low=0.0, high=1000.0, read_only=True,
-        description="largest deviation of corner blends from the programmed path (G64 P; 0: no blending, the "
-                    "program's G64 P / G61 overrides it)")
-    clamp_feed: bool = param(
-        False, read_only=True,
-        description="slow down a segment whose feed exceeds the axis limits instead of refusing it")
-    accel_decel: AccelDecelConfig = param(default_factory=AccelDecelConfig, read_only=True,
-                                          description="acceleration/deceleration after interpolation (T_ip)")
-
-    def __post_init__(self) -> None:
-        if not isinstance(self.accel_decel, AccelDecelConfig):
-            object.__setattr__(self, "accel_decel", build_config(AccelDecelConfig, self.accel_decel, "accel_decel"))
-        check_ranges(self)
-        for name in ("clamp_feed", "arc_combined_budget"):
-            if not isinstance(getattr(self, name), (bool, np.bool_)):
-                raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        for name in ("arc_speed_bands", "look_ahead_segments"):
-            value = getattr(self, name)
-            if isinstance(value, float) and not value.is_integer():
-                raise ConfigError(f"{name} must be a whole number, got {value!r}")
-            object.__setattr__(self, name, int(value))
 
 
 @dataclass(frozen=True)
@@ -255,9 +175,12 @@ class Interpolator:
         #: The program as written; :attr:`program` is the planned one (with blends).
         self.programmed_program = program
         self._profile_time_s, self._accel_decel = 0.0, ReferenceFilter(self.config.accel_decel)
-        tolerance_m = planning_tolerance_m(program, self.config)
-        self._jerk = None if limits.max_jerk_m_s3 is None else self._plan_jerk(program, tolerance_m)
-        self._stream = None if self._jerk is not None else start_stream(self, program, limits, tolerance_m)
+        tolerance_m, jerk_mode = planning_tolerance_m(program, self.config), self.config.jerk_mode
+        self._fir = None if limits.max_jerk_m_s3 is None or jerk_mode != "fir" else fir_settings(
+            limits, self.config.jerk_filter_period_s, tolerance_m, self.config.jerk_filter_tolerance_share)
+        tolerance_m -= 0.0 if self._fir is None else self._fir.filter_tolerance_m
+        self._jerk = None if limits.max_jerk_m_s3 is None or self._fir else self._plan_jerk(program, tolerance_m)
+        self._stream = None if self._jerk or self._fir else start_stream(self, program, limits, tolerance_m)
         if self._stream is not None or self._jerk is not None:
             return
         self._plans: dict[int, dict[str, Any]] = {}
@@ -267,6 +190,8 @@ class Interpolator:
         self.__dict__.update(self._plans.pop(id(self.blended.planned)))
         del self._plans
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
+        self._plan_end_s = self.duration_s  # fir: the program ends when the filter has drained
+        self.duration_s += 0.0 if self._fir is None else self._fir.window_s
 
     def _plan_jerk(self, program: Program, tolerance_m: float) -> JerkPlan:
         """The jerk-limited mode (:mod:`~cnc_contour_control.motion.jerk_plan`; its corners are not in
@@ -301,6 +226,7 @@ class Interpolator:
 
     def _plan(self, program: Program) -> None:
         tolerance_rad = math.radians(self.config.corner_angle_tolerance_deg)
+        program = program if self._fir is None else capped_program(program, self._fir)
         self.program = self._view = program
         self.cruise_speed_m_s, self.tangential_acceleration_m_s2, self.speed_bands = _plan_limits(
             program.segments, self.limits, self.config)
@@ -308,8 +234,10 @@ class Interpolator:
                                                                tolerance_rad, self.config.look_ahead_segments)
         speeds = self.junction_speeds_m_s
         lengths = np.array([segment.length_m for segment in self.program.segments])
+        dwell = program.junction_dwell_s if self._fir is None else stop_holds_s(program, speeds, tolerance_rad,
+                                                                                 self._fir)
         self._phases = phases = banded_phases(lengths, speeds[:-1], speeds[1:], self.cruise_speed_m_s,
-                                              self.speed_bands, self.program.junction_dwell_s)
+                                              self.speed_bands, dwell)
         self._phase_start_s = phases.start_s[:-1].tolist()
         self._phase_s0_m, self._phase_v0_m_s = phases.s0_m.tolist(), phases.v0_m_s.tolist()
         self._phase_accel_m_s2, self._phase_segment = phases.accel_m_s2.tolist(), phases.segment.tolist()
@@ -339,9 +267,20 @@ class Interpolator:
 
     def sample(self, t_s: float) -> ReferenceSample:
         """The reference at profile time ``t_s`` (s); before 0 holds the start, after the end holds the end."""
+        if self._fir is None or math.isnan(t_s) or t_s >= self.duration_s:
+            return self.plan_sample(t_s)
+        row = self.sample_array([t_s])
+        return ReferenceSample(row.position_m[0], row.velocity_m_s[0], row.acceleration_m_s2[0],
+                               float(row.path_length_m[0]), int(row.segment_index[0]), float(row.feed_m_s[0]),
+                               self._view.segments[int(row.segment_index[0])].feed_m_s, False,
+                               profile_time_s=max(t_s, 0.0))
+
+    def plan_sample(self, t_s: float) -> ReferenceSample:
+        """:meth:`sample` before the jerk filter (``jerk_mode`` ``fir``; the same otherwise): what an override
+        retimes."""
         if math.isnan(t_s):
             raise ConfigError(f"t_s must be a number, got {t_s}")
-        if t_s >= self.planned_end_s(t_s):
+        if t_s >= (self._plan_end_s if self._fir is not None else self.planned_end_s(t_s)):
             return self._end_sample()
         if self._jerk is not None:
             row = self.sample_array([t_s])
@@ -381,13 +320,19 @@ class Interpolator:
             Positions, velocities, accelerations of shape ``(M, n_axes)``.
         """
         t = np.asarray(times_s, dtype=float).reshape(-1)
+        if self._fir is not None:
+            return ReferenceTrajectory(*filtered_array(self._plan_array, t, self._fir, self.duration_s))
+        return self._plan_array(t)
+
+    def _plan_array(self, t: FloatArray) -> ReferenceTrajectory:
+        """:meth:`sample_array` before the jerk filter."""
         if self._jerk is not None:
             index, s_local, speed, position, velocity, acceleration = self._jerk.axis_arrays(t)
             done = t >= self.duration_s
             position[done] = self._end_point_m
             path = np.where(done, self._view.total_length_m, self._view.segment_start_m[index] + s_local)
             return ReferenceTrajectory(t, position, velocity, acceleration, path, index, speed, done)
-        end_s = self.planned_end_s(float(np.max(t, initial=0.0)))
+        end_s = self._plan_end_s if self._fir is not None else self.planned_end_s(float(np.max(t, initial=0.0)))
         clipped = np.clip(t, 0.0, end_s)
         phases = self._phases if self._stream is None else self._stream.phases()
         k = np.maximum(np.searchsorted(phases.start_s[:-1], clipped, side="right") - 1, 0)

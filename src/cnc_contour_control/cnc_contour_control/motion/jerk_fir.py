@@ -1,0 +1,198 @@
+"""The FIR jerk mode (``jerk_mode: fir``): the (v, a)-limited blended plan, then a moving average per axis.
+
+The planner plans the program as it does without a jerk limit (blends within ``P_b = (1 - s) P``,
+``s`` = ``jerk_filter_tolerance_share``), and the reference is the mean of the plan at the ``n`` sample times
+``t, t - T, ..., t - (n - 1) T`` (``T`` = ``jerk_filter_period_s``, ``n`` by
+:func:`~cnc_contour_control.motion.jerk_filter.filter_taps`): velocity and acceleration keep the plan's limits,
+the jerk keeps ``2 amax / (n T) <= jmax`` at ``T`` and at every multiple of ``T`` (a difference over a multiple
+is a positive-weight average of differences over ``T``). The program ends ``(n - 1) T`` after the plan.
+
+The average leaves the path where it curves. Two planning changes keep it within the filter's share
+``P_f = s P``:
+
+- **Curved segments** (arcs, blends) are slowed: at path speed ``v`` the ``n`` samples span ``L = v T_w``
+  (``T_w = (n - 1) T``); on a circle of curvature ``κ`` at constant speed the mean lies
+  ``κ v² T² (n² - 1) / 24`` inside it, so ``L <= sqrt(24 P_f / κ) T_w / (T sqrt(n² - 1))``. Where ``L`` would
+  pass the whole curve (a short blend of turn ``θ``: the samples on two lines at a corner, whose mean lies
+  ``L sin θ / 8`` off them), ``L <= max(length, 8 P_f / θ)`` as well. The bench and the property tests measure
+  the deviation on every sample (:mod:`~cnc_contour_control.motion.reference_check`).
+- **Stops at corners** hold still for ``T_w``: no window then holds samples of both lines while moving (a
+  window across a moving corner would cut it by up to ``amax T_w² sin θ / 8``). At rest the mean is on the path.
+
+With a feed override the interpolator is planned with :func:`~cnc_contour_control.motion.feed_override.
+planning_limits` (acceleration ÷ k², jerk ÷ k³), so its window ``T_w`` is ``k_max`` times the machine's: the
+caps hold at every ratio up to ``k_max`` while :class:`LiveJerkFilter` filters the retimed reference tick by tick
+with the machine's limits. The override's ramps keep the acceleration limit before the filter, so their jerk is
+limited after it.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.motion.arc import ArcSegment
+from cnc_contour_control.motion.axis_limits import AxisLimits
+from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.jerk_filter import FloatArray, MovingAverage, filter_taps, moving_average_rows
+from cnc_contour_control.motion.segment_tangents import junction_turns_rad
+
+if TYPE_CHECKING:  # annotations only: interpolation imports this module
+    from cnc_contour_control.motion.interpolation import ReferenceSample, ReferenceTrajectory
+
+#: Filtered arrays: times, positions, velocities, accelerations, path lengths, segments, feeds, done.
+FilteredArrays = tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, NDArray[np.intp], FloatArray,
+                       NDArray[np.bool_]]
+
+#: Rows of plan samples evaluated at once when the sample times are not on the filter's grid.
+_CHUNK_ROWS = 200_000
+
+
+@dataclass(frozen=True)
+class FirSettings:
+    """Taps ``n``, period ``T`` (s) and the filter's share of the path tolerance ``P_f`` (m)."""
+
+    taps: int
+    period_s: float
+    filter_tolerance_m: float
+    corner_tolerance_m: float
+
+    @property
+    def window_s(self) -> float:
+        """``(n - 1) T``, s: the span of the samples averaged, the motion's lengthening and a corner stop's hold."""
+        return (self.taps - 1) * self.period_s
+
+    def max_window_m(self, arc: ArcSegment) -> float:
+        """The longest path length the samples may span on ``arc`` (module notes), m."""
+        curvature = arc.radius_m * (arc.sweep_rad / arc.length_m) ** 2
+        if self.taps < 2 or curvature <= 0.0:
+            return math.inf
+        span = math.sqrt(24.0 * self.filter_tolerance_m / curvature) * (self.taps - 1) \
+            / math.sqrt(self.taps * self.taps - 1.0)
+        if span <= arc.length_m:
+            return span
+        return min(span, max(arc.length_m, 8.0 * self.corner_tolerance_m / abs(arc.sweep_rad)))
+
+
+def fir_settings(limits: AxisLimits, period_s: float, tolerance_m: float, share: float) -> FirSettings:
+    """The filter of ``limits`` (with ``max_jerk_m_s3``) at ``period_s`` (s) and ``share`` of ``tolerance_m`` (m)."""
+    return FirSettings(filter_taps(limits, period_s), period_s, share * tolerance_m, tolerance_m)
+
+
+def capped_program(program: Program, settings: FirSettings) -> Program:
+    """``program`` with each arc's feed capped so that the filter's samples span at most its window (m/s)."""
+    if settings.window_s <= 0.0:
+        return program
+    segments, changed = list(program.segments), False
+    for k, segment in enumerate(segments):
+        if isinstance(segment, ArcSegment):
+            cap = settings.max_window_m(segment) / settings.window_s
+            if cap < segment.feed_m_s:
+                segments[k], changed = dataclasses.replace(segment, feed_m_s=cap), True
+    return dataclasses.replace(program, segments=tuple(segments)) if changed else program
+
+
+def stop_holds_s(program: Program, speeds_m_s: FloatArray, tolerance_rad: float, settings: FirSettings) -> FloatArray:
+    """Each junction's dwell (s, ``(N + 1,)``): the program's, at least ``T_w`` where it stops at a turn."""
+    dwell = np.array(program.junction_dwell_s, dtype=float)
+    if len(program.segments) > 1 and settings.window_s > 0.0:
+        turning = (junction_turns_rad(program.segments) > tolerance_rad) & (speeds_m_s[1:-1] <= 0.0)
+        dwell[1:-1][turning] = np.maximum(dwell[1:-1][turning], settings.window_s)
+    return dwell
+
+
+def _on_grid(t: FloatArray, period_s: float) -> bool:
+    return t.size >= 2 and bool(np.all(np.abs(np.diff(t) - period_s) <= 1e-9 * period_s))
+
+
+def filtered_array(plan: Callable[[FloatArray], ReferenceTrajectory], times_s: FloatArray, settings: FirSettings,
+                   duration_s: float) -> FilteredArrays:
+    """The filtered reference at ``times_s`` (s, ``(M,)``) of the plan's ``plan(times)`` (one ends ``duration_s``).
+
+    Positions, velocities and accelerations are the means of the plan's at the ``n`` sample times; path length,
+    segment and ``done`` the plan's at the middle one; the feed the filtered velocity's norm; ``done`` from
+    ``duration_s`` on (every sample past the plan's end).
+    """
+    t, n, period = np.asarray(times_s, dtype=float), settings.taps, settings.period_s
+    if _on_grid(t, period):
+        raw = plan(t[0] + period * np.arange(-(n - 1), t.size))
+        middle = slice((n - 1) // 2, (n - 1) // 2 + t.size)
+        axes = [moving_average_rows(x, n) for x in (raw.position_m, raw.velocity_m_s, raw.acceleration_m_s2)]
+        fields = (raw.path_length_m[middle], raw.segment_index[middle])
+    else:
+        axes_parts: list[list[FloatArray]] = [[], [], []]
+        path_parts: list[FloatArray] = []
+        index_parts: list[np.ndarray] = []
+        step = max(1, _CHUNK_ROWS // n)
+        offsets = period * np.arange(-(n - 1), 1)
+        for start in range(0, t.size, step):
+            rows = t[start:start + step]
+            raw = plan((rows[:, None] + offsets[None, :]).reshape(-1))
+            for part, x in zip(axes_parts, (raw.position_m, raw.velocity_m_s, raw.acceleration_m_s2)):
+                part.append(x.reshape(rows.size, n, -1).mean(axis=1))
+            path_parts.append(raw.path_length_m.reshape(rows.size, n)[:, (n - 1) // 2])
+            index_parts.append(raw.segment_index.reshape(rows.size, n)[:, (n - 1) // 2])
+        axes = [np.concatenate(part) if part else np.zeros((0, 0)) for part in axes_parts]
+        fields = (np.concatenate(path_parts) if path_parts else np.zeros(0),
+                  np.concatenate(index_parts) if index_parts else np.zeros(0, dtype=np.intp))
+    done = t >= duration_s
+    feed = np.linalg.norm(axes[1], axis=1) if axes[1].size else np.zeros(t.size)
+    return t, axes[0], axes[1], axes[2], fields[0], fields[1].astype(np.intp), feed, done
+
+
+class LiveJerkFilter:
+    """The filter on the override's retimed reference, one tick at a time (what :class:`LiveReference` runs).
+
+    ``n = ceil(2 amax_j / (jmax_j T))`` over the machine's ``limits`` at the tick period ``T`` (the difference of
+    the first two stamps, fixed after). The sample's path length, segment and feed are the middle tick's; ``done``
+    once the last ``n`` samples are all done (the filter drained at the program's end).
+    """
+
+    def __init__(self, limits: AxisLimits) -> None:
+        self.limits = limits
+        self._average: MovingAverage | None = None
+        self._first: ReferenceSample | None = None
+        self._last_ns, self._period_ns = -1, 0
+        self._recent: deque[ReferenceSample] = deque(maxlen=1)
+        self._done_run = 0
+
+    def step(self, stamp_ns: int, sample: ReferenceSample) -> ReferenceSample:
+        """The filtered ``sample`` of the tick at ``stamp_ns`` (ns); an earlier or equal stamp restarts it."""
+        if self._first is None or stamp_ns <= self._last_ns:
+            self._first, self._average, self._last_ns = sample, None, stamp_ns
+            self._recent, self._done_run = deque([sample], maxlen=1), 0
+            return dataclasses.replace(sample, done=False)
+        if self._average is None:
+            self._start(stamp_ns - self._last_ns)
+        elif stamp_ns - self._last_ns != self._period_ns:
+            raise ConfigError(f"the jerk filter needs a fixed tick period {self._period_ns} ns, "
+                              f"got {stamp_ns - self._last_ns} ns at stamp {stamp_ns} ns")
+        assert self._average is not None
+        self._last_ns = stamp_ns
+        self._recent.append(sample)
+        self._done_run = self._done_run + 1 if sample.done else 0
+        values = self._average.step(np.concatenate([sample.position_m, sample.velocity_m_s,
+                                                    sample.acceleration_m_s2]).tolist())
+        n, middle = len(sample.position_m), self._recent[(len(self._recent) - 1) // 2]
+        velocity = np.array(values[n:2 * n])
+        return dataclasses.replace(middle, position_m=np.array(values[:n]), velocity_m_s=velocity,
+                                   acceleration_m_s2=np.array(values[2 * n:]),
+                                   feed_m_s=float(np.linalg.norm(velocity)),
+                                   done=self._done_run >= self._average.taps,
+                                   feed_override_ratio=sample.feed_override_ratio)
+
+    def _start(self, period_ns: int) -> None:
+        assert self._first is not None
+        self._period_ns = period_ns
+        taps = filter_taps(self.limits, period_ns * 1e-9)
+        first = self._first
+        self._average = MovingAverage(taps, 3 * len(first.position_m))
+        self._average.reset(np.concatenate([first.position_m, np.zeros(2 * len(first.position_m))]).tolist())
+        self._recent = deque([first] * (taps - 1), maxlen=taps)
