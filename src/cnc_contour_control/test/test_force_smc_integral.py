@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from cnc_contour_control.core.errors import ConfigError
@@ -42,6 +43,47 @@ def test_a_depth_step_leaves_the_layer_and_cuts_the_feed() -> None:
     assert not law.sliding and requested < 0.0
 
 
+STEADY_N = MODEL.steady_force_n(0.7, 2.0)  # 496.4 N: 70 % at 2 mm
+#: 2 -> 3 mm seen 1 ms after the step: the new depth's half more through the τ_c lag, 3.9 N
+FIRST_MS_N = STEADY_N * (1.0 + 0.5 * (1.0 - math.exp(-1.0e-3 / MODEL.chip_tau_s)))
+
+
+def settled_law(jump_fraction: float) -> SmcIntegralLaw:
+    law = SmcIntegralLaw(SmcIntegralConfig(eta_n_s2=1.0e5, integral_per_s=2.0, model=MODEL,
+                                           depth_jump_fraction=jump_fraction))
+    law.reset(0.7)
+    law.note_applied(0.7)
+    return law
+
+
+@pytest.mark.parametrize(("jump_fraction", "cuts"), [(0.02, True), (0.0, False)])
+def test_a_depth_steps_first_millisecond_ends_the_sliding_phase(jump_fraction: float, cuts: bool) -> None:
+    law = settled_law(jump_fraction)
+    for _ in range(25):
+        assert law.step(DT_S, STEADY_N, 500.0) == 0.7
+    requested = law.step(DT_S, FIRST_MS_N, 500.0)  # ẋ = 390 N/s: |s| < Φ, the surface alone sees nothing
+    assert law.sliding is not cuts
+    assert (requested < 0.0) is cuts, f"requested {requested}"
+
+
+def test_measurement_noise_raises_the_depth_jump_threshold_instead_of_tripping_it() -> None:
+    law = settled_law(0.02)
+    noise_n = np.random.default_rng(7).normal(0.0, 1.0, 1000)  # 1 N: a 1.8 % RMS change of the estimate
+    for k, noise in enumerate(noise_n):
+        law.step(DT_S, STEADY_N + noise, 500.0)
+        assert law.sliding, f"left the layer on noise at update {k}"
+
+
+def test_while_the_axis_feed_moves_the_depth_jump_is_not_tested() -> None:
+    law = settled_law(0.02)
+    for _ in range(25):
+        law.step(DT_S, STEADY_N, 500.0)
+    law.note_applied(0.8)  # a level up: the modelled feed moves for about 3 τ_s
+    law.step(DT_S, STEADY_N, 500.0)
+    law.step(DT_S, FIRST_MS_N, 500.0)
+    assert law.sliding
+
+
 def test_back_in_the_layer_the_integral_starts_from_the_axis_feed() -> None:
     law = steady_law(0.7)
     law.step(DT_S, 500.0, 500.0)
@@ -57,7 +99,8 @@ def test_back_in_the_layer_the_integral_starts_from_the_axis_feed() -> None:
 
 @pytest.mark.parametrize(("params", "name"), [({"integral_per_s": -1.0}, "integral_per_s"),
                                                ({"exit_factor": 0.5}, "exit_factor"),
-                                               ({"deadband_fraction": 0.9}, "deadband_fraction")])
+                                               ({"deadband_fraction": 0.9}, "deadband_fraction"),
+                                               ({"depth_jump_fraction": -0.1}, "depth_jump_fraction")])
 def test_a_bad_option_is_refused_naming_it(params: dict[str, float], name: str) -> None:
     with pytest.raises(ConfigError, match=name):
         make_force_law("smc_integral", params)

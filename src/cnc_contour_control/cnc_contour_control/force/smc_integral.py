@@ -6,7 +6,7 @@ beat the model's worst gain error β (Eq. 10), far too stiff for a 10 ms
 update behind the τ_s and τ_c lags, so the override bangs between its end
 levels. This law keeps the two phases apart, with hysteresis between them::
 
-    reaching (|s| > m Φ, or not yet inside Φ):   the paper's SMC (:mod:`.smc`), s = ẋ + λ x̃
+    reaching (|s| > m Φ, a depth jump, or not yet inside Φ):  the paper's SMC (:mod:`.smc`), s = ẋ + λ x̃
     sliding  (entered when |s| <= Φ):            r ← clip(r + dt k_I (F_ref − F)/Ĝ, 0, r_max)
                                                  (no change while |F_ref − F| <= δ F_ref)
     Ĝ = K_s f_prog d̂ [N per unit ratio],  d̂ = F/(K_s f_prog r_a) clipped to [d_min, d_max]
@@ -16,16 +16,39 @@ Entering the sliding phase, r starts at r_a (bumpless). The integral makes
 the loop an integrator of rate k_I [1/s] whatever the depth (Ĝ normalises the
 gain); over any steady cycle between two levels its state returns, so the
 force's mean sits at the reference (within δ) where no level lands. A depth
-step drives ẋ, and with it s, far outside m Φ at once, so the paper's law
-cuts the feed at the first update after the step.
+step drives ẋ, and with it s, far outside m Φ within an update or two, so the
+paper's law cuts the feed. The first update after a step may hold only a
+millisecond of its rise (a 0.8 % force change at 2 -> 3 mm), too little for
+s; the depth jump catches it: inverting one update of the τ_c lag,
+
+    d_k = (F_k − p F_{k−1}) / ((1 − p) K_s f_prog r̄_a),   p = exp(−dt/τ_c),   r̄_a the mean axis feed
+
+is the depth that explains this update's force (a 1 ms rise moves it by
+5 %). The sliding phase ends when |d_k − d_{k−1}| > max(j, 5 RMS) |d_{k−1}|,
+j the jump fraction and RMS that of the relative change over settled updates
+(measurement noise raises the threshold instead of tripping it), tested only
+while r_a has settled within 1 % of its level for 20 updates (a level change
+moves r_a in a way the axis may not follow exactly).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
-from cnc_contour_control.core.force_model import FirstOrderLag
+from cnc_contour_control.core.force_model import FirstOrderLag, lag_pole
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.force.smc import SmcConfig, SmcLaw
+
+#: The depth-jump test runs only while the modelled axis feed is within this fraction of the applied level,
+#: after this many such updates in a row (the first ones learn the estimate's jitter).
+SETTLED_FRACTION = 0.01
+SETTLED_UPDATES = 20
+#: The test's threshold is at least this many RMS of the estimate's change per update while settled (the mean
+#: square over the settled updates, then each update weighted this), so noise raises it instead of tripping it.
+JITTER_FACTOR = 5.0
+JITTER_WEIGHT = 0.02
+#: Below this mean axis feed [ratio] the force does not tell the depth.
+MIN_RATIO = 0.05
 
 
 @dataclass(frozen=True)
@@ -42,12 +65,18 @@ class SmcIntegralConfig(SmcConfig):
         No integration while |F_ref − F| <= δ F_ref, δ in [0, 0.5].
     ratio_max : float
         Clamp of the integral state [ratio], in [0, 10] (the switch's top).
+    depth_jump_fraction : float
+        The sliding phase ends when the depth estimate of one update moves by more than j (relative), j in
+        [0, 10] (0: no depth-jump test; module docstring).
     """
 
     integral_per_s: float = param(2.0, unit="1/s", low=0.0, high=100.0, description="sliding-phase integral rate")
     exit_factor: float = param(4.0, low=1.0, high=1.0e3, description="sliding phase ends when |s| > factor * Phi")
     deadband_fraction: float = param(0.01, low=0.0, high=0.5, description="no integration within this error")
     ratio_max: float = param(1.5, low=0.0, high=10.0, description="clamp of the integral state")
+    depth_jump_fraction: float = param(0.02, low=0.0, high=10.0,
+                                       description="sliding phase ends when the one-update depth estimate "
+                                                   "moves by more than this fraction (0: off)")
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -62,12 +91,17 @@ class SmcIntegralLaw:
         self.smc = SmcLaw(config)
         self._feed = FirstOrderLag(config.model.interpolator_tau_s, 1.0)
         self.sliding, self.ratio, self._applied = False, 1.0, 1.0
+        self._previous_n: float | None = None
+        self._depth_mm: float | None = None
+        self._settled, self._jitter_sq = 0, 0.0
 
     def reset(self, ratio: float = 1.0) -> None:
         """Steady at ``ratio``: in the sliding phase, the integral and the axis feed at ``ratio``."""
         self.smc.reset(ratio)
         self._feed.reset(ratio)
         self.sliding, self.ratio, self._applied = True, float(ratio), float(ratio)
+        self._previous_n, self._depth_mm = None, None
+        self._settled, self._jitter_sq = 0, 0.0
 
     def set_depth_mm(self, depth_mm: float) -> None:
         """The reaching law's model depth (the integral estimates its own gain)."""
@@ -84,13 +118,39 @@ class SmcIntegralLaw:
         depth = force_n / (per_mm * actual_ratio) if actual_ratio > 0.0 else model.depth_max_mm
         return per_mm * min(max(depth, model.depth_min_mm), model.depth_max_mm)
 
+    def _depth_jumped(self, dt_s: float, force_n: float, before: float, actual: float) -> bool:
+        """Whether the depth that explains this update's force moved by more than the jump threshold.
+
+        One update of the τ_c lag inverted: F = p F_prev + (1 − p) K_s f_prog d r̄_a, r̄_a the mean axis feed
+        over the update, p = exp(−dt/τ_c); tested only while the modelled feed has settled on its level.
+        """
+        model, previous, last_depth = self.config.model, self._previous_n, self._depth_mm
+        self._previous_n, self._depth_mm = force_n, None
+        mean_ratio = 0.5 * (before + actual)
+        if previous is None or mean_ratio < MIN_RATIO:
+            return False
+        pole = lag_pole(dt_s, model.chip_tau_s)
+        self._depth_mm = (force_n - pole * previous) / ((1.0 - pole) * model.steady_force_n(mean_ratio, 1.0))
+        if last_depth is None or abs(actual - self._applied) > SETTLED_FRACTION * actual:
+            self._settled = 0
+            return False
+        change = abs(self._depth_mm - last_depth) / max(abs(last_depth), 1.0e-9)
+        threshold = max(self.config.depth_jump_fraction, JITTER_FACTOR * math.sqrt(self._jitter_sq))
+        if self.config.depth_jump_fraction > 0.0 and self._settled >= SETTLED_UPDATES and change > threshold:
+            return True
+        self._settled += 1
+        self._jitter_sq += max(JITTER_WEIGHT, 1.0 / self._settled) * (change * change - self._jitter_sq)
+        return False
+
     def step(self, dt_s: float, force_n: float, reference_n: float) -> float:
         """One update (module docstring); returns the requested ratio."""
         cfg = self.config
+        before = self._feed.value
         actual = self._feed.step(dt_s, self._applied)
+        jumped = self._depth_jumped(dt_s, force_n, before, actual)
         reaching = self.smc.step(dt_s, force_n, reference_n)
         phi, surface = cfg.boundary_layer_n_s(reference_n), abs(self.smc.surface_n_s)
-        if self.sliding and surface > cfg.exit_factor * phi:
+        if self.sliding and (surface > cfg.exit_factor * phi or jumped):
             self.sliding = False
         elif not self.sliding and surface <= phi:
             self.sliding, self.ratio = True, actual
