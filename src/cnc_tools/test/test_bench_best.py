@@ -52,16 +52,13 @@ def test_a_tuned_pid_adds_its_two_goals() -> None:
         ("max reduction against the tuned PID", 0.5, False), ("mean reduction against the tuned PID", 0.7, False)]
 
 
-def test_paper000_our_stack_meets_the_goals_near_the_tuned_pid_max() -> None:
+def test_paper000_our_stack_meets_every_goal() -> None:
     """Paper 000's circle on the engine: PIDs, FLC, then 20 runs of PID + feedforward + ILC (about 1 s).
 
-    Against the PID tuned by differential evolution (gains at the box's edge) the max reduction sits at the
-    goal's edge (-79.4 % against 80 %, docs/reproduction.md, "Our best stack"): held to >= 75 % here.
+    The tuned PID's max is the tightest goal (35.5 um: ours must stay <= 7.09 um); ours reads 2.57 um.
     """
     contour = CONTOURS[0]
     outcomes = [run_contender(contender) for contender in contour.contenders]
     assert outcomes[-1].runs == contour.ours.runs == 20 and not outcomes[-1].fault
-    goals = {goal.name: goal for goal in judge_contour(contour, outcomes)}
-    edge = goals.pop("max reduction against the tuned PID")
-    assert all(goal.met for goal in goals.values()), goals
-    assert edge.value >= 0.75, edge
+    goals = judge_contour(contour, outcomes)
+    assert all(goal.met for goal in goals), goals
