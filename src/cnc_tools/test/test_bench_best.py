@@ -1,12 +1,14 @@
 """Bench ``best``: the contenders' files run the paper's own case, the goals are judged right, paper 000's hold."""
 from __future__ import annotations
 
+import dataclasses
+from pathlib import Path
 from typing import Any
 
 import pytest
 import yaml
 
-from cnc_tools.bench.best import CONTOURS, Contour, Outcome, judge, judge_contour, run_contender
+from cnc_tools.bench.best import CONTOURS, Contender, Contour, Outcome, judge, judge_contour, report, run_contender
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.scenario import load_scenario
 
@@ -62,3 +64,20 @@ def test_paper000_our_stack_meets_every_goal() -> None:
     assert outcomes[-1].runs == contour.ours.runs == 20 and not outcomes[-1].fault
     goals = judge_contour(contour, outcomes)
     assert all(goal.met for goal in goals), goals
+
+
+def test_a_faulted_contender_is_a_row_with_its_axis_time_and_reason(tmp_path: Path) -> None:
+    """Our stack with a 1 um following-error trip faults on X at its second tick: the bench prints the fault in the
+    stack's row, its goals read NOT met for the fault, the others stand."""
+    raw = yaml.safe_load((project_root() / CONTOURS[0].ours.scenario).read_text())
+    raw["servo"].update(min_ferror_m=1.0e-6, ferror_m=1.0e-6)
+    path = tmp_path / "tripped.yaml"
+    path.write_text(yaml.safe_dump(raw))
+    contour = dataclasses.replace(CONTOURS[0], ours=Contender("ours", "tripped", str(path), 3), tuned=None)
+    ours = run_contender(contour.ours)
+    assert (ours.runs, ours.fault_axis, ours.fault_time_s) == (1, "x", 0.01), ours
+    assert ours.fault.startswith("EngineFault: servo x: following error")
+    text, figures = report([contour], [Outcome(100.0, 60.0, 100.0, 1), Outcome(50.0, 30.0, 25.0, 1), ours])
+    assert "axis x, t 0.010 s: EngineFault: servo x: following error" in text
+    assert [g["met"] for g in figures[contour.key]["goals"]] == [False] * 4
+    assert text.count("a contender faulted") == 4
