@@ -49,7 +49,7 @@ def _zigzag(turns: int, side_m: float, turn_deg: float) -> Program:
 
 def _check(program: Program, limits: AxisLimits, tolerance_mm: float = 0.05) -> Interpolator:
     """Plan, sample every 1 ms and assert every limit and the path tolerance on every sample."""
-    config = InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True)
+    config = InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True, jerk_mode="scurve")
     interpolator, trajectory = sample_reference(program, limits, config, PERIOD_S)
     ratios = limit_ratios(trajectory.position_m, PERIOD_S, limits)
     assert ratios.worst() <= LIMIT_GOAL, ratios

@@ -37,7 +37,9 @@ knob; 1 before its first time), else the latest ``feed_override`` message's
 ratio (:func:`message_ratio`: its ``applied_ratio``, or a bare request's
 ``requested_ratio``); the follower's sample then passes the interpolator's
 acceleration/deceleration filter, as :meth:`Interpolator.reference` does. A
-filter is a positive-weight average of past samples, so it keeps the limits.
+filter is a positive-weight average of past samples, so it keeps the limits. With ``jerk_mode`` fir the
+follower retimes the plan before the jerk filter (:class:`~cnc_contour_control.motion.jerk_fir.LiveJerkFilter`),
+so the ratio's ramps come out jerk-limited too.
 """
 from __future__ import annotations
 
@@ -54,6 +56,7 @@ from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.motion.accel_decel import ReferenceFilter
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig, ReferenceSample
+from cnc_contour_control.motion.jerk_fir import LiveJerkFilter
 from cnc_contour_control.motion.plan_background import BackgroundPlanner
 
 _BISECTIONS = 40
@@ -163,7 +166,7 @@ class OverrideFollower:
         """Back to the program start with the applied ratio at rest value ``ratio`` (the profile starts at rest)."""
         self.profile_time_s = 0.0
         self.ratio = self._clip(ratio)
-        start = self.interpolator.sample(0.0).position_m
+        start = self.interpolator.plan_sample(0.0).position_m
         self._last_m, self._before_m = start, start
 
     def _clip(self, ratio: float) -> float:
@@ -173,7 +176,7 @@ class OverrideFollower:
         """The sample one tick ahead at ``ratio`` and whether it keeps the limits."""
         tau = self.profile_time_s + ratio * dt_s
         tau = min(tau, self.interpolator.planned_end_s(tau))  # a streaming plan is extended, not finished
-        base = self.interpolator.sample(tau)
+        base = self.interpolator.plan_sample(tau)  # before the jerk filter: LiveReference filters after the ratio
         rate = (ratio - self.ratio) / dt_s
         velocity = ratio * base.velocity_m_s
         acceleration = (ratio * ratio) * base.acceleration_m_s2 + rate * base.velocity_m_s
@@ -209,7 +212,7 @@ class OverrideFollower:
         dt = require_non_negative("dt_s", dt_s)
         target = self._clip(requested_ratio)
         if dt == 0.0:
-            base = self.interpolator.sample(self.profile_time_s)
+            base = self.interpolator.plan_sample(self.profile_time_s)
             return replace(base, velocity_m_s=self.ratio * base.velocity_m_s,
                            acceleration_m_s2=self.ratio ** 2 * base.acceleration_m_s2,
                            feed_m_s=self.ratio * base.feed_m_s, feed_override_ratio=self.ratio)
@@ -238,6 +241,8 @@ class LiveReference:
         self.interpolator = Interpolator(program, planning_limits(limits, config), interpolator_config)
         self.follower = OverrideFollower(self.interpolator, limits, config)
         self._filter = ReferenceFilter(interpolator_config.accel_decel)
+        #: The FIR jerk filter on the retimed reference (``jerk_mode`` fir), at the machine's limits.
+        self.jerk_filter = None if self.interpolator.jerk_filter is None else LiveJerkFilter(limits)
         self._last_ns: int | None = None
         stream = self.interpolator._stream  # a streaming plan (window shorter than the program), else None
         #: Plans a streaming profile ahead of the tool in its own thread (None: planned whole).
@@ -261,6 +266,8 @@ class LiveReference:
                 sample = self._advance(stamp_ns, requested_ratio)
                 self.planner.tool_at(self.follower.profile_time_s)
         self._last_ns = stamp_ns
+        if self.jerk_filter is not None:
+            sample = self.jerk_filter.step(stamp_ns, sample)
         return self._filtered(ns_to_s(stamp_ns), sample)
 
     def _advance(self, stamp_ns: int, requested_ratio: float) -> ReferenceSample:

@@ -55,7 +55,7 @@ from cnc_contour_control.motion.blending import BlendedProgram, quickest_blend
 from cnc_contour_control.motion.geometry import Program, Segment
 from cnc_contour_control.motion.interpolator_config import JERK_MODES as JERK_MODES
 from cnc_contour_control.motion.interpolator_config import InterpolatorConfig as InterpolatorConfig
-from cnc_contour_control.motion.jerk_fir import capped_program, filtered_array, fir_settings, stop_holds_s
+from cnc_contour_control.motion.jerk_fir import FirSettings, capped_program, filtered_array, fir_settings, stop_holds_s
 from cnc_contour_control.motion.jerk_plan import JerkPlan, quickest_jerk_plan
 from cnc_contour_control.motion.plan_arrays import (
     SpeedBands,
@@ -176,7 +176,7 @@ class Interpolator:
         self.programmed_program = program
         self._profile_time_s, self._accel_decel = 0.0, ReferenceFilter(self.config.accel_decel)
         tolerance_m, jerk_mode = planning_tolerance_m(program, self.config), self.config.jerk_mode
-        self._fir = None if limits.max_jerk_m_s3 is None or jerk_mode != "fir" else fir_settings(
+        self._fir = None if limits.max_jerk_m_s3 is None or jerk_mode != "fir" or tolerance_m <= 0.0 else fir_settings(
             limits, self.config.jerk_filter_period_s, tolerance_m, self.config.jerk_filter_tolerance_share)
         tolerance_m -= 0.0 if self._fir is None else self._fir.filter_tolerance_m
         self._jerk = None if limits.max_jerk_m_s3 is None or self._fir else self._plan_jerk(program, tolerance_m)
@@ -210,6 +210,11 @@ class Interpolator:
             raise AttributeError(name)
         self.__dict__.update(whole_plan(self, name))
         return self.__dict__[name]
+
+    @property
+    def jerk_filter(self) -> FirSettings | None:
+        """The FIR jerk filter's taps, period and tolerance share (``jerk_mode`` fir with a jerk limit), else None."""
+        return self._fir
 
     def planned_end_s(self, t_s: float) -> float:
         """The profile's duration (s), or inf while a streaming plan has not reached it after planning past ``t_s``.

@@ -168,7 +168,9 @@ class LiveJerkFilter:
         if self._first is None or stamp_ns <= self._last_ns:
             self._first, self._average, self._last_ns = sample, None, stamp_ns
             self._recent, self._done_run = deque([sample], maxlen=1), 0
-            return dataclasses.replace(sample, done=False)
+            zeros = np.zeros_like(sample.velocity_m_s)
+            return dataclasses.replace(sample, velocity_m_s=zeros, acceleration_m_s2=zeros.copy(), feed_m_s=0.0,
+                                       done=False)
         if self._average is None:
             self._start(stamp_ns - self._last_ns)
         elif stamp_ns - self._last_ns != self._period_ns:
