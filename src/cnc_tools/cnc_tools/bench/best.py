@@ -97,13 +97,10 @@ class Contour:
         return (self.pid, *((self.tuned,) if self.tuned else ()), self.paper, self.ours)
 
 
-#: Why paper 002's two goals are not met, each shown by one measurement (docs/reproduction.md, "Our best stack").
+#: Why paper 002's RMS goal is not met, shown by one measurement (docs/reproduction.md, "Our best stack").
 PAPER002_MISSES = (
     ("RMS: paper's best / ours", "the encoder's floor, not the loop: a perfect circle read through the 1/2.4 um "
-     "pulse is RMS 0.120 um; with a 1/24 um encoder ours reads RMS 0.023 um, 9.3x below MBDA + PDC's 0.212"),
-    ("max reduction against the paper's PID", "the 50 Hz disturbance's first 6 ms, before the DOB has an "
-     "estimate (max at t = 5 ms, also without the encoder); without the disturbance ours reads 1 pulse, "
-     "0.417 um (-88.9 %)"),
+     "pulse is RMS 0.120 um; with a 1/24 um encoder ours reads RMS 0.017 um, 12x below MBDA + PDC's 0.212"),
 )
 
 
