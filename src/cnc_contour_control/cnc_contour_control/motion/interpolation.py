@@ -55,7 +55,15 @@ from cnc_contour_control.motion.blending import BlendedProgram, quickest_blend
 from cnc_contour_control.motion.geometry import Program, Segment
 from cnc_contour_control.motion.interpolator_config import JERK_MODES as JERK_MODES
 from cnc_contour_control.motion.interpolator_config import InterpolatorConfig as InterpolatorConfig
-from cnc_contour_control.motion.jerk_fir import FirSettings, capped_program, filtered_array, fir_settings, stop_holds_s
+from cnc_contour_control.motion.jerk_fir import (
+    FirSettings,
+    capped_program,
+    filtered_array,
+    fir_attempts,
+    fir_settings,
+    stop_holds_s,
+    within_tolerance,
+)
 from cnc_contour_control.motion.jerk_plan import JerkPlan, quickest_jerk_plan
 from cnc_contour_control.motion.plan_arrays import (
     SpeedBands,
@@ -183,13 +191,23 @@ class Interpolator:
         self._stream = None if self._jerk or self._fir else start_stream(self, program, limits, tolerance_m)
         if self._stream is not None or self._jerk is not None:
             return
+        self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
+        for fir in [None] if self._fir is None else fir_attempts(self._fir):
+            self._fir = fir
+            self._plan_blended(program, tolerance_m, tolerance_rad)
+            if self._fir is None or within_tolerance(self.sample_array, self.duration_s, self._fir, program,
+                                                     tolerance_m + self._fir.filter_tolerance_m):
+                return
+        self._fir, self._jerk = None, self._plan_jerk(program, planning_tolerance_m(program, self.config))
+
+    def _plan_blended(self, program: Program, tolerance_m: float, tolerance_rad: float) -> None:
+        """The (v, a) plan over the quickest blend of ``program`` (:func:`quickest_blend`)."""
         self._plans: dict[int, dict[str, Any]] = {}
         self.blended = quickest_blend(program, tolerance_m, tolerance_rad, CornerLimits(
-            np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
+            np.asarray(self.limits.max_velocity_m_s), np.asarray(self.limits.max_acceleration_m_s2),
             self.config.arc_centripetal_fraction), self._planned_duration_s)
         self.__dict__.update(self._plans.pop(id(self.blended.planned)))
         del self._plans
-        self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
         self._plan_end_s = self.duration_s  # fir: the program ends when the filter has drained
         self.duration_s += 0.0 if self._fir is None else self._fir.window_s
 

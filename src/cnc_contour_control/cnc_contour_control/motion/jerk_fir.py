@@ -86,6 +86,25 @@ def fir_settings(limits: AxisLimits, period_s: float, tolerance_m: float, share:
     return FirSettings(filter_taps(limits, period_s), period_s, share * tolerance_m, tolerance_m)
 
 
+#: Shares of the caps' tolerances :func:`fir_attempts` plans with, in order, before giving up the mode.
+ATTEMPT_SHARES = (1.0, 0.25, 0.0625)
+
+
+def fir_attempts(settings: FirSettings) -> list[FirSettings]:
+    """``settings`` with its caps' tolerances at each of :data:`ATTEMPT_SHARES` (tighter caps, slower curves)."""
+    return [dataclasses.replace(settings, filter_tolerance_m=share * settings.filter_tolerance_m,
+                                corner_tolerance_m=share * settings.corner_tolerance_m) for share in ATTEMPT_SHARES]
+
+
+def within_tolerance(sample_array: Callable[[FloatArray], ReferenceTrajectory], duration_s: float,
+                     settings: FirSettings, program: Program, tolerance_m: float) -> bool:
+    """Whether the filtered reference (``sample_array``) is within ``tolerance_m`` (m) of ``program`` at every
+    multiple of the filter's period up to ``duration_s`` (s): the check of the caps' estimates."""
+    times = settings.period_s * np.arange(0, math.ceil(duration_s / settings.period_s) + 1)
+    distance = program.contour_distance(sample_array(times).position_m)[0]
+    return bool(distance.max(initial=0.0) <= tolerance_m)
+
+
 def capped_program(program: Program, settings: FirSettings) -> Program:
     """``program`` with each arc's feed capped so that the filter's samples span at most its window (m/s)."""
     if settings.window_s <= 0.0:
