@@ -192,11 +192,11 @@ class Interpolator:
         if self._stream is not None or self._jerk is not None:
             return
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
-        for fir in [None] if self._fir is None else fir_attempts(self._fir):
+        for fir, blend_m in [(None, tolerance_m)] if self._fir is None else fir_attempts(self._fir, tolerance_m):
             self._fir = fir
-            self._plan_blended(program, tolerance_m, tolerance_rad)
-            if self._fir is None or within_tolerance(self.sample_array, self.duration_s, self._fir, program,
-                                                     tolerance_m + self._fir.filter_tolerance_m):
+            self._plan_blended(program, blend_m, tolerance_rad)
+            if fir is None or within_tolerance(self.sample_array, self.duration_s, fir, program,
+                                               planning_tolerance_m(program, self.config)):
                 return
         self._fir, self._jerk = None, self._plan_jerk(program, planning_tolerance_m(program, self.config))
 

@@ -86,14 +86,16 @@ def fir_settings(limits: AxisLimits, period_s: float, tolerance_m: float, share:
     return FirSettings(filter_taps(limits, period_s), period_s, share * tolerance_m, tolerance_m)
 
 
-#: Shares of the caps' tolerances :func:`fir_attempts` plans with, in order, before giving up the mode.
-ATTEMPT_SHARES = (1.0, 0.25, 0.0625)
+#: Shares of the caps' tolerances :func:`fir_attempts` plans with, in order, the last one stopping at every corner.
+ATTEMPT_SHARES = (1.0, 0.25, 0.25)
 
 
-def fir_attempts(settings: FirSettings) -> list[FirSettings]:
-    """``settings`` with its caps' tolerances at each of :data:`ATTEMPT_SHARES` (tighter caps, slower curves)."""
-    return [dataclasses.replace(settings, filter_tolerance_m=share * settings.filter_tolerance_m,
-                                corner_tolerance_m=share * settings.corner_tolerance_m) for share in ATTEMPT_SHARES]
+def fir_attempts(settings: FirSettings, blend_tolerance_m: float) -> list[tuple[FirSettings, float]]:
+    """``settings`` with its caps' tolerances at each of :data:`ATTEMPT_SHARES` (tighter caps, slower curves), and
+    the blends' tolerance (m): ``blend_tolerance_m``, in the last attempt 0 (every corner a stop, held)."""
+    return [(dataclasses.replace(settings, filter_tolerance_m=share * settings.filter_tolerance_m,
+                                 corner_tolerance_m=share * settings.corner_tolerance_m),
+             blend_tolerance_m if k < len(ATTEMPT_SHARES) - 1 else 0.0) for k, share in enumerate(ATTEMPT_SHARES)]
 
 
 def within_tolerance(sample_array: Callable[[FloatArray], ReferenceTrajectory], duration_s: float,
