@@ -17,6 +17,8 @@ way: the exact contour error (distance to the program) of every joint-state samp
 reference to the end of the run (:func:`~cnc_tools.analysis.scoring.contour_error_series`), its maximum,
 RMS and mean [µm]. The goals (issue 26): our stack at least 2x lower max and 3x lower RMS than the paper's
 best method, and at least 80 % lower max and 85 % lower mean than the PID (each PID the contour has).
+A contender whose run faults is a row with the fault's axis, time and reason, and the goals it takes part in
+are not met; a goal the suite knows it misses prints the measured reason beside it.
 
 Paper 004 regulates the cutting force of a turning pass through the feed override: a force loop with no
 contour to compare; its figures are ``cnc-contour bench paper004``'s, and this bench prints a line saying so.
