@@ -84,6 +84,21 @@ def test_while_the_axis_feed_moves_the_depth_jump_is_not_tested() -> None:
     assert law.sliding
 
 
+@pytest.mark.parametrize(("applied", "hold_band", "holds"), [(0.7, 0.05, True), (0.72, 0.05, False),
+                                                            (0.7, 0.0, False)])
+def test_a_held_level_that_lands_stops_the_integral(applied: float, hold_band: float, holds: bool) -> None:
+    """480 N (−4 %) at 2 mm: 0.7 lands; 0.72 (a continuous override at the integral's state) is no held level."""
+    law = SmcIntegralLaw(SmcIntegralConfig(eta_n_s2=1.0e5, integral_per_s=2.0, model=MODEL,
+                                           hold_band_fraction=hold_band))
+    law.reset(applied)
+    law.ratio = 0.72  # the integral's state, off the level the switch holds (0.72 is within 0.75 of 0.7)
+    law.note_applied(applied)
+    force_n = 480.0 * applied / 0.7
+    law.step(DT_S, force_n, 500.0)
+    assert law.sliding
+    assert (law.ratio == 0.72) is holds, f"ratio {law.ratio}"
+
+
 def test_back_in_the_layer_the_integral_starts_from_the_axis_feed() -> None:
     law = steady_law(0.7)
     law.step(DT_S, 500.0, 500.0)
@@ -100,7 +115,8 @@ def test_back_in_the_layer_the_integral_starts_from_the_axis_feed() -> None:
 @pytest.mark.parametrize(("params", "name"), [({"integral_per_s": -1.0}, "integral_per_s"),
                                                ({"exit_factor": 0.5}, "exit_factor"),
                                                ({"deadband_fraction": 0.9}, "deadband_fraction"),
-                                               ({"depth_jump_fraction": -0.1}, "depth_jump_fraction")])
+                                               ({"depth_jump_fraction": -0.1}, "depth_jump_fraction"),
+                                               ({"hold_band_fraction": 0.6}, "hold_band_fraction")])
 def test_a_bad_option_is_refused_naming_it(params: dict[str, float], name: str) -> None:
     with pytest.raises(ConfigError, match=name):
         make_force_law("smc_integral", params)

@@ -8,14 +8,19 @@ levels. This law keeps the two phases apart, with hysteresis between them::
 
     reaching (|s| > m Φ, a depth jump, or not yet inside Φ):  the paper's SMC (:mod:`.smc`), s = ẋ + λ x̃
     sliding  (entered when |s| <= Φ):            r ← clip(r + dt k_I (F_ref − F)/Ĝ, 0, r_max)
-                                                 (no change while |F_ref − F| <= δ F_ref)
+                                                 (no change while |F_ref − F| <= δ F_ref, or while the
+                                                 switch holds a level off r whose steady force
+                                                 F r_applied/r_c is within h F_ref: that level lands)
     Ĝ = K_s f_prog d̂ [N per unit ratio],  d̂ = F/(K_s f_prog r_a) clipped to [d_min, d_max]
-    r_a: the applied ratios through the model's τ_s lag (the feed the axis has now)
+    r_a: the applied ratios through the model's τ_s lag (the feed the axis has now); r_c: r_a through τ_c
 
 Entering the sliding phase, r starts at r_a (bumpless). The integral makes
 the loop an integrator of rate k_I [1/s] whatever the depth (Ĝ normalises the
 gain); over any steady cycle between two levels its state returns, so the
-force's mean sits at the reference (within δ) where no level lands. A depth
+force's mean sits at the reference (within δ) where no level lands. Where one
+lands, but outside δ, the integral alone would walk off it to the next level and
+back (a slow cycle of ±5-10 %); the hold band keeps it (with a continuous
+override the switch holds no level off r, so the integral runs on). A depth
 step drives ẋ, and with it s, far outside m Φ within an update or two, so the
 paper's law cuts the feed. The first update after a step may hold only a
 millisecond of its rise (a 0.8 % force change at 2 -> 3 mm), too little for
@@ -65,6 +70,9 @@ class SmcIntegralConfig(SmcConfig):
         No integration while |F_ref − F| <= δ F_ref, δ in [0, 0.5].
     ratio_max : float
         Clamp of the integral state [ratio], in [0, 10] (the switch's top).
+    hold_band_fraction : float
+        No integration while the held level's steady force F r_applied/r_a is within h F_ref, h in [0, 0.5]
+        (0: off; module docstring).
     depth_jump_fraction : float
         The sliding phase ends when the depth estimate of one update moves by more than j (relative), j in
         [0, 10] (0: no depth-jump test; module docstring).
@@ -74,6 +82,9 @@ class SmcIntegralConfig(SmcConfig):
     exit_factor: float = param(4.0, low=1.0, high=1.0e3, description="sliding phase ends when |s| > factor * Phi")
     deadband_fraction: float = param(0.01, low=0.0, high=0.5, description="no integration within this error")
     ratio_max: float = param(1.5, low=0.0, high=10.0, description="clamp of the integral state")
+    hold_band_fraction: float = param(0.05, low=0.0, high=0.5,
+                                      description="no integration while the held level's steady force is within "
+                                                  "this fraction of the reference (0: off)")
     depth_jump_fraction: float = param(0.02, low=0.0, high=10.0,
                                        description="sliding phase ends when the one-update depth estimate "
                                                    "moves by more than this fraction (0: off)")
@@ -90,6 +101,7 @@ class SmcIntegralLaw:
         self.config = config
         self.smc = SmcLaw(config)
         self._feed = FirstOrderLag(config.model.interpolator_tau_s, 1.0)
+        self._chip = FirstOrderLag(config.model.chip_tau_s, 1.0)
         self.sliding, self.ratio, self._applied = False, 1.0, 1.0
         self._previous_n: float | None = None
         self._depth_mm: float | None = None
@@ -99,6 +111,7 @@ class SmcIntegralLaw:
         """Steady at ``ratio``: in the sliding phase, the integral and the axis feed at ``ratio``."""
         self.smc.reset(ratio)
         self._feed.reset(ratio)
+        self._chip.reset(ratio)
         self.sliding, self.ratio, self._applied = True, float(ratio), float(ratio)
         self._previous_n, self._depth_mm = None, None
         self._settled, self._jitter_sq = 0, 0.0
@@ -142,12 +155,21 @@ class SmcIntegralLaw:
         self._jitter_sq += max(JITTER_WEIGHT, 1.0 / self._settled) * (change * change - self._jitter_sq)
         return False
 
+    def _level_lands(self, force_n: float, reference_n: float, chip_ratio: float) -> bool:
+        """Whether the switch holds a level off the integral's state whose steady force, F r_applied/r_c, lies
+        within the hold band of the reference (r_c: the axis feed through the τ_c lag, as the force has it)."""
+        band = self.config.hold_band_fraction
+        if band <= 0.0 or chip_ratio < MIN_RATIO or abs(self._applied - self.ratio) <= 1.0e-9:
+            return False
+        return abs(force_n * self._applied / chip_ratio - reference_n) <= band * reference_n
+
     def step(self, dt_s: float, force_n: float, reference_n: float) -> float:
         """One update (module docstring); returns the requested ratio."""
         cfg = self.config
         before = self._feed.value
         actual = self._feed.step(dt_s, self._applied)
         jumped = self._depth_jumped(dt_s, force_n, before, actual)
+        chip_ratio = self._chip.step(dt_s, 0.5 * (before + actual))
         reaching = self.smc.step(dt_s, force_n, reference_n)
         phi, surface = cfg.boundary_layer_n_s(reference_n), abs(self.smc.surface_n_s)
         if self.sliding and (surface > cfg.exit_factor * phi or jumped):
@@ -157,7 +179,8 @@ class SmcIntegralLaw:
         if not self.sliding:
             return reaching
         error_n = reference_n - force_n
-        if abs(error_n) > cfg.deadband_fraction * reference_n:
+        outside = abs(error_n) > cfg.deadband_fraction * reference_n
+        if outside and not self._level_lands(force_n, reference_n, chip_ratio):
             self.ratio += dt_s * cfg.integral_per_s * error_n / self._gain_n(force_n, actual)
         self.ratio = min(max(self.ratio, 0.0), cfg.ratio_max)
         return self.ratio
