@@ -3,20 +3,16 @@ from __future__ import annotations
 
 import pytest
 
-from cnc_contour_control.force import ForceRegulator, ForceRegulatorConfig
-from cnc_plant_sim.process.turning import TurningConfig
 from cnc_tools.reproductions.paper004 import data
-from cnc_tools.reproductions.paper004.bench import MAX_CHANGES_PER_S, floors
+from cnc_tools.reproductions.paper004.bench import MAX_CHANGES_PER_S, STEP_PHASES_S, floors
 from cnc_tools.reproductions.paper004.runs import (
     OURS_CASES,
-    SAMPLE_S,
+    OURS_NO_JUMP,
     UPDATE_PERIOD_S,
     Result,
-    paper_model,
     run_case,
-    switch,
+    step_phase_overshoots,
 )
-from cnc_tools.reproductions.paper004.sim import Loop, simulate
 
 BAND_N = data.BAND_FRACTION * data.REFERENCE_N
 
@@ -40,25 +36,15 @@ def test_both_steps_overshoot_at_most_1_2_times_the_floor(ours: Result) -> None:
     assert step_23.step_overshoot_pct <= 1.2 * at_once[(2.0, 3.0)].overshoot_pct
 
 
-def _step_23_overshoot_pct(step_s: float) -> float:
-    """2 -> 3 mm at ``step_s`` [s], from steady cutting at 2 mm, 1 s run: the step's overshoot [%]."""
-    model, case = paper_model(), next(c for c in OURS_CASES if c.key == "ours/4bit")
-    schedule = ((0.0, 2.0), (step_s, 3.0))
-    regulator = ForceRegulator(ForceRegulatorConfig(
-        law=case.law, law_params=case.law_params, quantiser=switch(True), update_period_s=UPDATE_PERIOD_S,
-        hysteresis_fraction=case.hysteresis_fraction))
-    process = TurningConfig(specific_force_n_mm2=model.specific_force_n_mm2, spindle_rpm=model.spindle_rpm,
-                            depth_schedule=schedule)
-    traces = simulate(Loop(model, process, dt_s=SAMPLE_S, duration_s=1.0), regulator, data.REFERENCE_N)
-    return 100.0 * (float(traces.force_n[traces.t_s > step_s].max()) / data.REFERENCE_N - 1.0)
-
-
 def test_the_2_to_3_mm_step_is_cut_at_the_first_update_that_sees_it_whatever_its_phase() -> None:
     """Wherever the step falls in the 10 ms update period, the overshoot is at most that of a cut 10 ms late."""
     late = floors(UPDATE_PERIOD_S)[(2.0, 3.0)].overshoot_pct
-    overshoots = [_step_23_overshoot_pct(0.5 + 1.0e-3 * phase_ms) for phase_ms in range(10)]
+    ours = next(c for c in OURS_CASES if c.key == "ours/4bit")
+    overshoots = step_phase_overshoots(ours, (2.0, 3.0), STEP_PHASES_S)
     assert max(overshoots) <= late, overshoots
     assert late > 1.2 * floors()[(2.0, 3.0)].overshoot_pct, "a cut 10 ms late is above the goal from 500 N"
+    without = step_phase_overshoots(OURS_NO_JUMP, (2.0, 3.0), STEP_PHASES_S)
+    assert max(without) > late, f"the surface alone misses an update's first milliseconds: {without}"
 
 
 def test_with_the_preview_both_steps_stay_within_5_percent() -> None:

@@ -11,10 +11,11 @@ Printed:
 3. the paper's claims (it gives figures, no numbers) with our verdicts;
 4. the SMC from rest;
 5. the preview plan (SMC as the feedback), right and deliberately wrong;
-6. issue 12's goals for our best regulator under the 4-bit switch;
+6. issue 12's goals for our best regulator under the 4-bit switch; 6b. ours with each
+   depth step at each millisecond of the update period, with and without its depth-jump test;
 
 and the force-trace figures (``fig_*.png``) in the output folder.
-``--quick``: 6 s runs (the 1 -> 2 mm step only), no ε study, two preview rows.
+``--quick``: 6 s runs (the 1 -> 2 mm step only), no ε study, two preview rows, no 6b.
 """
 from __future__ import annotations
 
@@ -37,12 +38,14 @@ from cnc_tools.reproductions.paper004.runs import (
     EPSILONS,
     MAIN_CASES,
     OURS_CASES,
+    OURS_NO_JUMP,
     PREVIEW_CASES,
     REST_CASES,
     UPDATE_PERIOD_S,
     Result,
     paper_model,
     run_case,
+    step_phase_overshoots,
     switch,
 )
 from cnc_tools.runs.folders import project_root, timestamp
@@ -198,6 +201,29 @@ def print_goals(results: dict[str, Result], step_floors: dict[tuple[float, float
     return figures
 
 
+#: The step's phases in the update period of section 6b [s].
+STEP_PHASES_S = tuple(1.0e-3 * k for k in range(10))
+
+
+def print_step_phases() -> dict[str, Any]:
+    """Section 6b: ours, 4-bit, each step's overshoot with the step at each millisecond of the update period."""
+    ours = next(c for c in OURS_CASES if c.key == "ours/4bit")
+    goal = {s: 1.2 * f.overshoot_pct for s, f in floors().items()}
+    rows, figures = [], {}
+    for case in (ours, OURS_NO_JUMP):
+        for step in STEPS:
+            values = step_phase_overshoots(case, step, STEP_PHASES_S)
+            above = sum(v > goal[step] for v in values)
+            rows.append([case.label, f"{step[0]:g} -> {step[1]:g} mm", " ".join(f"{v:.1f}" for v in values),
+                         f"{max(values):.2f}", f"{goal[step]:.2f}", f"{above} of {len(values)}"])
+            figures[f"{case.key} {step[0]:g}->{step[1]:g}"] = values
+    print("6b. The step anywhere in the 10 ms update period (ours, 4-bit, from steady cutting; phase 0: an update "
+          "1 ms after the step)")
+    print(format_table(["run", "step", "overshoot [%] at phase 0 ... 9 ms", "max [%]", "goal [%]", "above goal"],
+                       rows))
+    return figures
+
+
 def _out_dir(options: argparse.Namespace) -> Path:
     out = getattr(options, "out", None)
     return Path(out) if out else project_root() / "bags" / "bench" / options.name / timestamp()
@@ -236,6 +262,8 @@ def paper004_bench(options: argparse.Namespace) -> int:
     print_results("5. Preview from the depth schedule (SMC as feedback; goal overshoot <= 5 % with the right one)",
                   preview, step_floors)
     figures["goals"] = print_goals(results, step_floors)
+    if not quick:
+        figures["step_phases"] = print_step_phases()
     figures["runs"] = {k: [vars(s) for s in r.segments] for k, r in results.items()}
     written = _figures(_out_dir(options), results)
     print(f"figures: {', '.join(written)}")

@@ -8,7 +8,7 @@ reference with the continuous ratio for 1 mm (quantised by the switch);
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -103,6 +103,11 @@ PREVIEW_CASES: tuple[Case, ...] = (
 )
 
 
+#: Ours without the depth-jump test (``depth_jump_fraction`` 0): the step is seen by the surface alone.
+OURS_NO_JUMP = Case("ours-no-jump/4bit", "ours without the depth-jump test, 4-bit", "smc_integral", True,
+                    law_params={**data.OURS_PARAMS, "depth_jump_fraction": 0.0},
+                    hysteresis_fraction=data.OURS_HYSTERESIS)
+
 #: Ours: the paper's SMC to reach the layer, an integral inside it, the switch's hysteresis (``smc_integral``).
 OURS_CASES: tuple[Case, ...] = (
     Case("ours/cont", "ours (SMC + integral), continuous", "smc_integral", False, law_params=data.OURS_PARAMS),
@@ -149,3 +154,22 @@ def run_case(case: Case, duration_s: float = data.DURATION_S, preview: PreviewCo
     schedule = DepthSchedule(data.DEPTH_SCHEDULE)
     return Result(case, traces, segments(traces, schedule, data.REFERENCE_N, data.BAND_FRACTION),
                   switchings_per_s(traces), plans)
+
+
+def step_phase_overshoots(case: Case, depths_mm: tuple[float, float], phases_s: Sequence[float],
+                          lead_s: float = 0.5, after_s: float = 0.5) -> list[float]:
+    """The overshoot [%] of one depth step ``depths_mm`` under ``case`` (no preview), for each phase of the step
+    in the update period: steady cutting at the first depth, the step at ``lead_s`` + phase [s] (an update falls
+    1 ms after ``lead_s``), the peak within ``after_s`` [s] after it."""
+    model, out = paper_model(), []
+    for phase_s in phases_s:
+        step_s = lead_s + phase_s
+        schedule = ((0.0, depths_mm[0]), (step_s, depths_mm[1]))
+        config = ForceRegulatorConfig(law=case.law, law_params=case.law_params, quantiser=switch(case.quantised),
+                                      update_period_s=UPDATE_PERIOD_S, hysteresis_fraction=case.hysteresis_fraction)
+        loop = Loop(model, TurningConfig(specific_force_n_mm2=model.specific_force_n_mm2,
+                                         spindle_rpm=model.spindle_rpm, depth_schedule=schedule),
+                    dt_s=SAMPLE_S, duration_s=step_s + after_s)
+        traces = simulate(loop, ForceRegulator(config), data.REFERENCE_N)
+        out.append(100.0 * (float(traces.force_n[traces.t_s > step_s].max()) / data.REFERENCE_N - 1.0))
+    return out
