@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 
 import numpy as np
 import pytest
@@ -60,7 +61,7 @@ def test_bad_options_are_refused_naming_them(changes: dict[str, object], words: 
     assert all(word in str(caught.value) for word in words), str(caught.value)
 
 
-def _polyline(points: list[tuple[float, ...]], feed_m_s: float) -> Program:
+def _polyline(points: Sequence[tuple[float, ...]], feed_m_s: float) -> Program:
     segments = tuple(LineSegment(np.array(a, float), np.array(b, float), feed_m_s)
                      for a, b in zip(points[:-1], points[1:]))
     axes = ("x", "y", "z")[:len(points[0])]

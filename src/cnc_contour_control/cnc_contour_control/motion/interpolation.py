@@ -249,7 +249,7 @@ class Interpolator:
 
     def _plan(self, program: Program) -> None:
         tolerance_rad = math.radians(self.config.corner_angle_tolerance_deg)
-        program = program if self._fir is None else capped_program(program, self._fir)
+        program = program if self._fir is None else capped_program(program, self._fir, self.programmed_program)
         self.program = self._view = program
         self.cruise_speed_m_s, self.tangential_acceleration_m_s2, self.speed_bands = _plan_limits(
             program.segments, self.limits, self.config)

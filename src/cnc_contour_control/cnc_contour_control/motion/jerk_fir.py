@@ -12,7 +12,8 @@ The average leaves the path where it curves. Two planning changes keep it within
 
 - **Curved segments** (arcs, blends) are slowed: at path speed ``v`` the ``n`` samples span ``L = v T_w``
   (``T_w = (n - 1) T``); on a circle of curvature ``κ`` at constant speed the mean lies
-  ``κ v² T² (n² - 1) / 24`` inside it, so ``L <= sqrt(24 P_f / κ) T_w / (T sqrt(n² - 1))``. Where ``L`` would
+  ``κ v² T² (n² - 1) / 24`` inside it, so ``L <= sqrt(24 P_f / κ) T_w / (T sqrt(n² - 1))`` (an arc as
+  written, not a blend, may take the whole of P). Where ``L`` would
   pass the whole curve (a short blend of turn ``θ``: the samples on two lines at a corner, whose mean lies
   ``L sin θ / 8`` off them), ``L <= max(length, 8 P_f / θ)`` as well. The bench and the property tests measure
   the deviation on every sample (:mod:`~cnc_contour_control.motion.reference_check`).
@@ -69,12 +70,14 @@ class FirSettings:
         """``(n - 1) T``, s: the span of the samples averaged, the motion's lengthening and a corner stop's hold."""
         return (self.taps - 1) * self.period_s
 
-    def max_window_m(self, arc: ArcSegment) -> float:
-        """The longest path length the samples may span on ``arc`` (module notes), m."""
+    def max_window_m(self, arc: ArcSegment, written: bool = False) -> float:
+        """The longest path length the samples may span on ``arc`` (module notes), m; a ``written`` arc (not a
+        blend's, which has used the rest of P) may take the whole tolerance."""
         curvature = arc.radius_m * (arc.sweep_rad / arc.length_m) ** 2
         if self.taps < 2 or curvature <= 0.0:
             return math.inf
-        span = math.sqrt(24.0 * self.filter_tolerance_m / curvature) * (self.taps - 1) \
+        tolerance_m = self.corner_tolerance_m if written else self.filter_tolerance_m
+        span = math.sqrt(24.0 * tolerance_m / curvature) * (self.taps - 1) \
             / math.sqrt(self.taps * self.taps - 1.0)
         if span <= arc.length_m:
             return span
@@ -102,19 +105,21 @@ def within_tolerance(sample_array: Callable[[FloatArray], ReferenceTrajectory], 
                      settings: FirSettings, program: Program, tolerance_m: float) -> bool:
     """Whether the filtered reference (``sample_array``) is within ``tolerance_m`` (m) of ``program`` at every
     multiple of the filter's period up to ``duration_s`` (s): the check of the caps' estimates."""
-    times = settings.period_s * np.arange(0, math.ceil(duration_s / settings.period_s) + 1)
+    times = np.asarray(settings.period_s * np.arange(0, math.ceil(duration_s / settings.period_s) + 1), np.float64)
     distance = program.contour_distance(sample_array(times).position_m)[0]
     return bool(distance.max(initial=0.0) <= tolerance_m)
 
 
-def capped_program(program: Program, settings: FirSettings) -> Program:
-    """``program`` with each arc's feed capped so that the filter's samples span at most its window (m/s)."""
+def capped_program(program: Program, settings: FirSettings, written: Program | None = None) -> Program:
+    """``program`` with each arc's feed capped so that the filter's samples span at most its window (m/s); the arcs
+    of ``written`` (the program as written) are not blends."""
+    kept = {id(segment) for segment in written.segments} if written is not None else set()
     if settings.window_s <= 0.0:
         return program
     segments, changed = list(program.segments), False
     for k, segment in enumerate(segments):
         if isinstance(segment, ArcSegment):
-            cap = settings.max_window_m(segment) / settings.window_s
+            cap = settings.max_window_m(segment, id(segment) in kept) / settings.window_s
             if cap < segment.feed_m_s:
                 segments[k], changed = dataclasses.replace(segment, feed_m_s=cap), True
     return dataclasses.replace(program, segments=tuple(segments)) if changed else program

@@ -71,10 +71,10 @@ def goals(f: dict[str, Any], mode: str) -> dict[str, bool | None]:
 
 def _row(f: dict[str, Any], mode: str) -> list[object]:
     m, met = f[mode], goals(f, mode)
-    return [f["program"], mode, round(m["cycle_s"], 3), round(m["cycle_s"] / f["toppra_s"], 4),
-            round(m["cycle_s"] / f["blended_s"], 4), round(m["cycle_s"] / f["exact_stop_s"], 4),
-            round(m["velocity_ratio"], 4), round(m["acceleration_ratio"], 4), round(m["jerk_ratio"], 4),
-            round(m["deviation_over_p"], 4), goal_text(bool(met["limits"] and met["P"])),
+    return [f["program"], mode, f"{m['cycle_s']:.3f}", f"{m['cycle_s'] / f['toppra_s']:.4f}",
+            f"{m['cycle_s'] / f['blended_s']:.4f}", f"{m['cycle_s'] / f['exact_stop_s']:.4f}",
+            *(f"{m[name]:.4f}" for name in ("velocity_ratio", "acceleration_ratio", "jerk_ratio", "deviation_over_p")),
+            goal_text(bool(met["limits"] and met["P"])),
             "-" if met["toppra"] is None else goal_text(met["toppra"])]
 
 
@@ -94,8 +94,8 @@ def override_sweep(quick: bool) -> list[dict[str, Any]]:
     """Print and return the sweep over :data:`SWEEP_PROGRAMS` (the first only with ``quick``)."""
     names = SWEEP_PROGRAMS[:1] if quick else SWEEP_PROGRAMS
     figures = [sweep_figures(CORPUS[name][0](), schedule) for name in names for schedule in SCHEDULES]
-    rows = [[f["program"], f["schedule"], f["max_ratio"], round(f["cycle_s"], 3), round(f["velocity_ratio"], 4),
-             round(f["acceleration_ratio"], 4), round(f["jerk_ratio"], 4), round(f["deviation_over_p"], 4),
+    rows = [[f["program"], f["schedule"], f["max_ratio"], f"{f['cycle_s']:.3f}",
+             *(f"{f[name]:.4f}" for name in ("velocity_ratio", "acceleration_ratio", "jerk_ratio", "deviation_over_p")),
              goal_text(max(f["velocity_ratio"], f["acceleration_ratio"], f["jerk_ratio"]) <= LIMIT_GOAL
                        and f["deviation_over_p"] <= LIMIT_GOAL)] for f in figures]
     print("override sweep, jerk_mode fir: 1 ms ticks, the ratio ramps before the filter")
