@@ -157,3 +157,29 @@ def _no_progress_task_left_open() -> Generator[None, None, None]:
 
     reporter().tasks.clear()
     yield
+
+
+#: ``CNC_TEST_CPU_LOG=FILE ./dev test``: each test appends ``cpu_s wall_s nodeid`` to FILE, the CPU its worker and
+#: the worker's reaped child processes (node processes, benches' subprocesses) spent on setup, call and teardown:
+#: what to cut first when the suite is slow, measured the same on a loaded machine as on a quiet one.
+CPU_LOG = "CNC_TEST_CPU_LOG"
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> Generator[None, None, object]:
+    """Under :data:`CPU_LOG`: the test's CPU and wall time, a line each."""
+    path = os.environ.get(CPU_LOG)
+    if not path:
+        return (yield)
+    import resource
+    import time
+
+    def cpu_s() -> float:
+        own, children = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+        return own.ru_utime + own.ru_stime + children.ru_utime + children.ru_stime
+
+    cpu0, wall0 = cpu_s(), time.monotonic()
+    result = yield
+    with open(path, "a", encoding="utf-8") as log:
+        log.write(f"{cpu_s() - cpu0:.2f} {time.monotonic() - wall0:.2f} {item.nodeid}\n")
+    return result

@@ -31,17 +31,24 @@ _cnc_fix_cmake_paths() {
         -e "s#/opt/python/cp311-cp311/include/python3.11#$pyinc#g"
 }
 
+# (pip's notes about unreachable local index folders of this machine's pip config are dropped)
+_cnc_pip() {
+  "$CNC_VENV/bin/python" -m pip install -q --disable-pip-version-check "$@" \
+    2> >(grep -v "^WARNING: Location 'file://.*' is ignored" >&2)
+}
+
 _cnc_install_python() {
-  local mode="$1" stamp="$CNC_VENV/.cnc-requirements" want
+  local mode="$1" stamp="$CNC_VENV/.cnc-requirements" want ok=""
   want="$mode $(python3 --version 2>&1) $(_cnc_hash "$CNC_REQ"/*.txt)"
   [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && return 0
   _cnc_log "installing pinned requirements ($mode)"
-  # (pip's notes about unreachable local index folders of this machine's pip config are dropped)
-  "$CNC_VENV/bin/python" -m pip install -q --disable-pip-version-check \
-    -c "$CNC_REQ/constraints.txt" -r "$CNC_REQ/python.txt" \
-    $( [ "$mode" = wheels ] && echo "-r $CNC_REQ/ros-jazzy.txt" ) \
-    2> >(grep -v "^WARNING: Location 'file://.*' is ignored" >&2) \
-    || { _cnc_log "pip install failed"; return 1; }
+  local -a reqs=(-c "$CNC_REQ/constraints.txt" -r "$CNC_REQ/python.txt")
+  [ "$mode" = wheels ] && reqs+=(-r "$CNC_REQ/ros-jazzy.txt")
+  if _cnc_pip -r "$CNC_REQ/installer.txt" && [ -x "$CNC_VENV/bin/uv" ]; then
+    "$CNC_VENV/bin/uv" pip install -q --python "$CNC_VENV/bin/python" "${reqs[@]}" && ok=1 \
+      || _cnc_log "uv pip install failed; trying pip"
+  fi
+  [ -n "${ok:-}" ] || _cnc_pip "${reqs[@]}" || { _cnc_log "pip install failed"; return 1; }
   if [ "$mode" = wheels ]; then _cnc_fix_cmake_paths || return 1; fi
   echo "$want" > "$stamp"
 }
@@ -92,6 +99,9 @@ cnc_dds_env() {
 }
 
 cnc_setup() {
+  # Bytecode is cached (a shell may forbid it): packages are installed without it, and each node process would
+  # otherwise compile the suite's and the libraries' modules anew at every start.
+  unset PYTHONDONTWRITEBYTECODE
   _cnc_prepare_ros || { _cnc_log "ROS 2 Jazzy setup failed"; return 1; }
   _cnc_build || { _cnc_log "colcon build failed (see $CNC_ROOT/log/latest_build)"; return 1; }
   cnc_dds_env
