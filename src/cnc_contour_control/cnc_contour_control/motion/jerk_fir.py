@@ -33,7 +33,6 @@ import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,10 +42,8 @@ from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.jerk_filter import FloatArray, MovingAverage, filter_taps, moving_average_rows
+from cnc_contour_control.motion.reference_types import ReferenceSample, ReferenceTrajectory
 from cnc_contour_control.motion.segment_tangents import junction_turns_rad
-
-if TYPE_CHECKING:  # annotations only: interpolation imports this module
-    from cnc_contour_control.motion.interpolation import ReferenceSample, ReferenceTrajectory
 
 #: Filtered arrays: times, positions, velocities, accelerations, path lengths, segments, feeds, done.
 FilteredArrays = tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray, NDArray[np.intp], FloatArray,
