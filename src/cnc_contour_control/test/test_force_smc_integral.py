@@ -99,6 +99,21 @@ def test_a_held_level_that_lands_stops_the_integral(applied: float, hold_band: f
     assert (law.ratio == 0.72) is holds, f"ratio {law.ratio}"
 
 
+@pytest.mark.parametrize(("level_step", "stays"), [(0.1, True), (0.0, False)])
+def test_a_held_level_next_to_the_reference_does_not_end_the_sliding_phase(level_step: float, stays: bool) -> None:
+    """30 % at 2.97 mm, 0.25 mm/rev, 400 rpm: 394.9 N, λ x̃ = −2100 N/s beyond 4 Φ; 40 % gives 526.6 N."""
+    model = TurningModelConfig(spindle_rpm=400.0, programmed_feed_mm_rev=0.25, depth_min_mm=1.0, depth_max_mm=3.0)
+    law = SmcIntegralLaw(SmcIntegralConfig(eta_n_s2=1.0e5, integral_per_s=2.0, model=model,
+                                           level_step_ratio=level_step))
+    law.reset(0.3)
+    law.ratio = 0.33  # the integral on its way up, the switch still at 30 %
+    law.note_applied(0.3)
+    force_n = model.steady_force_n(0.3, 2.97)
+    for _ in range(3):
+        law.step(DT_S, force_n, 500.0)
+    assert law.sliding is stays
+
+
 def test_back_in_the_layer_the_integral_starts_from_the_axis_feed() -> None:
     law = steady_law(0.7)
     law.step(DT_S, 500.0, 500.0)

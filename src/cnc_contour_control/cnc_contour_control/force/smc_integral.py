@@ -6,13 +6,14 @@ beat the model's worst gain error β (Eq. 10), far too stiff for a 10 ms
 update behind the τ_s and τ_c lags, so the override bangs between its end
 levels. This law keeps the two phases apart, with hysteresis between them::
 
-    reaching (|s| > m Φ, a depth jump, or not yet inside Φ):  the paper's SMC (:mod:`.smc`), s = ẋ + λ x̃
+    reaching (|s| − λ q > m Φ, a depth jump, or not yet inside Φ):  the paper's SMC (:mod:`.smc`), s = ẋ + λ x̃
     sliding  (entered when |s| <= Φ):            r ← clip(r + dt k_I (F_ref − F)/Ĝ, 0, r_max)
                                                  (no change while |F_ref − F| <= δ F_ref, or while the
                                                  switch holds a level off r whose steady force
                                                  F r_applied/r_c is within h F_ref: that level lands)
     Ĝ = K_s f_prog d̂ [N per unit ratio],  d̂ = F/(K_s f_prog r_a) clipped to [d_min, d_max]
     r_a: the applied ratios through the model's τ_s lag (the feed the axis has now); r_c: r_a through τ_c
+    q = min(|x̃|, Ĝ Δ) while the switch holds a level off r within one level Ĝ Δ of F_ref, else 0
 
 Entering the sliding phase, r starts at r_a (bumpless). The integral makes
 the loop an integrator of rate k_I [1/s] whatever the depth (Ĝ normalises the
@@ -20,7 +21,10 @@ gain); over any steady cycle between two levels its state returns, so the
 force's mean sits at the reference (within δ) where no level lands. Where one
 lands, but outside δ, the integral alone would walk off it to the next level and
 back (a slow cycle of ±5-10 %); the hold band keeps it (with a continuous
-override the switch holds no level off r, so the integral runs on). A depth
+override the switch holds no level off r, so the integral runs on). Where the
+levels lie far apart (Ĝ Δ > m Φ/λ = 100 N at the defaults), the level next to
+the reference can sit so far from it that λ x̃ alone passes m Φ and the paper's
+law would bang the switch: the exit test discounts that part (q). A depth
 step drives ẋ, and with it s, far outside m Φ within an update or two, so the
 paper's law cuts the feed. The first update after a step may hold only a
 millisecond of its rise (a 0.8 % force change at 2 -> 3 mm), too little for
@@ -70,6 +74,9 @@ class SmcIntegralConfig(SmcConfig):
         No integration while |F_ref − F| <= δ F_ref, δ in [0, 0.5].
     ratio_max : float
         Clamp of the integral state [ratio], in [0, 10] (the switch's top).
+    level_step_ratio : float
+        The switch's level spacing Δ [ratio] (the quantiser's ``step_ratio``), in [0, 10]: the exit test
+        discounts up to one level's force while the switch holds a level next to the reference (0: none).
     hold_band_fraction : float
         No integration while the held level's steady force F r_applied/r_a is within h F_ref, h in [0, 0.5]
         (0: off; module docstring).
@@ -82,6 +89,8 @@ class SmcIntegralConfig(SmcConfig):
     exit_factor: float = param(4.0, low=1.0, high=1.0e3, description="sliding phase ends when |s| > factor * Phi")
     deadband_fraction: float = param(0.01, low=0.0, high=0.5, description="no integration within this error")
     ratio_max: float = param(1.5, low=0.0, high=10.0, description="clamp of the integral state")
+    level_step_ratio: float = param(0.1, low=0.0, high=10.0,
+                                    description="the switch's level spacing the exit test allows for (0: none)")
     hold_band_fraction: float = param(0.05, low=0.0, high=0.5,
                                       description="no integration while the held level's steady force is within "
                                                   "this fraction of the reference (0: off)")
@@ -155,13 +164,18 @@ class SmcIntegralLaw:
         self._jitter_sq += max(JITTER_WEIGHT, 1.0 / self._settled) * (change * change - self._jitter_sq)
         return False
 
-    def _level_lands(self, force_n: float, reference_n: float, chip_ratio: float) -> bool:
-        """Whether the switch holds a level off the integral's state whose steady force, F r_applied/r_c, lies
-        within the hold band of the reference (r_c: the axis feed through the τ_c lag, as the force has it)."""
-        band = self.config.hold_band_fraction
-        if band <= 0.0 or chip_ratio < MIN_RATIO or abs(self._applied - self.ratio) <= 1.0e-9:
-            return False
-        return abs(force_n * self._applied / chip_ratio - reference_n) <= band * reference_n
+    def _holds_level(self, chip_ratio: float) -> bool:
+        """Whether the switch holds a level off the integral's state (never with a continuous override) and the
+        feed the force has, r_c (the axis feed through the τ_c lag), is large enough to scale its force."""
+        return chip_ratio >= MIN_RATIO and abs(self._applied - self.ratio) > 1.0e-9
+
+    def _quantisation_n(self, force_n: float, reference_n: float, level_n: float, actual: float) -> float:
+        """The part of |F − F_ref| [N] the switch explains: up to one level's force Ĝ Δ while the held level's
+        steady force is within one level of the reference (a level next to it), else none."""
+        step_n = self.config.level_step_ratio * self._gain_n(force_n, actual)
+        if abs(level_n - reference_n) > step_n:
+            return 0.0
+        return min(abs(force_n - reference_n), step_n)
 
     def step(self, dt_s: float, force_n: float, reference_n: float) -> float:
         """One update (module docstring); returns the requested ratio."""
@@ -171,8 +185,12 @@ class SmcIntegralLaw:
         jumped = self._depth_jumped(dt_s, force_n, before, actual)
         chip_ratio = self._chip.step(dt_s, 0.5 * (before + actual))
         reaching = self.smc.step(dt_s, force_n, reference_n)
+        held = self._holds_level(chip_ratio)
+        level_n = force_n * self._applied / chip_ratio if held else math.inf  # the held level's steady force
         phi, surface = cfg.boundary_layer_n_s(reference_n), abs(self.smc.surface_n_s)
-        if self.sliding and (surface > cfg.exit_factor * phi or jumped):
+        exit_surface = surface - cfg.lambda_per_s * self._quantisation_n(
+            force_n, reference_n, level_n, actual)
+        if self.sliding and (exit_surface > cfg.exit_factor * phi or jumped):
             self.sliding = False
         elif not self.sliding and surface <= phi:
             self.sliding, self.ratio = True, actual
@@ -180,7 +198,8 @@ class SmcIntegralLaw:
             return reaching
         error_n = reference_n - force_n
         outside = abs(error_n) > cfg.deadband_fraction * reference_n
-        if outside and not self._level_lands(force_n, reference_n, chip_ratio):
+        lands = abs(level_n - reference_n) <= cfg.hold_band_fraction * reference_n
+        if outside and not lands:
             self.ratio += dt_s * cfg.integral_per_s * error_n / self._gain_n(force_n, actual)
         self.ratio = min(max(self.ratio, 0.0), cfg.ratio_max)
         return self.ratio
