@@ -162,7 +162,7 @@ class Interpolator:
         for fir, blend_m in [(None, tolerance_m)] if self._fir is None else fir_attempts(self._fir, tolerance_m):
             self._fir = fir
             self._plan_blended(program, blend_m, tolerance_rad)
-            if fir is None or within_tolerance(self.sample_array, self.duration_s, fir, program,
+            if fir is None or within_tolerance(self._plan_array, self.duration_s, fir, self.blended,
                                                planning_tolerance_m(program, self.config)):
                 return
         self._fir, self._jerk = None, self._plan_jerk(program, planning_tolerance_m(program, self.config))
@@ -170,10 +170,11 @@ class Interpolator:
     def _plan_blended(self, program: Program, tolerance_m: float, tolerance_rad: float) -> None:
         """The (v, a) plan over the quickest blend of ``program`` (:func:`quickest_blend`)."""
         self._plans: dict[int, dict[str, Any]] = {}
-        self.blended = quickest_blend(program, tolerance_m, tolerance_rad, CornerLimits(
+        blended = quickest_blend(program, tolerance_m, tolerance_rad, CornerLimits(
             np.asarray(self.limits.max_velocity_m_s), np.asarray(self.limits.max_acceleration_m_s2),
             self.config.arc_centripetal_fraction), self._planned_duration_s)
-        self.__dict__.update(self._plans.pop(id(self.blended.planned)))
+        self.__dict__.update(self._plans.pop(id(blended.planned)))  # an earlier attempt's blend is in the snapshots
+        self.blended = blended
         del self._plans
         self._plan_end_s = self.duration_s  # fir: the program ends when the filter has drained
         self.duration_s += 0.0 if self._fir is None else self._fir.window_s

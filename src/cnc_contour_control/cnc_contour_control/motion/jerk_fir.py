@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.axis_limits import AxisLimits
+from cnc_contour_control.motion.blending import BlendedProgram
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.jerk_filter import FloatArray, MovingAverage, filter_taps, moving_average_rows
 from cnc_contour_control.motion.reference_types import ReferenceSample, ReferenceTrajectory
@@ -98,12 +99,25 @@ def fir_attempts(settings: FirSettings, blend_tolerance_m: float) -> list[tuple[
              blend_tolerance_m if k < len(ATTEMPT_SHARES) - 1 else 0.0) for k, share in enumerate(ATTEMPT_SHARES)]
 
 
-def within_tolerance(sample_array: Callable[[FloatArray], ReferenceTrajectory], duration_s: float,
-                     settings: FirSettings, program: Program, tolerance_m: float) -> bool:
-    """Whether the filtered reference (``sample_array``) is within ``tolerance_m`` (m) of ``program`` at every
-    multiple of the filter's period up to ``duration_s`` (s): the check of the caps' estimates."""
-    times = np.asarray(settings.period_s * np.arange(0, math.ceil(duration_s / settings.period_s) + 1), np.float64)
-    distance = program.contour_distance(sample_array(times).position_m)[0]
+def within_tolerance(plan: Callable[[FloatArray], ReferenceTrajectory], duration_s: float, settings: FirSettings,
+                     blended: BlendedProgram, tolerance_m: float) -> bool:
+    """Whether the filtered reference of the plan (``plan(times)``, before the filter) is within ``tolerance_m`` (m)
+    of the programmed path at every multiple of the filter's period up to ``duration_s`` (s): the check of the
+    caps' estimates. Each point is measured exactly to the programmed segments its samples come from (and the
+    one before, a blend's other side): a convex combination of points of those segments."""
+    n, period = settings.taps, settings.period_s
+    grid = np.asarray(period * np.arange(-(n - 1), math.ceil(duration_s / period) + 1), np.float64)
+    raw = plan(grid)
+    points = moving_average_rows(raw.position_m, n)
+    sources = np.asarray(blended.source_segment or range(len(blended.planned.segments)), dtype=np.intp)
+    first = np.maximum(sources[raw.segment_index[:points.shape[0]]] - 1, 0)
+    last = sources[raw.segment_index[n - 1:]]
+    distance = np.full(points.shape[0], np.inf)
+    for j in range(int(first.min(initial=0)), int(last.max(initial=-1)) + 1):
+        rows = slice(int(np.searchsorted(last, j, side="left")), int(np.searchsorted(first, j, side="right")))
+        if rows.start < rows.stop:
+            near = blended.programmed.segments[j].nearest(points[rows])[0]
+            distance[rows] = np.minimum(distance[rows], near)
     return bool(distance.max(initial=0.0) <= tolerance_m)
 
 
