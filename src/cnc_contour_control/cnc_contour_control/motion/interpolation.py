@@ -225,8 +225,8 @@ class Interpolator:
                                                                tolerance_rad, self.config.look_ahead_segments)
         speeds = self.junction_speeds_m_s
         lengths = np.array([segment.length_m for segment in self.program.segments])
-        dwell = program.junction_dwell_s if self._fir is None else stop_holds_s(program, speeds, tolerance_rad,
-                                                                                 self._fir)
+        dwell = program.junction_dwell_s if self._fir is None else stop_holds_s(
+            program, speeds, tolerance_rad, self._fir, self.tangential_acceleration_m_s2)
         self._phases = phases = banded_phases(lengths, speeds[:-1], speeds[1:], self.cruise_speed_m_s,
                                               self.speed_bands, dwell)
         self._phase_start_s = phases.start_s[:-1].tolist()

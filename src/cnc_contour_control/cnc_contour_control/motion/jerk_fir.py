@@ -136,12 +136,29 @@ def capped_program(program: Program, settings: FirSettings, written: Program | N
     return dataclasses.replace(program, segments=tuple(segments)) if changed else program
 
 
-def stop_holds_s(program: Program, speeds_m_s: FloatArray, tolerance_rad: float, settings: FirSettings) -> FloatArray:
-    """Each junction's dwell (s, ``(N + 1,)``): the program's, at least ``T_w`` where it stops at a turn."""
+def stop_holds_s(program: Program, speeds_m_s: FloatArray, tolerance_rad: float, settings: FirSettings,
+                 accel_m_s2: FloatArray) -> FloatArray:
+    """Each junction's dwell (s, ``(N + 1,)``): the program's, and a hold where it stops at a turn.
+
+    Between two lines the hold is ``T_w - (48 n T P / (a sin θ))^(1/3)`` (``a``: the larger of the two lines'
+    tangential accelerations ``accel_m_s2`` (m/s²), ``P``: the corner share): braking at ``a``, the samples of
+    the other line lie ``a τ² / 2`` from the corner, and the window's mean is at most
+    ``a sin θ (T_w - H)³ / (48 n T)`` off the nearer line (from 90° on, ``sin θ`` is taken as 1: the nearer
+    point of a line is then its end, the corner). Next to an arc: ``T_w``.
+    """
     dwell = np.array(program.junction_dwell_s, dtype=float)
-    if len(program.segments) > 1 and settings.window_s > 0.0:
-        turning = (junction_turns_rad(program.segments) > tolerance_rad) & (speeds_m_s[1:-1] <= 0.0)
-        dwell[1:-1][turning] = np.maximum(dwell[1:-1][turning], settings.window_s)
+    if len(program.segments) < 2 or settings.window_s <= 0.0:
+        return dwell
+    turns = junction_turns_rad(program.segments)
+    for k in np.flatnonzero((turns > tolerance_rad) & (speeds_m_s[1:-1] <= 0.0)).tolist():
+        hold = settings.window_s
+        before, after = program.segments[k], program.segments[k + 1]
+        if not isinstance(before, ArcSegment) and not isinstance(after, ArcSegment):
+            a = max(float(accel_m_s2[k]), float(accel_m_s2[k + 1]), 1e-300)
+            reach = (48.0 * settings.taps * settings.period_s * settings.corner_tolerance_m
+                     / (a * math.sin(min(float(turns[k]), 0.5 * math.pi)))) ** (1.0 / 3.0)
+            hold = max(settings.window_s - reach, 0.0)
+        dwell[k + 1] = max(dwell[k + 1], hold)
     return dwell
 
 
