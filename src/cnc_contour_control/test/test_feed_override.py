@@ -28,8 +28,15 @@ def follower(program: Program, config: OverrideConfig | None = None, limits: Axi
     return OverrideFollower(Interpolator(program, planning_limits(limits, config)), limits, config)
 
 
-def run(f: OverrideFollower, requests: list[float]) -> tuple[np.ndarray, np.ndarray, list]:
-    samples = [f.advance(0.0, requests[0])] + [f.advance(DT_S, r) for r in requests[1:]]
+def run(f: OverrideFollower, requests: list[float], scheduled: int | None = None) -> tuple[np.ndarray, np.ndarray,
+                                                                                            list]:
+    """Every request in turn; with ``scheduled``, the requests past the first ``scheduled`` only until the program
+    is done (a done program holds its end: the rest would repeat that sample)."""
+    samples = [f.advance(0.0, requests[0])]
+    for index, request in enumerate(requests[1:], start=1):
+        if scheduled is not None and index >= scheduled and samples[-1].done:
+            break
+        samples.append(f.advance(DT_S, request))
     positions = np.array([s.position_m for s in samples])
     ratios = np.array([s.feed_override_ratio for s in samples])
     return positions, ratios, samples
@@ -92,8 +99,9 @@ def test_requests_beyond_the_range_are_clipped_and_nan_refused() -> None:
 def test_random_request_schedules_never_exceed_the_limits(schedule: list) -> None:
     config = OverrideConfig(max_ratio=1.5)
     program = load_program({"shape": "corner", "leg_mm": 5, "feed_mm_min": 1200})
-    requests = [r for ticks, r in schedule for _ in range(ticks)] + [1.0] * 3000
-    positions, _, samples = run(follower(program, config), requests)
+    requests = [r for ticks, r in schedule for _ in range(ticks)]
+    positions, _, samples = run(follower(program, config), requests + [1.0] * 3000, scheduled=len(requests))
+    assert samples[-1].done
     assert_within_limits(positions, samples)
 
 
@@ -119,8 +127,8 @@ def test_overrides_from_10_to_200_percent_keep_the_tolerance_and_the_limits(
                                 InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True))
     f = OverrideFollower(interpolator, LIMITS, config)
     requests = [r for ticks, r in schedule for _ in range(ticks)]
-    requests += [requests[-1]] * int(1.2 * interpolator.duration_s / (0.1 * DT_S) + 100)  # to the end at 10 %
-    positions, _, samples = run(f, requests)
+    tail = [requests[-1]] * int(1.2 * interpolator.duration_s / (0.1 * DT_S) + 100)  # to the end at 10 %
+    positions, _, samples = run(f, requests + tail, scheduled=len(requests))
     assert samples[-1].done
     assert_within_limits(positions, samples)
     deviation_m = interpolator.blended.local_deviation_m(positions, [s.segment_index for s in samples])
