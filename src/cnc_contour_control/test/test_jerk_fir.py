@@ -190,3 +190,30 @@ def test_override_schedules_keep_every_limit_and_p(program: Program, limits: Axi
     assert sample.done and np.allclose(p[-1], end, rtol=0, atol=1e-15)
     assert limit_ratios(p, PERIOD_S, limits).worst() <= LIMIT_GOAL
     assert program.contour_distance(p)[0].max() <= tolerance_mm * 1e-3 * LIMIT_GOAL + 1e-15
+
+
+@pytest.mark.parametrize("tick_ns", [1_000_000, 10_000_000])
+def test_live_reference_is_done_only_once_the_filter_has_drained(tick_ns: int) -> None:
+    """At 1 ms and 10 ms ticks: ``done`` (the end of a run or goal) comes with the end point, n - 1 ticks after
+    the retimed plan's end, n = ceil(2 amax / (jmax T))."""
+    program = _polyline([(0.0, 0.0), (0.004, 0.0)], 0.02)
+    live = LiveReference(program, LIMITS, InterpolatorConfig(path_tolerance_mm=0.01), OverrideConfig())
+    fir = live.interpolator.jerk_filter
+    assert fir is not None
+    plan_end_s, samples, plan_done = live.interpolator.duration_s - fir.window_s, [], None
+    for tick in range(5000):
+        samples.append(live.step(tick * tick_ns, 1.0))
+        if plan_done is None and live.follower.profile_time_s >= plan_end_s:
+            plan_done = tick
+        if samples[-1].done:
+            break
+    taps = math.ceil(2 * 0.25 / (10.0 * tick_ns * 1e-9))
+    done = [s.done for s in samples]
+    first_done = done.index(True)
+    assert samples[first_done].position_m[0] == pytest.approx(0.004, abs=1e-15)
+    assert samples[first_done - 1].position_m[0] < 0.004 - 1e-12
+    assert abs(samples[first_done].velocity_m_s).max() < 1e-12
+    positions = np.array([s.position_m for s in samples])
+    period_s = tick_ns * 1e-9
+    assert np.abs(np.diff(positions, 3, axis=0)).max() / period_s**3 <= 10.0 * LIMIT_GOAL
+    assert plan_done is not None and first_done - plan_done == taps - 1
