@@ -30,12 +30,13 @@ import pytest
 from hypothesis import Phase, given, settings
 from hypothesis import strategies as st
 
-from cnc_tools.analysis.ballbar import diagnose_circles
+from cnc_tools.analysis.ballbar import CircleTrace, diagnose_circles
 from cnc_tools.analysis.ballbar_cyclic import fit_cyclic_error, pitch_error_m
 from cnc_tools.analysis.ballbar_reversals import diagnose_reversals
 from cnc_tools.analysis.ballbar_trace import SAMPLE_RULE, WHOLE_PROGRAM_RULE, BagTrace, trace_of
 from cnc_tools.bagio.record_bag import write_record_bag
 from cnc_tools.cli.main import main
+from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.scenario import build_scenario
 
@@ -90,7 +91,11 @@ def _within(name: str, measured: float, expected: float, tol_abs: float) -> None
 
 
 def _diagnose(faults: dict[str, Any], coulomb: dict[str, float]) -> dict[str, float]:
-    traces = [t.trace for t in pair(faults, coulomb)]
+    return _read([t.trace for t in pair(faults, coulomb)])
+
+
+def _read(traces: list[CircleTrace]) -> dict[str, float]:
+    """The figures of a ccw/cw pair of traces, the fitted pitch error taken out first."""
     fit = fit_cyclic_error(traces, {"x": PITCH_MM, "y": PITCH_MM})
     explained = [pitch_error_m(t, fit) for t in traces]  # as `cnc-contour circular --pitch-mm` does
     d, r = diagnose_circles(traces, explained), diagnose_reversals(traces, explained_m=explained)
@@ -102,8 +107,14 @@ def _diagnose(faults: dict[str, Any], coulomb: dict[str, float]) -> dict[str, fl
             "lateral_x_um": r.lateral_x_um, "lateral_y_um": r.lateral_y_um}
 
 
-def test_the_fault_free_pair_reads_no_fault() -> None:
-    read = _diagnose({}, {})
+@pytest.fixture(scope="module")
+def fault_free() -> dict[str, RunRecord]:
+    """The fault-free machine's ccw and cw runs, made once for the two tests that read them."""
+    return {d: run_engine(build_scenario(scenario(d))) for d in ("ccw", "cw")}
+
+
+def test_the_fault_free_pair_reads_no_fault(fault_free: dict[str, RunRecord]) -> None:
+    read = _read([trace_of(Path(f"engine[{d}]"), record).trace for d, record in fault_free.items()])
     for name, value in read.items():
         bound = {"urad": 5.0, "ppm": 5.0}.get(name.rsplit("_", 1)[-1], 0.5)
         assert abs(value) <= bound, (name, value)
@@ -138,9 +149,10 @@ def test_injected_faults_are_diagnosed_at_their_size(x: dict[str, float], y: dic
     _within("scale_mismatch_ppm", read["scale_mismatch_ppm"], x["scale_ppm"] - y["scale_ppm"], PER_R)
 
 
-def test_the_command_says_which_samples_it_used(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_command_says_which_samples_it_used(fault_free: dict[str, RunRecord], tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str]) -> None:
     """A standard pair: the measured turn after 180° of feed-in arc; one turn from rest: flagged, with a warning."""
-    bags = [str(write_record_bag(run_engine(build_scenario(scenario(d))), tmp_path / d)) for d in ("ccw", "cw")]
+    bags = [str(write_record_bag(record, tmp_path / d)) for d, record in fault_free.items()]
     assert main(["circular", *bags]) == 0
     out = capsys.readouterr().out
     assert "samples ccw: " + SAMPLE_RULE + " (feed-in and feed-out arcs 180.0°)" in out

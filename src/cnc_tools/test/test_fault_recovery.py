@@ -6,12 +6,14 @@ start transient), the trace is the second turn's tool positions. The plant is
 a frictionless linear feed drive with velocity and acceleration feedforward,
 so the fault-free pair diagnoses near zero (checked first). The bound is the
 brief's: within 5 % or 0.5 µm (in the quantity's µm at R), whichever is larger.
+Each distinct scenario is run once per module (:func:`runs`): the fault-free pair and the pair with a cyclic
+error on x serve two tests each.
 """
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -57,6 +59,23 @@ def _scenario(direction: str, faults: Mapping[str, Any] | None = None, kp: float
                         "segments": [arc, arc]}}
 
 
+#: Runs a scenario (a mapping) in the engine; one run per distinct scenario in this module.
+Runner = Callable[[Mapping[str, Any]], RunRecord]
+
+
+@pytest.fixture(scope="module")
+def runs() -> Runner:
+    """The engine's record of a scenario, made once per module and shared (a RunRecord is frozen)."""
+    made: dict[str, RunRecord] = {}
+
+    def run(scenario: Mapping[str, Any]) -> RunRecord:
+        key = json.dumps(scenario, sort_keys=True)
+        if key not in made:
+            made[key] = run_engine(build_scenario(dict(scenario)))
+        return made[key]
+    return run
+
+
 def _second_turn(record: RunRecord, direction: str) -> CircleTrace:
     """The measured (tool) positions while the reference is on the second arc."""
     stamp_ns, position_m = measured_positions(record)
@@ -66,8 +85,8 @@ def _second_turn(record: RunRecord, direction: str) -> CircleTrace:
     return CircleTrace(position_m[on_turn], (0.0, 0.0), R_MM / UM_PER_MM, direction, FEED_MM_MIN / 60e3)
 
 
-def _pair(**options: Any) -> tuple[list[CircleTrace], BallbarDiagnosis, ReversalDiagnosis]:
-    traces = [_second_turn(run_engine(build_scenario(_scenario(d, **options))), d) for d in ("ccw", "cw")]
+def _pair(runs: Runner, **options: Any) -> tuple[list[CircleTrace], BallbarDiagnosis, ReversalDiagnosis]:
+    traces = [_second_turn(runs(_scenario(d, **options)), d) for d in ("ccw", "cw")]
     return traces, diagnose_circles(traces), diagnose_reversals(traces)
 
 
@@ -79,8 +98,8 @@ def _within(measured: float, injected: float, tol_abs: float) -> None:
 PER_R = 0.5 / (R_MM / UM_PER_MM)
 
 
-def test_fault_free_pair_diagnoses_near_zero() -> None:
-    traces, d, rev = _pair()
+def test_fault_free_pair_diagnoses_near_zero(runs: Runner) -> None:
+    traces, d, rev = _pair(runs)
     assert abs(d.servo_mismatch_um) <= 0.5 and abs(d.squareness_urad) <= PER_R
     assert abs(d.scale_mismatch_ppm) <= PER_R and max(d.cyclic_error_um) <= 0.5
     assert abs(rev.backlash_x_um) <= 0.5 and abs(rev.backlash_y_um) <= 0.5
@@ -89,32 +108,32 @@ def test_fault_free_pair_diagnoses_near_zero() -> None:
 
 
 @pytest.mark.parametrize("axis", ["x", "y"])
-def test_backlash(axis: str) -> None:
+def test_backlash(runs: Runner, axis: str) -> None:
     backlash_um = 8.0
-    _, d, rev = _pair(faults={"axes": {axis: {"backlash_um": backlash_um}}})
+    _, d, rev = _pair(runs, faults={"axes": {axis: {"backlash_um": backlash_um}}})
     _within(getattr(rev, f"backlash_{axis}_um"), backlash_um, 0.5)
     other = "y" if axis == "x" else "x"
     assert abs(getattr(rev, f"backlash_{other}_um")) <= 0.5
 
 
-def test_squareness() -> None:
+def test_squareness(runs: Runner) -> None:
     alpha_urad = 200.0
-    _, d, _ = _pair(faults={"squareness_urad": alpha_urad})
+    _, d, _ = _pair(runs, faults={"squareness_urad": alpha_urad})
     _within(d.squareness_urad, alpha_urad, PER_R)
     assert abs(d.servo_mismatch_um) <= 0.5
 
 
-def test_scale_error() -> None:
+def test_scale_error(runs: Runner) -> None:
     scale_ppm = 300.0
-    _, d, _ = _pair(faults={"axes": {"x": {"scale_ppm": scale_ppm}}})
+    _, d, _ = _pair(runs, faults={"axes": {"x": {"scale_ppm": scale_ppm}}})
     _within(d.scale_mismatch_ppm, scale_ppm, PER_R)  # sx - sy with sy = 0
     assert abs(d.squareness_urad) <= PER_R
 
 
-def test_gain_mismatch() -> None:
+def test_gain_mismatch(runs: Runner) -> None:
     """Loop gains k = kp·K: 30 /s on x, 40 /s on y (``servo.axes.y``), no feedforward: 1/kx - 1/ky."""
     kx, ky = 30.0, 40.0
-    _, d, _ = _pair(kp=kx / K_BLU_S_PER_DAC, feedforward=False,
+    _, d, _ = _pair(runs, kp=kx / K_BLU_S_PER_DAC, feedforward=False,
                     servo_axes={"y": {"law_params": {"kp": ky / K_BLU_S_PER_DAC, "ki": 0.0, "kd": 0.0}}})
     expected_s = 1.0 / kx - 1.0 / ky
     v_m_s = FEED_MM_MIN / 60e3
@@ -124,9 +143,9 @@ def test_gain_mismatch() -> None:
 
 
 @pytest.mark.parametrize("axis", ["x", "y"])
-def test_cyclic_error(axis: str) -> None:
+def test_cyclic_error(runs: Runner, axis: str) -> None:
     amplitude_um, pitch_mm = 3.0, 5.0
-    traces, _, _ = _pair(faults={"axes": {axis: {"cyclic_amplitude_um": amplitude_um,
+    traces, _, _ = _pair(runs, faults={"axes": {axis: {"cyclic_amplitude_um": amplitude_um,
                                                  "cyclic_pitch_mm": pitch_mm}}})
     fit = fit_cyclic_error(traces, {"x": pitch_mm, "y": pitch_mm})
     _within(fit.amplitude_um[axis], amplitude_um, 0.5)
@@ -134,13 +153,13 @@ def test_cyclic_error(axis: str) -> None:
     assert fit.amplitude_um[other] <= 0.5
 
 
-def test_circular_command_reads_the_tool_position_and_fits_the_pitch(tmp_path: Path,
-                                                                      capsys: pytest.CaptureFixture[str]) -> None:
+def test_circular_command_reads_the_tool_position_and_fits_the_pitch(
+        runs: Runner, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """``cnc-contour circular`` on the bags of a faulted pair: the tool side is diagnosed, not the motor side."""
     faults = {"axes": {"x": {"cyclic_amplitude_um": 3.0, "cyclic_pitch_mm": 5.0}}}
     bags = []
     for direction in ("ccw", "cw"):
-        record = run_engine(build_scenario(_scenario(direction, faults=faults)))
+        record = runs(_scenario(direction, faults=faults))  # test_cyclic_error[x]'s pair
         assert record.tool_position is not None
         bags.append(str(write_record_bag(record, tmp_path / direction)))
     assert main(["circular", *bags, "--pitch-mm", "x=5", "--pitch-mm", "y=5", "--json", str(tmp_path / "d.json")]) == 0
@@ -150,8 +169,8 @@ def test_circular_command_reads_the_tool_position_and_fits_the_pitch(tmp_path: P
     assert "cyclic_pitch_x_um" in capsys.readouterr().out
 
 
-def test_bad_pitch_is_one_error_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    bag = write_record_bag(run_engine(build_scenario(_scenario("ccw"))), tmp_path / "ccw")
+def test_bad_pitch_is_one_error_line(runs: Runner, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag = write_record_bag(runs(_scenario("ccw")), tmp_path / "ccw")  # the fault-free pair's ccw run
     assert main(["circular", str(bag), "--pitch-mm", "x=five"]) == 1
     assert "--pitch-mm must be AXIS=MM" in capsys.readouterr().err
     assert main(["circular", str(bag), "--pitch-mm", "z=5"]) == 1
