@@ -145,16 +145,36 @@ def _local_step_m(trace: CircleTrace, after: FloatArray, rest: FloatArray, axis:
     return (steps.backlash_x_m if axis == "x" else steps.backlash_y_m) + extra
 
 
-def reversal_at(trace: CircleTrace, axis: str, angle_deg: float, steps: LostMotionFit, index: int = 0) -> Reversal:
-    """The spike, step and lateral step of ``trace`` at the reversal of ``axis`` at ``angle_deg`` (module docstring)."""
+@dataclass(frozen=True, eq=False)
+class _TraceParts:
+    """What every reversal of one trace reads: angle (rad) about the centre, the residual (m), and the angle (deg)
+    about the LS centre with the deviation about the LS circle less the fitted steps (m)."""
+
+    angle_rad: FloatArray
+    rest_m: FloatArray
+    ls_angle_deg: FloatArray
+    ls_deviation_m: FloatArray
+
+
+def _trace_parts(trace: CircleTrace, steps: LostMotionFit, index: int) -> _TraceParts:
     angle, _ = polar(trace)
-    after = after_reversal_deg(angle, angle_deg, trace.direction)
-    rest = residual(trace, steps, index)
-    inside = (after >= -steps.before_deg) & (after <= steps.after_deg)
-    spike_m = float(rest[inside][np.argmax(np.abs(rest[inside]))]) if np.any(inside) else 0.0
     ls_angle, ls_deviation = radial_deviation(trace)
     ls_deviation = ls_deviation - step_columns(np.radians(ls_angle), trace.direction) @ np.array(
         [steps.backlash_x_m, steps.backlash_y_m])
+    return _TraceParts(angle, residual(trace, steps, index), ls_angle, ls_deviation)
+
+
+def reversal_at(trace: CircleTrace, axis: str, angle_deg: float, steps: LostMotionFit, index: int = 0,
+                parts: _TraceParts | None = None) -> Reversal:
+    """The spike, step and lateral step of ``trace`` at the reversal of ``axis`` at ``angle_deg`` (module docstring).
+
+    ``parts``: the trace's :func:`_trace_parts` when the caller reads several reversals of it (made here if None).
+    """
+    parts = parts or _trace_parts(trace, steps, index)
+    angle, rest, ls_angle, ls_deviation = parts.angle_rad, parts.rest_m, parts.ls_angle_deg, parts.ls_deviation_m
+    after = after_reversal_deg(angle, angle_deg, trace.direction)
+    inside = (after >= -steps.before_deg) & (after <= steps.after_deg)
+    spike_m = float(rest[inside][np.argmax(np.abs(rest[inside]))]) if np.any(inside) else 0.0
     ls_after = after_reversal_deg(np.radians(ls_angle), angle_deg, trace.direction)
     w = LATERAL_WINDOW_DEG
     lateral = (np.abs(ls_after) >= w) & (np.abs(ls_after) <= 2 * w)
@@ -210,7 +230,8 @@ def diagnose_reversals(traces: Sequence[CircleTrace], before_deg: float = BEFORE
         raise ConfigError("traces must hold at least 1 circle trace, got 0")
     traces = less_explained(traces, explained_m)
     steps = fit_lost_motion(traces, before_deg, after_deg)
-    found = tuple(reversal_at(t, axis, a, steps, k) for k, t in enumerate(traces)
+    parts = [_trace_parts(t, steps, k) for k, t in enumerate(traces)]
+    found = tuple(reversal_at(t, axis, a, steps, k, parts[k]) for k, t in enumerate(traces)
                   for axis, angles in REVERSAL_ANGLES_DEG.items() for a in angles)
     by_axis = {axis: [r for r in found if r.axis == axis] for axis in REVERSAL_ANGLES_DEG}
     return ReversalDiagnosis(
