@@ -38,7 +38,7 @@ from cnc_contour_control.core.config import build_config
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.params import check_ranges, config_values, param
 
-__all__ = ["AxisFaults", "FaultedPlant", "MachineFaults", "apply_faults", "tool_positions_m"]
+__all__ = ["AxisFaults", "FaultedPlant", "MachineFaults", "ToolMap", "apply_faults", "tool_positions_m"]
 
 M_PER_UM = 1.0e-6
 M_PER_MM = 1.0e-3
@@ -151,22 +151,45 @@ def play(motor_m: float, table_m: float, backlash_m: float) -> float:
     return min(max(table_m, motor_m - half), motor_m + half)
 
 
+class ToolMap:
+    """The tool position of one tick from its table positions (module docstring), the factors computed once.
+
+    Parameters
+    ----------
+    faults : MachineFaults
+        Validated faults.
+    axis_names : sequence of str
+        The axes, in the order of the positions.
+    """
+
+    def __init__(self, faults: MachineFaults, axis_names: Sequence[str]) -> None:
+        names = list(axis_names)
+        self._axes = tuple((k, 1.0 + a.scale_ppm * PER_PPM, a.cyclic_amplitude_um * M_PER_UM,
+                            a.cyclic_pitch_mm * M_PER_MM)
+                           for k, a in ((k, faults.axes.get(n)) for k, n in enumerate(names)) if a is not None)
+        self._square = ((names.index(faults.squareness_axes[0]), names.index(faults.squareness_axes[1]),
+                         faults.squareness_urad * RAD_PER_URAD) if faults.squareness_urad else None)
+
+    def __call__(self, table_m: Sequence[float]) -> list[float]:
+        """Tool positions [m] from the table positions [m] of one tick (after the play), one per axis."""
+        tool = [float(v) for v in table_m]
+        for k, scale, amplitude_m, pitch_m in self._axes:
+            x = tool[k]
+            tool[k] = x * scale + amplitude_m * math.sin(2.0 * math.pi * x / pitch_m)
+        if self._square is not None:
+            a, b, alpha_rad = self._square
+            tool[a] = tool[a] + alpha_rad * tool[b]
+        return tool
+
+
 def apply_faults(table_m: npt.ArrayLike, faults: MachineFaults,
                  axis_names: Sequence[str]) -> npt.NDArray[np.float64]:
-    """Tool positions from table positions (after the play), shape (n,) or (N, n), m (module docstring)."""
+    """Tool positions from table positions (after the play), shape (n,) or (N, n), m (module docstring):
+    :class:`ToolMap` on each row."""
     table = np.asarray(table_m, dtype=float)
-    tool = table.copy()
-    for k, name in enumerate(axis_names):
-        axis = faults.axes.get(name)
-        if axis is None:
-            continue
-        x = table[..., k]
-        tool[..., k] = x * (1.0 + axis.scale_ppm * PER_PPM) + axis.cyclic_amplitude_um * M_PER_UM * np.sin(
-            2.0 * math.pi * x / (axis.cyclic_pitch_mm * M_PER_MM))
-    if faults.squareness_urad:
-        a, b = (list(axis_names).index(n) for n in faults.squareness_axes)
-        tool[..., a] = tool[..., a] + faults.squareness_urad * RAD_PER_URAD * tool[..., b]
-    return tool
+    tool_map = ToolMap(faults, axis_names)
+    rows = table.reshape(-1, table.shape[-1]).tolist()
+    return np.array([tool_map(row) for row in rows], dtype=float).reshape(table.shape)
 
 
 class FaultedPlant:
@@ -191,6 +214,7 @@ class FaultedPlant:
         self._table_m = list(inner.positions_m())
         self._gain = [1.0 + 0.01 * faults.axes[n].drive_gain_pct if n in faults.axes else 1.0
                       for n in self.axis_names]
+        self._tool_map = ToolMap(faults, self.axis_names)
         self.positions_m, self.velocities_m_s, self.state = inner.positions_m, inner.velocities_m_s, inner.state
         self.forces_n = inner.forces_n
 
@@ -208,7 +232,7 @@ class FaultedPlant:
 
     def tool_positions_m(self) -> npt.NDArray[np.float64]:
         """Tool positions, shape (n,), m: the tables with scale, cyclic and squareness errors."""
-        return apply_faults(self._table_m, self.faults, self.axis_names)
+        return np.array(self._tool_map(self._table_m))
 
     def describe(self) -> dict[str, Any]:
         """The inner plant as drawn, with the faults."""
