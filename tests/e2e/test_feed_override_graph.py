@@ -128,8 +128,9 @@ def test_the_interpolator_node_follows_an_operators_feed_override_topic(tmp_path
 
 
 def test_the_interpolator_node_takes_the_previous_ticks_override_exactly(tmp_path: Path) -> None:
+    from cnc_contour_control.motion.axis_limits import AxisLimits
     from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
-    from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig
+    from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
     from cnc_contour_control.motion.program_file import read_program_file
     from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
     from cnc_contour_control.testing import InProcessNode, TopicProbe

@@ -17,8 +17,10 @@ from cnc_contour_control.motion.accel_decel import (
     make_filter,
 )
 from cnc_contour_control.motion.arc import ArcSegment
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 
 DT_S = 0.001
 

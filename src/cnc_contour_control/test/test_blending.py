@@ -11,10 +11,12 @@ from numpy.testing import assert_allclose
 from cnc_contour_control.core.config import build_config
 from cnc_contour_control.core.errors import ConfigError, ProgramError
 from cnc_contour_control.motion.arc_budget import combined_tangential_m_s2
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.blending import blend_program, corner_trim_m
 from cnc_contour_control.motion.gcode import parse_gcode
 from cnc_contour_control.motion.geometry import ArcSegment, Dwell, LineSegment, Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.segment_tangents import end_tangents
 from cnc_contour_control.testing import sibling_module
 

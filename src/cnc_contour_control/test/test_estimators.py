@@ -24,8 +24,9 @@ from cnc_contour_control.estimators import (
     signed_segment_error,
 )
 from cnc_contour_control.estimators.window import line_error, line_error_2
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator
+from cnc_contour_control.motion.interpolation import Interpolator
 
 T_S = 1e-3
 FEED_M_S = 0.05

@@ -9,6 +9,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import (
     OverrideConfig,
     OverrideFollower,
@@ -16,7 +17,8 @@ from cnc_contour_control.motion.feed_override import (
     planning_limits,
 )
 from cnc_contour_control.motion.geometry import LineSegment, Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program import load_program
 
 LIMITS = AxisLimits((0.05, 0.05), (0.5, 0.5))

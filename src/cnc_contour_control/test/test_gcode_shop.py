@@ -12,9 +12,10 @@ import pytest
 from numpy.testing import assert_allclose
 
 from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.gcode import parse_gcode
 from cnc_contour_control.motion.geometry import ArcSegment
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator
+from cnc_contour_control.motion.interpolation import Interpolator
 from cnc_contour_control.motion.program import load_program
 from cnc_contour_control.motion.program_goal import ProgramGoal
 

@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from cnc_contour_control.core.errors import ProgramError
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import OverrideConfig
 from cnc_contour_control.motion.goal_tolerances import (
     AxisTolerance,
@@ -17,7 +18,7 @@ from cnc_contour_control.motion.goal_tolerances import (
     ToleranceDefaults,
     resolve_tolerances,
 )
-from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program_goal import ProgramGoal
 from cnc_contour_control.motion.program_session import OUTCOMES, ProgramSession, ProgramSessionParams
 from cnc_contour_control.motion.session_scores import ProgramOutcome

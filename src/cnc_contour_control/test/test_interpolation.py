@@ -10,8 +10,10 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program import load_program
 
 LIMITS_2 = AxisLimits((0.035, 0.035), (0.5, 0.5))

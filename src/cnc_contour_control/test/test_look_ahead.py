@@ -8,7 +8,8 @@ import pytest
 from numpy.testing import assert_allclose
 
 from cnc_contour_control.core.errors import ConfigError
-from cnc_contour_control.motion.interpolation import Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.plan_arrays import look_ahead_caps_m_s
 from cnc_contour_control.testing import sibling_module
 

@@ -22,8 +22,9 @@ from cnc_contour_control.axis.safety import (
 from cnc_contour_control.axis.servo import ServoConfig, ServoController
 from cnc_contour_control.axis.servo_hold import HeldServo, HoldParams
 from cnc_contour_control.core.errors import ConfigError, FaultError, ProgramError
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import OverrideConfig
-from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program_goal import ProgramGoal
 from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
 

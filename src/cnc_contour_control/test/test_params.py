@@ -22,7 +22,8 @@ from cnc_contour_control.graph.stage_params import (
     servo_config_values,
 )
 from cnc_contour_control.laws import LAWS, law_config_class
-from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig
+from cnc_contour_control.motion.axis_limits import AxisLimits
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_plant_sim.models.axis import AxisConfig
 from cnc_plant_sim.models.plant import PLANTS, PlantConfig, VariationConfig
 from cnc_plant_sim.run.run_params import PlantRunParams

@@ -20,9 +20,11 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.blending import BlendedProgram
 from cnc_contour_control.motion.geometry import ArcSegment, Dwell, LineSegment, Program, Segment
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.points import MIN_LENGTH_M
 from cnc_contour_control.motion.segment_tangents import junction_turns_rad
 from cnc_contour_control.testing import sibling_module

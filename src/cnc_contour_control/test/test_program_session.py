@@ -9,9 +9,11 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from cnc_contour_control.core.errors import ConfigError, ProgramError
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
 from cnc_contour_control.motion.gcode import parse_gcode
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program_goal import ProgramGoal, SegmentSpec, goal_program
 from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
 from cnc_contour_control.motion.session_scores import LiveScores, ProgramOutcome

@@ -12,7 +12,8 @@ from scipy.integrate import quad
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.arc_budget import combined_tangential_m_s2, speed_bands
 from cnc_contour_control.motion.geometry import ArcSegment
-from cnc_contour_control.motion.interpolation import Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.plan_arrays import SpeedBands, segment_extents
 from cnc_contour_control.testing import sibling_module
 

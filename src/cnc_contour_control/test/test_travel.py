@@ -8,10 +8,12 @@ import numpy as np
 import pytest
 
 from cnc_contour_control.core.errors import ConfigError, FaultError, ProgramError
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import OverrideConfig
 from cnc_contour_control.motion.gcode import parse_gcode
 from cnc_contour_control.motion.homing import HomingParams, homing_program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program_goal import ProgramGoal
 from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
 from cnc_contour_control.motion.trajectory_motion import TrajectoryGoalError, TrajectoryMotion, TrajectoryPoints

@@ -11,8 +11,10 @@ from numpy.testing import assert_allclose
 
 from cnc_contour_control.core.errors import ConfigError, ProgramError
 from cnc_contour_control.motion import interpolation, plan_stream
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import Dwell, Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.testing import WAIT_FLOOR_S, sibling_module
 from cnc_tools.bench.blending_corpus import CORPUS
 from cnc_tools.bench.blending_limits import bench_config, limits_for

@@ -54,10 +54,13 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.lockstep import ns_to_s
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.motion.accel_decel import ReferenceFilter
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig, ReferenceSample
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.jerk_fir import LiveJerkFilter
 from cnc_contour_control.motion.plan_background import BackgroundPlanner
+from cnc_contour_control.motion.reference_types import ReferenceSample
 
 _BISECTIONS = 40
 

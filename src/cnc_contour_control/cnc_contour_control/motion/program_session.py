@@ -52,6 +52,7 @@ from cnc_contour_control.core.errors import ConfigError, FaultError, ProgramErro
 from cnc_contour_control.core.lockstep import NS_PER_S, ns_to_s
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.core.units import mm_to_m
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
 from cnc_contour_control.motion.geometry import PREFILTER_MIN_SEGMENTS, FloatArray, Program
 from cnc_contour_control.motion.goal_tolerances import (
@@ -64,8 +65,9 @@ from cnc_contour_control.motion.goal_tolerances import (
     resolve_tolerances,
 )
 from cnc_contour_control.motion.homing import HomedState, HomingParams, homing_program
-from cnc_contour_control.motion.interpolation import AxisLimits, InterpolatorConfig, ReferenceSample
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program_goal import ProgramGoal, goal_program
+from cnc_contour_control.motion.reference_types import ReferenceSample
 from cnc_contour_control.motion.session_scores import (
     CONTOUR_CHECK_BATCH,
     SCORE_BATCH,

@@ -16,8 +16,10 @@ import numpy as np
 from cnc_contour_control.core.config import require_positive
 from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import Program
-from cnc_contour_control.motion.interpolation import Interpolator, InterpolatorConfig, ReferenceTrajectory
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.points import FloatArray
+from cnc_contour_control.motion.reference_types import ReferenceTrajectory
 
 #: Largest rounding floor of a finite difference, as a share of the limit it is compared with.
 ROUNDING_SHARE = 1.0e-10

@@ -27,8 +27,9 @@ import numpy as np
 from cnc_contour_control.core.errors import FaultError, ProgramError
 from cnc_contour_control.core.lockstep import NS_PER_S
 from cnc_contour_control.core.params import check_ranges, param
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import FloatArray
-from cnc_contour_control.motion.interpolation import AxisLimits, ReferenceSample
+from cnc_contour_control.motion.reference_types import ReferenceSample
 from cnc_contour_control.motion.trajectory_reference import JointTrajectoryReference
 
 

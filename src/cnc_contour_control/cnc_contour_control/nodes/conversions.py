@@ -12,7 +12,7 @@ from cnc_contour_control.core.errors import FaultError
 from cnc_contour_control.core.lockstep import require_finite_values, require_same_axes
 from cnc_contour_control.estimators import ContourEstimate
 from cnc_contour_control.motion.geometry import ArcSegment, Program, Segment
-from cnc_contour_control.motion.interpolation import ReferenceSample
+from cnc_contour_control.motion.reference_types import ReferenceSample
 from cnc_contour_control.nodes.common import ns_to_stamp, set_stamp
 from cnc_contour_control.nodes.fast_cdr import constructor
 from cnc_contour_interfaces.msg import AxisCommand, Compensation, ContourError, Path, PathSegment, Reference

@@ -28,6 +28,7 @@ from sensor_msgs.msg import JointState
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.lockstep import StampMatcher, ns_to_s, stamp_horizon_ns
 from cnc_contour_control.graph.stage_params import InterpolatorRunParams
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import (
     LiveReference,
     OverrideConfig,
@@ -37,15 +38,11 @@ from cnc_contour_control.motion.feed_override import (
 )
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.homing import HomingParams
-from cnc_contour_control.motion.interpolation import (
-    AxisLimits,
-    Interpolator,
-    InterpolatorConfig,
-    ReferenceSample,
-    with_planning_tolerance,
-)
+from cnc_contour_control.motion.interpolation import Interpolator, with_planning_tolerance
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program_file import read_program_file
 from cnc_contour_control.motion.program_session import ProgramSession, ProgramSessionParams
+from cnc_contour_control.motion.reference_types import ReferenceSample
 from cnc_contour_control.motion.trajectory_motion import ControllerStateParams
 from cnc_contour_control.motion.travel import TravelLimits
 from cnc_contour_control.nodes import fast_cdr

@@ -30,8 +30,8 @@ from rclpy.task import Future
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 from cnc_contour_control.core.errors import CncError
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.goal_tolerances import GoalTolerances
-from cnc_contour_control.motion.interpolation import AxisLimits
 from cnc_contour_control.motion.program_session import ProgramSession
 from cnc_contour_control.motion.session_scores import ProgramOutcome
 from cnc_contour_control.motion.trajectory_motion import TrajectoryGoalError, TrajectoryMotion, TrajectoryPoints

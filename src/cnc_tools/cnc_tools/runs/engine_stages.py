@@ -19,7 +19,8 @@ from cnc_contour_control.axis.safety import check_following_error, limit_of
 from cnc_contour_control.axis.servo import ServoController, ServoOutput
 from cnc_contour_control.core.stages import Pipeline
 from cnc_contour_control.motion.feed_override import LiveReference
-from cnc_contour_control.motion.interpolation import Interpolator, ReferenceSample
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.reference_types import ReferenceSample
 from cnc_plant_sim.models.machine_faults import tool_positions_m
 from cnc_plant_sim.models.plant import make_plant
 from cnc_plant_sim.process.cutting import cutting_plant

@@ -26,10 +26,12 @@ from cnc_contour_control.core.stages import Pipeline, pipeline
 from cnc_contour_control.core.units import mm_min_to_m_s, mm_s2_to_m_s2
 from cnc_contour_control.force.settings import ForceRegulatorSettings
 from cnc_contour_control.graph.cross_axis import CompensatorSettings, EstimatorSettings
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig, planning_limits
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.homing import HomingParams
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.points import require_feed_mm_min
 from cnc_contour_control.motion.program import load_program
 from cnc_contour_control.motion.travel import TravelLimits
