@@ -70,7 +70,7 @@ def _polyline(points: Sequence[tuple[float, ...]], feed_m_s: float) -> Program:
 
 def _check(program: Program, limits: AxisLimits, tolerance_mm: float) -> Interpolator:
     """Every limit and P on every 1 ms sample, the end reached only once the filter has drained."""
-    config = InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True)
+    config = InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True, jerk_mode="fir")
     interpolator, trajectory = sample_reference(program, limits, config, PERIOD_S)
     assert interpolator.jerk_filter is not None
     ratios = limit_ratios(trajectory.position_m, PERIOD_S, limits)
@@ -178,8 +178,8 @@ def test_override_schedules_keep_every_limit_and_p(program: Program, limits: Axi
     """The live reference under a schedule of ratios up to 2 (planned for 2): the ramps come out jerk-limited."""
     config = OverrideConfig(max_ratio=2.0, schedule_times_s=tuple(every_s * k for k in range(len(ratios))),
                             schedule_ratios=tuple(ratios))
-    live = LiveReference(program, limits, InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True),
-                         config)
+    live = LiveReference(program, limits, InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True,
+                                                             jerk_mode="fir"), config)
     positions, end = [], program.segments[-1].point(program.segments[-1].length_m)
     for tick in range(200_000):
         sample = live.step(tick * 1_000_000, live.request(tick * 1_000_000, 1.0))
@@ -197,7 +197,8 @@ def test_live_reference_is_done_only_once_the_filter_has_drained(tick_ns: int) -
     """At 1 ms and 10 ms ticks: ``done`` (the end of a run or goal) comes with the end point, n - 1 ticks after
     the retimed plan's end, n = ceil(2 amax / (jmax T))."""
     program = _polyline([(0.0, 0.0), (0.004, 0.0)], 0.02)
-    live = LiveReference(program, LIMITS, InterpolatorConfig(path_tolerance_mm=0.01), OverrideConfig())
+    live = LiveReference(program, LIMITS, InterpolatorConfig(path_tolerance_mm=0.01, jerk_mode="fir"),
+                         OverrideConfig())
     fir = live.interpolator.jerk_filter
     assert fir is not None
     plan_end_s, samples, plan_done = live.interpolator.duration_s - fir.window_s, [], None
@@ -217,3 +218,41 @@ def test_live_reference_is_done_only_once_the_filter_has_drained(tick_ns: int) -
     period_s = tick_ns * 1e-9
     assert np.abs(np.diff(positions, 3, axis=0)).max() / period_s**3 <= 10.0 * LIMIT_GOAL
     assert plan_done is not None and first_done - plan_done == taps - 1
+
+
+def _polygon(sides: int, radius_m: float = 0.02) -> Program:
+    angles = np.linspace(0.0, 2.0 * math.pi, sides + 1)
+    points = [(radius_m * math.cos(a), radius_m * math.sin(a)) for a in angles.tolist()]
+    return _polyline(points[:-1] + [points[0]], 2000 / 60000)
+
+
+@pytest.mark.parametrize(("program", "expected"), [(_polygon(36), "scurve"),
+                                                   (_polyline([(0.01 * k, 0.0027 * (k % 2)) for k in range(8)],
+                                                              2000 / 60000), "fir")])
+def test_quickest_runs_the_quicker_mode_and_says_which(program: Program, expected: str) -> None:
+    """The default ``jerk_mode`` quickest: the 36-gon's 10-degree corners at speed are quicker as S-curves, a
+    zig-zag's 30-degree turns through the filter; every limit and P held, done only at the end point."""
+    assert InterpolatorConfig().jerk_mode == "quickest"
+    config = InterpolatorConfig(path_tolerance_mm=0.01, clamp_feed=True)
+    interpolator, trajectory = sample_reference(program, LIMITS, config, PERIOD_S)
+    durations_s = {mode: Interpolator(program, LIMITS, InterpolatorConfig(path_tolerance_mm=0.01, clamp_feed=True,
+                                                                          jerk_mode=mode)).duration_s
+                   for mode in ("fir", "scurve")}
+    assert interpolator.jerk_mode_used == expected and (interpolator.jerk_filter is not None) is (expected == "fir")
+    assert interpolator.duration_s == min(durations_s.values()) < max(durations_s.values())
+    assert limit_ratios(trajectory.position_m, PERIOD_S, LIMITS).worst() <= LIMIT_GOAL
+    assert program.contour_distance(trajectory.position_m)[0].max() <= 0.01e-3 * LIMIT_GOAL
+    end = program.segments[-1].point(program.segments[-1].length_m)
+    not_there = np.linalg.norm(trajectory.position_m - end, axis=1) > 1e-12
+    assert not trajectory.done[not_there].any() and trajectory.done[-1]
+
+
+def test_quickest_runs_fir_above_the_compared_length_and_names_a_mode_only_with_a_jerk_limit() -> None:
+    program = _polygon(36)
+    short = InterpolatorConfig(path_tolerance_mm=0.01, jerk_compare_max_segments=35)
+    assert Interpolator(program, LIMITS, short).jerk_mode_used == "fir"
+    assert Interpolator(program, LIMITS, InterpolatorConfig(jerk_mode="fir")).jerk_mode_used == "scurve", "P 0"
+    assert Interpolator(program, AxisLimits(LIMITS.max_velocity_m_s, LIMITS.max_acceleration_m_s2),
+                        InterpolatorConfig(path_tolerance_mm=0.01)).jerk_mode_used is None
+    with pytest.raises(ConfigError, match="jerk_compare_max_segments must be a whole number, got 2.5"):
+        InterpolatorConfig(jerk_compare_max_segments=2.5)  # type: ignore[arg-type]  # a bad value on purpose

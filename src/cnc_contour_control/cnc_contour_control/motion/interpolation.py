@@ -31,7 +31,8 @@ With a path tolerance (``path_tolerance_mm``, or G64 P) the profile is planned o
 (:mod:`cnc_contour_control.motion.blending`; :attr:`Interpolator.program`; the one written:
 :attr:`Interpolator.programmed_program`), or as written if that is quicker (never slower than exact stop).
 With a jerk limit (``AxisLimits.max_jerk_m_s3``) ``jerk_mode`` ``fir`` passes that plan through a moving average
-(:mod:`cnc_contour_control.motion.jerk_fir`), ``scurve`` plans S-curves (:mod:`cnc_contour_control.motion.jerk_plan`).
+(:mod:`cnc_contour_control.motion.jerk_fir`), ``scurve`` plans S-curves (:mod:`cnc_contour_control.motion.jerk_plan`),
+``quickest`` (the default) plans both and keeps the quicker (:attr:`Interpolator.jerk_mode_used`).
 """
 from __future__ import annotations
 
@@ -151,11 +152,13 @@ class Interpolator:
         self.programmed_program = program
         self._profile_time_s, self._accel_decel = 0.0, ReferenceFilter(self.config.accel_decel)
         tolerance_m, jerk_mode = planning_tolerance_m(program, self.config), self.config.jerk_mode
-        self._fir = None if limits.max_jerk_m_s3 is None or jerk_mode != "fir" or tolerance_m <= 0.0 else fir_settings(
-            limits, self.config.jerk_filter_period_s, tolerance_m, self.config.jerk_filter_tolerance_share)
+        self._fir = None if limits.max_jerk_m_s3 is None or jerk_mode == "scurve" or tolerance_m <= 0.0 else \
+            fir_settings(limits, self.config.jerk_filter_period_s, tolerance_m, self.config.jerk_filter_tolerance_share)
         tolerance_m -= 0.0 if self._fir is None else self._fir.filter_tolerance_m
         self._jerk = None if limits.max_jerk_m_s3 is None or self._fir else self._plan_jerk(program, tolerance_m)
         self._stream = None if self._jerk or self._fir else start_stream(self, program, limits, tolerance_m)
+        #: The jerk-limited mode that runs (``fir`` or ``scurve``; ``jerk_mode`` quickest: the quicker), or None.
+        self.jerk_mode_used = None if limits.max_jerk_m_s3 is None else "fir" if self._fir else "scurve"
         if self._stream is not None or self._jerk is not None:
             return
         self._end_point_m = program.segments[-1].point(program.segments[-1].length_m)
@@ -164,8 +167,21 @@ class Interpolator:
             self._plan_blended(program, blend_m, tolerance_rad)
             if fir is None or within_tolerance(self._plan_array, self.duration_s, fir, self.blended,
                                                planning_tolerance_m(program, self.config)):
+                if fir is not None and jerk_mode == "quickest":
+                    self._compare_scurve(program)
                 return
         self._fir, self._jerk = None, self._plan_jerk(program, planning_tolerance_m(program, self.config))
+        self.jerk_mode_used = "scurve"
+
+    def _compare_scurve(self, program: Program) -> None:
+        """``jerk_mode`` quickest after a FIR plan: the ``scurve`` plan instead where it is quicker (programs of at
+        most ``jerk_compare_max_segments`` segments; a tie keeps ``fir``, whose override ramps are jerk-limited)."""
+        if len(program.segments) > self.config.jerk_compare_max_segments:
+            return
+        tolerance_m = planning_tolerance_m(program, self.config)
+        plan = quickest_jerk_plan(program, self.limits, self.config.clamp_feed, tolerance_m)
+        if plan.duration_s < self.duration_s:
+            self._fir, self._jerk, self.jerk_mode_used = None, self._plan_jerk(program, tolerance_m, plan), "scurve"
 
     def _plan_blended(self, program: Program, tolerance_m: float, tolerance_rad: float) -> None:
         """The (v, a) plan over the quickest blend of ``program`` (:func:`quickest_blend`)."""
@@ -179,10 +195,11 @@ class Interpolator:
         self._plan_end_s = self.duration_s  # fir: the program ends when the filter has drained
         self.duration_s += 0.0 if self._fir is None else self._fir.window_s
 
-    def _plan_jerk(self, program: Program, tolerance_m: float) -> JerkPlan:
+    def _plan_jerk(self, program: Program, tolerance_m: float, plan: JerkPlan | None = None) -> JerkPlan:
         """The jerk-limited mode (:mod:`~cnc_contour_control.motion.jerk_plan`; its corners are not in
-        :attr:`program`)."""
-        plan = quickest_jerk_plan(program, self.limits, self.config.clamp_feed, tolerance_m)
+        :attr:`program`); ``plan`` if given (planned at ``tolerance_m``)."""
+        if plan is None:
+            plan = quickest_jerk_plan(program, self.limits, self.config.clamp_feed, tolerance_m)
         self.blended, self.program, self._view = BlendedProgram.unblended(program, tolerance_m), program, program
         self.duration_s, self.cruise_speed_m_s = plan.duration_s, plan.peak_speed_m_s
         self.tangential_acceleration_m_s2 = np.array([p.accel_m_s2 for p in plan.path_limits])

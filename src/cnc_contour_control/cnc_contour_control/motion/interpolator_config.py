@@ -10,8 +10,9 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.motion.accel_decel import AccelDecelConfig
 
-#: The jerk-limited modes (``InterpolatorConfig.jerk_mode``).
-JERK_MODES = ("fir", "scurve")
+#: The jerk-limited modes (``InterpolatorConfig.jerk_mode``): ``quickest`` plans a program in both others (up to
+#: ``jerk_compare_max_segments`` segments, else ``fir``) and keeps the quicker.
+JERK_MODES = ("quickest", "fir", "scurve")
 
 
 @dataclass(frozen=True)
@@ -57,8 +58,12 @@ class InterpolatorConfig:
         Acceleration/deceleration after interpolation (paper 003's T_ip), applied by
         :meth:`Interpolator.reference` (:mod:`cnc_contour_control.motion.accel_decel`).
     jerk_mode : str
-        With a jerk limit: ``fir`` (the plan through a moving average, :mod:`~cnc_contour_control.motion.jerk_fir`)
-        or ``scurve`` (:mod:`~cnc_contour_control.motion.jerk_plan`).
+        With a jerk limit: ``fir`` (the plan through a moving average, :mod:`~cnc_contour_control.motion.jerk_fir`),
+        ``scurve`` (:mod:`~cnc_contour_control.motion.jerk_plan`) or ``quickest`` (the default: both, the quicker
+        kept; :attr:`Interpolator.jerk_mode_used <cnc_contour_control.motion.interpolation.Interpolator>` says which).
+    jerk_compare_max_segments : int
+        ``quickest``: programs of at most this many segments are planned in both modes, in [0, 1e9]; a longer one
+        runs ``fir`` (``scurve`` crawls on dense chords and plans 3-5 times slower there).
     jerk_filter_period_s : float
         ``fir``: the filter's sample period T, s, in [1e-5, 0.1]; its jerk bound holds at every multiple of T.
     jerk_filter_tolerance_share : float
@@ -90,8 +95,11 @@ class InterpolatorConfig:
         description="slow down a segment whose feed exceeds the axis limits instead of refusing it")
     accel_decel: AccelDecelConfig = param(default_factory=AccelDecelConfig, read_only=True,
                                           description="acceleration/deceleration after interpolation (T_ip)")
-    jerk_mode: str = param("fir", read_only=True, description="with a jerk limit: fir (moving average after "
-                                                                  "the (v, a) plan) or scurve (S-curve planner)")
+    jerk_mode: str = param("quickest", read_only=True, description="with a jerk limit: fir (moving average after the "
+                           "(v, a) plan), scurve (S-curve planner) or quickest (both planned, the quicker kept)")
+    jerk_compare_max_segments: int = param(
+        1000, low=0, high=1.0e9, read_only=True,
+        description="quickest: programs of at most this many segments are planned in both modes, longer ones run fir")
     jerk_filter_period_s: float = param(1.0e-3, unit="s", low=1.0e-5, high=0.1, read_only=True,
                                         description="fir: the jerk filter's sample period (jerk held at multiples)")
     jerk_filter_tolerance_share: float = param(0.5, low=0.05, high=0.95, read_only=True,
@@ -105,7 +113,7 @@ class InterpolatorConfig:
         for name in ("clamp_feed", "arc_combined_budget"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")
-        for name in ("arc_speed_bands", "look_ahead_segments"):
+        for name in ("arc_speed_bands", "look_ahead_segments", "jerk_compare_max_segments"):
             value = getattr(self, name)
             if isinstance(value, float) and not value.is_integer():
                 raise ConfigError(f"{name} must be a whole number, got {value!r}")
