@@ -7,7 +7,8 @@ ratio ramps towards each request within the limits; ``clamp_feed``: planned for 
 velocity limit is slowed to it, also at 100 %). The override only retimes the planned path, so the
 deviation is the blended path's; the rows give it over P, the worst v, a and jerk ratios of the ticks
 (:func:`cnc_tools.bench.blending.sampled_ratios`) and the cycle time, beside the 100 % row planned for
-``max_ratio`` 1 (what planning for 200 % costs at 100 %).
+``max_ratio`` 1 (what planning for 200 % costs at 100 %). With the jerk limit the planner runs ``jerk_mode`` fir,
+the mode whose override ramps come out jerk-limited (``quickest`` may take ``scurve``, whose ramps are not).
 """
 from __future__ import annotations
 
@@ -66,7 +67,8 @@ def live_samples(program: Program, config: OverrideConfig, dt_s: float = SAMPLE_
 
     Raises :class:`FaultError` if the end is not reached in ``max_ticks``.
     """
-    live = LiveReference(program, limits_for(program, jerk=True), replace(bench_config(), clamp_feed=True), config)
+    live = LiveReference(program, limits_for(program, jerk=True), replace(bench_config(), clamp_feed=True,
+                                                                          jerk_mode="fir"), config)
     dt_ns = round(dt_s * 1e9)
     rows: list[tuple[np.ndarray, np.ndarray, np.ndarray, int, float]] = []
     tail = 0

@@ -1,16 +1,18 @@
-"""Bench ``jerk``: the two jerk-limited modes on the blending bench's programs, and the FIR mode's override sweep.
+"""Bench ``jerk``: the jerk-limited modes on the blending bench's programs, and the FIR mode's override sweep.
 
 Per program of :mod:`cnc_tools.bench.blending_corpus`, at the blending bench's tolerance, limits and jerk limit
 (:data:`cnc_tools.bench.blending_limits.MAX_JERK_M_S3`, the acceleration limit reached in 25 ms), for
-``jerk_mode`` ``fir`` (:mod:`cnc_contour_control.motion.jerk_fir`) and ``scurve``
-(:mod:`cnc_contour_control.motion.jerk_plan`): the cycle time over toppra's (v, a) bound on the blended path
+``jerk_mode`` ``fir`` (:mod:`cnc_contour_control.motion.jerk_fir`), ``scurve``
+(:mod:`cnc_contour_control.motion.jerk_plan`) and ``quickest`` (the default; the mode it ran in its label): the cycle
+time over toppra's (v, a) bound on the blended path
 of the planner without a jerk limit (:mod:`cnc_tools.bench.time_optimal`; toppra has no jerk limit, so its time
 is a lower bound), over that planner's time and over exact stop (G61) without a jerk limit; the worst velocity,
 acceleration and jerk ratio by finite differences of the reference every 1 ms
 (:func:`cnc_contour_control.motion.reference_check.limit_ratios`) and the worst exact distance to the programmed
-path over P. Goals: every ratio <= 1 + 1e-9, dev/P <= 1, and the FIR mode within ``TOPPRA_GOAL`` of toppra on
-``TOPPRA_PROGRAMS``. The override sweep steps the FIR mode's live reference (the ratio ramps before the filter)
-under :data:`cnc_tools.bench.blending_override.SCHEDULES`.
+path over P, and the planning and sampling CPU time. Goals: every ratio <= 1 + 1e-9, dev/P <= 1, and within
+``TOPPRA_GOAL`` of toppra on ``TOPPRA_PROGRAMS`` (a line gives them for ``quickest``). The override sweep
+steps the FIR mode's live reference (the ratio ramps before the filter) under
+:data:`cnc_tools.bench.blending_override.SCHEDULES`.
 """
 from __future__ import annotations
 
@@ -31,7 +33,7 @@ from cnc_tools.bench.blending_corpus import CORPUS
 from cnc_tools.bench.blending_limits import LIMIT_GOAL, SAMPLE_S, TOLERANCE_MM, bench_config, limits_for
 from cnc_tools.bench.blending_override import _TAIL_TICKS, SCHEDULES, SWEEP_PROGRAMS, live_samples
 
-MODES = ("fir", "scurve")
+MODES = ("fir", "scurve", "quickest")
 
 
 def mode_figures(program: Program, mode: str) -> dict[str, Any]:
@@ -46,11 +48,13 @@ def mode_figures(program: Program, mode: str) -> dict[str, Any]:
     return {"cycle_s": interpolator.duration_s, "velocity_ratio": float(np.max(ratios.velocity)),
             "acceleration_ratio": float(np.max(ratios.acceleration)), "jerk_ratio": float(np.max(ratios.jerk)),
             "deviation_over_p": float(deviation_m.max()) / (TOLERANCE_MM * 1e-3), "cpu_s": cpu_s,
+            "mode_used": interpolator.jerk_mode_used,
             "filter": None if interpolator.jerk_filter is None else dataclasses.asdict(interpolator.jerk_filter)}
 
 
 def program_figures(program: Program, spacing_m: float = 2e-4) -> dict[str, Any]:
-    """Both modes on ``program`` beside toppra's bound, the planner without a jerk limit and exact stop (s)."""
+    """The modes (:data:`MODES`: both, and the quicker that ``quickest`` takes) on ``program`` beside toppra's
+    bound, the planner without a jerk limit and exact stop (s)."""
     from cnc_tools.bench.time_optimal import time_optimal_s  # toppra: only when the table runs
 
     plain_limits = limits_for(program)
@@ -71,11 +75,23 @@ def goals(f: dict[str, Any], mode: str) -> dict[str, bool | None]:
 
 def _row(f: dict[str, Any], mode: str) -> list[object]:
     m, met = f[mode], goals(f, mode)
-    return [f["program"], mode, f"{m['cycle_s']:.3f}", f"{m['cycle_s'] / f['toppra_s']:.4f}",
-            f"{m['cycle_s'] / f['blended_s']:.4f}", f"{m['cycle_s'] / f['exact_stop_s']:.4f}",
+    label = mode if mode != "quickest" else f"quickest: {m['mode_used']}"
+    return [f["program"], label, f"{m['cycle_s']:.3f}", f"{m['cycle_s'] / f['toppra_s']:.4f}",
+            f"{m['cycle_s'] / f['blended_s']:.4f}", f"{m['cycle_s'] / f['exact_stop_s']:.4f}", f"{m['cpu_s']:.3f}",
             *(f"{m[name]:.4f}" for name in ("velocity_ratio", "acceleration_ratio", "jerk_ratio", "deviation_over_p")),
             goal_text(bool(met["limits"] and met["P"])),
             "-" if met["toppra"] is None else goal_text(met["toppra"])]
+
+
+def _quickest_goals(figures: list[dict[str, Any]]) -> str:
+    """One line: the default mode's goals met per goal program (limits, P and toppra), and which mode ran."""
+    parts = []
+    for f in figures:
+        met = goals(f, "quickest")
+        if met["toppra"] is not None:
+            ok = bool(met["limits"] and met["P"] and met["toppra"])
+            parts.append(f"{f['program']} ({f['quickest']['mode_used']}) {goal_text(ok)}")
+    return f"jerk_mode quickest (the default), every goal within {TOPPRA_GOAL} toppra: " + ", ".join(parts)
 
 
 def sweep_figures(program: Program, schedule: str) -> dict[str, Any]:
@@ -110,9 +126,10 @@ def jerk_bench(options: argparse.Namespace) -> int:
     figures = [program_figures(make()) for make, in_quick in CORPUS.values() if in_quick or not quick]
     print(f"jerk-limited modes at P {TOLERANCE_MM} mm, the blending bench's limits and jerk limit; times in s; "
           f"ratios by finite differences every {SAMPLE_S * 1e3:g} ms; toppra on the (v, a) planner's blended path")
-    print(format_table(["program", "mode", "cycle s", "/toppra", "/no jerk", "/G61", "v ratio", "a ratio",
+    print(format_table(["program", "mode", "cycle s", "/toppra", "/no jerk", "/G61", "CPU s", "v ratio", "a ratio",
                         "jerk ratio", "dev/P", "limits, P", f"<={TOPPRA_GOAL} toppra"],
                        [_row(f, mode) for f in figures for mode in MODES]))
+    print(_quickest_goals(figures))
     sweep = override_sweep(quick)
     write_json(getattr(options, "json", None), {"bench": "jerk", "tolerance_mm": TOLERANCE_MM, "programs": figures,
                                                 "override_sweep": sweep, "machine": machine()})
