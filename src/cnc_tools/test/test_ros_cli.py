@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.testing import TopicProbe
+from cnc_contour_control.testing import WAIT_FLOOR_S, TopicProbe
 from cnc_tools.cli import send_program
 from cnc_tools.cli.main import main as cli
 from cnc_tools.runs.scenario import load_scenario
@@ -32,12 +32,12 @@ def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
 
 
 #: How long a tool waits for the graph here: a new process's reader matches in 2-3 s on a quiet machine, longer under
-#: load (the tools' own default is 5 s).
-WAIT_S = "60"
+#: load (the tools' own default is 5 s; action send's 10 s). The wait ends when the answer comes.
+WAIT_S = f"{WAIT_FLOOR_S:g}"
 
 
 #: The subcommands that look the graph up (each takes --wait-s).
-LOOKUPS = {"nodes", "topics", "echo", "hz", "param", "lifecycle"}
+LOOKUPS = {"nodes", "topics", "echo", "hz", "param", "lifecycle", "action"}
 
 
 def ros(capsys: pytest.CaptureFixture[str], *words: str) -> tuple[int, str]:

@@ -77,13 +77,14 @@ def send_program(args: argparse.Namespace) -> int:
     goal = goal_of(args)
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)  # Ctrl-C: a KeyboardInterrupt here, not a shutdown
     node = rclpy.create_node("send_program")
+    client = ActionClient(node, RunProgram, args.action)
     try:
-        client = ActionClient(node, RunProgram, args.action)
         if not client.wait_for_server(timeout_sec=args.wait_s):
             raise ConfigError(f"no RunProgram server on {args.action} within --wait-s {args.wait_s} s "
                               f"(is the interpolator running with program_source: action, in this ROS domain?)")
         return _run(node, client, goal, args)
     finally:
+        client.destroy()  # the node is not destroyed while its action client holds it (destroy_node leaves waitables)
         node.destroy_node()
         rclpy.try_shutdown()
 
