@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 
 from cnc_contour_control.core.errors import ConfigError
+from cnc_tools.bench import hops
 from cnc_tools.bench.hops import (
     PROFILE_VARIABLES,
     SHIPPED,
@@ -65,10 +66,13 @@ def test_the_profile_applies_inside_the_block_only(tmp_path: Path) -> None:
     assert {name: os.environ.get(name) for name in PROFILE_VARIABLES} == before
 
 
+#: A round small enough for a test: every side runs its real processes, each for a few ticks.
+SMALL = Plan(rounds=1, round_trips=50, pingpong_warmup=10, relay_ticks=100, relay_warmup=10, graph_duration_s=0.1)
+
+
 @pytest.mark.nodes
 def test_one_round_measures_every_side_in_rotated_order(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    plan = Plan(rounds=1, round_trips=50, pingpong_warmup=10, relay_ticks=100, relay_warmup=10, graph_duration_s=0.1)
-    figures = measure_round(1, SHIPPED, profile_path(), tmp_path, plan)
+    figures = measure_round(1, SHIPPED, profile_path(), tmp_path, SMALL)
     out = capsys.readouterr().out
     assert out.index("relay ...") < out.index("graph ...") < out.index("bare ...")  # round 2 starts at the relay
     assert 0.0 < figures.bare_hop_s < 0.1 and 0.0 < figures.relay_hop_s < 0.1 and 0.0 < figures.graph_hop_s < 0.1
@@ -77,7 +81,9 @@ def test_one_round_measures_every_side_in_rotated_order(tmp_path: Path, capsys: 
 
 
 @pytest.mark.nodes
-def test_the_bench_writes_each_round_under_each_profile(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_the_bench_writes_each_round_under_each_profile(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(hops, "QUICK", SMALL)  # the rounds and the files are the point here, not the figures
     udp = tmp_path / "udp.xml"
     udp.write_text(profile_path().read_text())
     options = argparse.Namespace(quick=True, rounds=1, dds_profile=[f"copy={udp}"], out=tmp_path / "runs",
