@@ -62,13 +62,6 @@ def test_circle_at_1ms_loses_no_message_and_reads_back_with_rosbags_and_mcap(tmp
     assert diagnostics and max(diagnostics) <= end_ns, "wall-stamped diagnostics logged inside the run's time"
 
 
-def test_same_scenario_and_seed_give_the_same_bag_contents(tmp_path: Path) -> None:
-    scenario = load_scenario(CIRCLE, {"duration_s": 1.0})
-    ns = "/cnc/seeded"  # one after the other, so one namespace for both: the same topic names
-    first = _raw_by_topic(run_graph(scenario, tmp_path / "a", record=True, namespace=ns).bag_path)
-    second = _raw_by_topic(run_graph(scenario, tmp_path / "b", record=True, namespace=ns).bag_path)
-    first.pop(f"{ns}/diagnostics", None), second.pop(f"{ns}/diagnostics", None)  # wall-clock stamps
-    assert first == second
 
 
 def test_recorder_closes_the_bag_cleanly_on_sigterm(tmp_path: Path) -> None:
@@ -114,10 +107,37 @@ def test_recorder_refuses_an_existing_output_folder(tmp_path: Path) -> None:
         read_bag(existing)
 
 
-def test_cnc_contour_run_prints_the_score_and_the_paths(tmp_path: Path) -> None:
-    out = tmp_path / "run"
+#: The seeded runs' namespace: one run after the other, so one namespace for both gives the same topic names.
+SEEDED_NS = "/cnc/seeded"
+
+
+@pytest.fixture(scope="module")
+def cli_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[subprocess.CompletedProcess[str], Path]:
+    """``cnc-contour run`` of the circle for 2 s in SEEDED_NS, as a user types it: its output and run folder."""
+    out = tmp_path_factory.mktemp("cli") / "run"
     result = subprocess.run([sys.executable, "-m", "cnc_tools.cli.main", "run", str(CIRCLE), "--out", str(out),
-                             "--set", "duration_s=2.0"], capture_output=True, text=True, timeout=300)
+                             "--set", "duration_s=2.0", "--namespace", SEEDED_NS],
+                            capture_output=True, text=True, timeout=300)
+    return result, out
+
+
+def test_same_scenario_and_seed_give_the_same_bag_contents(tmp_path: Path,
+                                                           cli_run: tuple[subprocess.CompletedProcess[str], Path]
+                                                           ) -> None:
+    """The graph run again with the CLI run's scenario, seed and namespace records the same messages."""
+    result, out = cli_run
+    assert result.returncode == 0, result.stdout + result.stderr
+    scenario = load_scenario(CIRCLE, {"duration_s": 2.0})
+    first = _raw_by_topic(out / "bag")
+    second = _raw_by_topic(run_graph(scenario, tmp_path / "b", record=True, namespace=SEEDED_NS).bag_path)
+    first.pop(f"{SEEDED_NS}/diagnostics", None), second.pop(f"{SEEDED_NS}/diagnostics", None)  # wall-clock stamps
+    assert first.keys() == second.keys() and len(first[f"{SEEDED_NS}/joint_states"]) == tick_count(scenario)
+    assert first == second
+
+
+def test_cnc_contour_run_prints_the_score_and_the_paths(cli_run: tuple[subprocess.CompletedProcess[str], Path]
+                                                        ) -> None:
+    result, out = cli_run
     assert result.returncode == 0, result.stdout + result.stderr
     for line in ("contour error", "circular test", "bag:", "json:", "plots:"):
         assert line in result.stdout, line
