@@ -9,7 +9,7 @@ import pytest
 from cnc_contour_control.motion.geometry import LineSegment, Program
 from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
 from cnc_tools.bench.blending import goals, planning_cost
-from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, polygon, ramps_3axis, true_circle, zigzag
+from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, arc_scallops, polygon, ramps_3axis, true_circle, zigzag
 from cnc_tools.bench.blending_limits import (
     BEST_OPTIONS,
     JERK_STRIDE,
@@ -117,3 +117,11 @@ def test_the_override_sweep_holds_the_tolerance_and_the_limits_on_a_short_zigzag
     assert figures["deviation_over_p"] <= 1.0 + 1e-9
     assert max(figures["velocity_ratio"] + figures["acceleration_ratio"]) <= 1.0 + 1e-9
     assert figures["cycle_s"] > 0.5
+
+
+def test_the_override_sweep_measures_the_filtered_ticks_against_the_programmed_path() -> None:
+    """90-degree arc-arc corners at 200 % through the jerk filter: within P of the programmed arcs (measured against
+    the segment each tick's index names, the filter's lag read as 1.2 P)."""
+    figures = sweep_figures(arc_scallops(radii_m=(5e-4, 1e-3), repeats=2), "200 %")
+    assert 0.5 < figures["deviation_over_p"] <= 1.0 + 1e-9
+    assert max(figures["velocity_ratio"] + figures["acceleration_ratio"] + figures["jerk_ratio"]) <= 1.0 + 1e-9

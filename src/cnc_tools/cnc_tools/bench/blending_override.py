@@ -4,11 +4,12 @@ Per program and schedule the reference is stepped at 1 ms ticks as the interpola
 (:class:`~cnc_contour_control.motion.feed_override.LiveReference`: the profile planned for the largest
 ratio, ``max_ratio`` 2, by :func:`~cnc_contour_control.motion.feed_override.planning_limits`; the applied
 ratio ramps towards each request within the limits; ``clamp_feed``: planned for 200 %, a feed over half the
-velocity limit is slowed to it, also at 100 %). The override only retimes the planned path, so the
-deviation is the blended path's; the rows give it over P, the worst v, a and jerk ratios of the ticks
-(:func:`cnc_tools.bench.blending.sampled_ratios`) and the cycle time, beside the 100 % row planned for
-``max_ratio`` 1 (what planning for 200 % costs at 100 %). With the jerk limit the planner runs ``jerk_mode`` fir,
-the mode whose override ramps come out jerk-limited (``quickest`` may take ``scurve``, whose ramps are not).
+velocity limit is slowed to it, also at 100 %). The override only retimes the planned path; the rows give each
+tick's exact distance to the programmed path (``Program.contour_distance``) over P, the worst v, a and jerk
+ratios of the ticks (:func:`cnc_tools.bench.blending.sampled_ratios`) and the cycle time, beside the 100 % row
+planned for ``max_ratio`` 1 (what planning for 200 % costs at 100 %). With the jerk limit the planner runs
+``jerk_mode`` fir, the mode whose override ramps come out jerk-limited (``quickest`` may take ``scurve``, whose
+ramps are not).
 """
 from __future__ import annotations
 
@@ -91,7 +92,7 @@ def sweep_figures(program: Program, schedule: str) -> dict[str, Any]:
     """One program under one schedule: cycle time, deviation over P, worst v, a and jerk ratios per axis."""
     times, ratios, max_ratio = SCHEDULES[schedule]
     run = live_samples(program, OverrideConfig(max_ratio=max_ratio, schedule_times_s=times, schedule_ratios=ratios))
-    deviation_m = run.interpolator.blended.local_deviation_m(run.position_m, run.segment)
+    deviation_m = program.contour_distance(run.position_m)[0]  # the jerk filter's samples lag their segment index
     found = sampled_ratios(run.position_m, run.velocity_m_s, run.acceleration_m_s2, SAMPLE_S, program.n_axes)
     return {"program": program.name, "schedule": schedule, "max_ratio": max_ratio,
             "cycle_s": (len(run.ratio) - 1 - _TAIL_TICKS) * SAMPLE_S,
