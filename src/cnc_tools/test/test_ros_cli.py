@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import re
+import sys
 from collections.abc import Iterator
 from contextlib import ExitStack
 from pathlib import Path
@@ -43,7 +44,9 @@ LOOKUPS = {"nodes", "topics", "echo", "hz", "param", "lifecycle", "action"}
 def ros(capsys: pytest.CaptureFixture[str], *words: str) -> tuple[int, str]:
     wait = ["--wait-s", WAIT_S] if words[0] in LOOKUPS and "--wait-s" not in words else []
     code = cli(["ros", *words, *wait])
-    return code, capsys.readouterr().out
+    captured = capsys.readouterr()
+    sys.stderr.write(captured.err)  # the tool's error line, in the report of a test that fails
+    return code, captured.out
 
 
 def test_nodes_topics_echo_and_hz_read_the_running_graph(graph: None, capsys: pytest.CaptureFixture[str]) -> None:
