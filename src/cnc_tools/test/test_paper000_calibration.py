@@ -10,6 +10,8 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_tools.reproductions.paper000.calibration import (
     PidColumnObjective,
     check_variables,
+    compare,
+    compare_text,
     default_variables,
     fit,
     pid_targets,
@@ -18,6 +20,7 @@ from cnc_tools.reproductions.paper000.calibration import (
 )
 from cnc_tools.reproductions.paper000.data import TABLE5, table5_row
 from cnc_tools.runs.executor import LocalExecutor
+from cnc_tools.runs.faults import FaultRow
 from cnc_tools.tuning.problem import DesignVariable
 
 #: Two cases keep the objective at about 0.1 s per evaluation.
@@ -71,3 +74,25 @@ def test_a_tiny_fit_is_closer_to_the_pid_column_than_the_shipped_plant() -> None
     assert result.best.objective < shipped
     assert all(v.low <= x <= v.high for v, x in zip(VARIABLES, result.best.x))
     assert result.best.objective == pytest.approx(objective(np.asarray(result.best.x)))
+
+
+def test_a_faulted_run_is_a_row_of_the_comparison_and_a_win_for_neither_law() -> None:
+    """FLC with a 1 um following-error trip faults on X at its second tick: the comparison carries on, prints the
+    run as a faulted row (axis, time, reason), counts it apart and pairs only the seed where both laws ran."""
+    trip = {"servo": {"min_ferror_m": 1.0e-6, "ferror_m": 1.0e-6}}
+    with LocalExecutor(1) as executor:
+        tripped = compare(trip, (1,), executor, ["circle_high"])
+        plain = compare({}, (1, 2), executor, ["circle_high"])
+    fault = tripped[("circle_high", "flc")][0]
+    assert isinstance(fault, FaultRow) and (fault.axis, fault.time_s) == ("x", 0.01), fault
+    assert all(not isinstance(v, FaultRow) for found in plain.values() for v in found)
+    mixed = {("circle_high", "pid"): plain[("circle_high", "pid")],
+             ("circle_high", "flc"): [fault, plain[("circle_high", "flc")][1]]}
+    text = compare_text(mixed, (1, 2), (table5_row("circle_high"),))
+    assert "faulted runs (1; no figures, counted as a win for neither law):" in text
+    fault_line = next(line for line in text.splitlines() if "faulted " in line and "EngineFault" in line)
+    assert fault_line.split()[:4] == ["circle_high", "flc", "1", "faulted"]
+    assert "axis x, t 0.010 s: EngineFault: servo x: following error" in fault_line
+    rows = [line.split() for line in text.splitlines()
+            if line.strip().startswith("circle_high ") and "EngineFault" not in line]
+    assert len(rows) == 2 and all(row[-1] == "0/1" and row[-2] in ("0/1", "1/1") for row in rows), rows

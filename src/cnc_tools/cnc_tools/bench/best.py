@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import re
 import tempfile
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
@@ -45,8 +44,8 @@ from cnc_tools.analysis.scoring import contour_error_series
 from cnc_tools.analysis.tables import format_table, goal_text, machine, write_json
 from cnc_tools.reproductions.paper001.runs import learning_runs
 from cnc_tools.run_record import RunRecord
-from cnc_tools.runs.engine import EngineFault
 from cnc_tools.runs.executor import make_executor
+from cnc_tools.runs.faults import FaultRow, fault_row
 from cnc_tools.runs.folders import project_root
 from cnc_tools.runs.scenario import load_scenario
 
@@ -159,20 +158,13 @@ class Outcome:
     @property
     def fault_text(self) -> str:
         """The fault as a table shows it: axis, time, reason ("" when the run did not fault)."""
-        if not self.fault:
-            return ""
-        time_s = f"{self.fault_time_s:.3f} s" if math.isfinite(self.fault_time_s) else "—"
-        return f"axis {self.fault_axis or '—'}, t {time_s}: {self.fault}"
+        return FaultRow(self.fault, self.fault_axis, self.fault_time_s).text if self.fault else ""
 
 
 def fault_outcome(err: CncError, runs: int, axes: Sequence[str]) -> Outcome:
     """The outcome of run ``runs`` that ended on ``err``: its reason, the axis it names, the time it stopped at."""
-    reason = f"{type(err).__name__}: {err}"
-    named = [axis for axis in axes if re.search(rf"\b(?:servo|axis|plant) {re.escape(axis)}\b", str(err))]
-    time_s = math.nan
-    if isinstance(err, EngineFault) and err.record.summary.get("ticks", 0) > 0:
-        time_s = float(err.record.summary["simulated_time_s"])
-    return Outcome(math.nan, math.nan, math.nan, runs, reason, named[0] if named else "", time_s)
+    row = fault_row(err, axes)
+    return Outcome(math.nan, math.nan, math.nan, runs, row.reason, row.axis, row.time_s)
 
 
 def measure(record: RunRecord) -> tuple[float, float, float]:

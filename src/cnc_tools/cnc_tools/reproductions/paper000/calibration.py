@@ -19,8 +19,10 @@ column is never read by the fit. :func:`fit` minimises it with the tuner's
 :func:`~cnc_tools.tuning.solve.solve` (differential evolution) from several DE
 seeds; the spread of the optima says how well the data pins each parameter.
 Then :func:`compare` reruns PID and FLC (Tables 1, 3, 4 unchanged) on the
-calibrated plant over several plant seeds. Every engine run goes through an
-executor (``--workers``, ``--scheduler``).
+calibrated plant over several plant seeds; a run the machine faults (a
+following-error trip) is a row of the comparison with its axis, time and
+reason, counted apart and never a win for either law. Every engine run goes
+through an executor (``--workers``, ``--scheduler``).
 """
 from __future__ import annotations
 
@@ -43,8 +45,9 @@ from cnc_tools.reproductions.paper000.runs import VIEWS, apply_view, blu, get_co
 from cnc_tools.reproductions.paper000.sweep import stat_text, wins
 from cnc_tools.runs.engine import run_engine
 from cnc_tools.runs.executor import Executor, make_executor
+from cnc_tools.runs.faults import FaultRow, fault_row
 from cnc_tools.runs.folders import project_root
-from cnc_tools.runs.scenario import merge
+from cnc_tools.runs.scenario import Scenario, merge
 from cnc_tools.tuning.problem import DesignVariable, check_unique
 from cnc_tools.tuning.solve import TuningResult, solve
 
@@ -54,6 +57,10 @@ COUNTS_PER_M_AT_KE_1 = 1.0e5
 ON_BOUND_FRACTION = 0.01
 #: (case, metric) -> a figure [BLU]; metric is ``max`` or ``rms``.
 Figures = dict[tuple[str, str], float]
+#: One comparison run: (max, RMS) [BLU], or the fault that stopped it.
+CaseResult = tuple[float, float] | FaultRow
+#: (case, ``pid``/``flc``) -> one result per plant seed, in the seeds' order.
+Comparison = Mapping[tuple[str, str], Sequence[CaseResult]]
 
 
 # =========================================================================== the open assumptions
@@ -141,12 +148,23 @@ class CaseRun:
     overrides: Mapping[str, Any]
 
 
+def _case_scenario(item: CaseRun) -> Scenario:
+    row = next(r for r in TABLE5 if r.case == item.case)
+    return scenario_for(project_root() / row.scenario, get_controller(item.controller), item.seed, item.overrides)
+
+
 def run_case(item: CaseRun) -> tuple[float, float]:
     """(max, RMS) contour error [BLU] of one engine run, ``paper`` view, the project's scorer."""
-    row = next(r for r in TABLE5 if r.case == item.case)
-    scenario = scenario_for(project_root() / row.scenario, get_controller(item.controller), item.seed,
-                            item.overrides)
-    return blu(score_run(apply_view(run_engine(scenario), VIEWS["paper"]), ("max", "rms")))
+    return blu(score_run(apply_view(run_engine(_case_scenario(item)), VIEWS["paper"]), ("max", "rms")))
+
+
+def compare_case(item: CaseRun) -> CaseResult:
+    """:func:`run_case`, or the fault that stopped the run (its axis, time and reason)."""
+    scenario = _case_scenario(item)
+    try:
+        return blu(score_run(apply_view(run_engine(scenario), VIEWS["paper"]), ("max", "rms")))
+    except CncError as err:  # a fault of the machine is a row of the comparison, not the bench's end
+        return fault_row(err, scenario.plant.axes)
 
 
 def pid_targets(rows: Sequence[Table5Row] = TABLE5) -> Figures:
@@ -243,12 +261,12 @@ def profile(objective: PidColumnObjective, x: Sequence[float], executor: Executo
 
 # =========================================================================== PID vs FLC
 def compare(overrides: Mapping[str, Any], seeds: Sequence[int], executor: Executor,
-            cases: Sequence[str] | None = None) -> dict[tuple[str, str], list[tuple[float, float]]]:
-    """(max, RMS) [BLU] per seed for every (case, ``pid``/``flc``) on the plant of ``overrides``."""
+            cases: Sequence[str] | None = None) -> dict[tuple[str, str], list[CaseResult]]:
+    """(max, RMS) [BLU] or the fault, per seed, for every (case, ``pid``/``flc``) on the plant of ``overrides``."""
     names = list(cases) if cases is not None else [row.case for row in TABLE5]
     items = [CaseRun(c, law, s, dict(overrides)) for c in names for law in ("pid", "flc") for s in seeds]
-    values = executor.map(run_case, items, label="pid vs flc")
-    out: dict[tuple[str, str], list[tuple[float, float]]] = {}
+    values = executor.map(compare_case, items, label="pid vs flc")
+    out: dict[tuple[str, str], list[CaseResult]] = {}
     for item, value in zip(items, values, strict=True):
         out.setdefault((item.case, item.controller), []).append(value)
     return out
@@ -311,35 +329,66 @@ def _residual_table(objective: PidColumnObjective, shipped: Figures, calibrated:
                          "calibrated/paper", "residual ln"], rows)
 
 
-def _compare_rows(runs: Mapping[tuple[str, str], list[tuple[float, float]]], metric: str) -> list[list[object]]:
+def _ran(results: Sequence[CaseResult], k: int) -> list[float]:
+    return [v[k] for v in results if not isinstance(v, FaultRow)]
+
+
+def _ratio(flc: Sequence[float], pid: Sequence[float]) -> str:
+    return f"{statistics.fmean(flc) / statistics.fmean(pid):.2f}" if flc and pid else "—"
+
+
+def _compare_rows(runs: Comparison, metric: str, rows_of: Sequence[Table5Row]) -> list[list[object]]:
+    """Per case: each law's mean ± spread over the runs that finished, FLC <= PID over the seeds where both
+    finished, and the faulted runs apart (never a win)."""
     k = 0 if metric == "max" else 1
     rows: list[list[object]] = []
-    for row in TABLE5:
-        pid, flc = ([v[k] for v in runs[(row.case, law)]] for law in ("pid", "flc"))
+    for row in rows_of:
+        pid_all, flc_all = runs[(row.case, "pid")], runs[(row.case, "flc")]
+        pid, flc = _ran(pid_all, k), _ran(flc_all, k)
+        both = [(f[k], p[k]) for p, f in zip(pid_all, flc_all, strict=True)
+                if not isinstance(p, FaultRow) and not isinstance(f, FaultRow)]
         paper_pid, paper_flc = row.paper_value("pid", metric), row.paper_value("flc", metric)
-        rows.append([row.case, stat_text(pid), f"{paper_pid:g}", stat_text(flc), f"{paper_flc:g}",
-                     f"{statistics.fmean(flc) / statistics.fmean(pid):.2f}", f"{paper_flc / paper_pid:.2f}",
-                     wins(flc, pid)])
+        faulted = [sum(isinstance(v, FaultRow) for v in found) for found in (pid_all, flc_all)]
+        rows.append([row.case, stat_text(pid) if pid else "—", f"{paper_pid:g}", stat_text(flc) if flc else "—",
+                     f"{paper_flc:g}", _ratio(flc, pid), f"{paper_flc / paper_pid:.2f}",
+                     wins([f for f, _ in both], [p for _, p in both]), "/".join(map(str, faulted))])
     return rows
 
 
-def _print_compare(runs: Mapping[tuple[str, str], list[tuple[float, float]]], seeds: Sequence[int]) -> None:
+def fault_rows(runs: Comparison, seeds: Sequence[int]) -> list[list[object]]:
+    """One row per faulted run: case, law, plant seed, ``faulted`` and the fault (axis, time, reason)."""
+    return [[case, law, seed, "faulted", v.text] for (case, law), found in runs.items()
+            for seed, v in zip(seeds, found, strict=True) if isinstance(v, FaultRow)]
+
+
+def compare_text(runs: Comparison, seeds: Sequence[int], rows_of: Sequence[Table5Row] = TABLE5) -> str:
+    """The PID vs FLC tables (max, RMS) and, when a run faulted, a row for each faulted run."""
+    parts = []
     for metric in ("max", "rms"):
-        print(f"\n{metric} contour error [BLU], calibrated plant (best fit), plant seeds {list(seeds)}:")
-        print(format_table(["case", "PID ours", "PID paper", "FLC ours", "FLC paper", "FLC/PID ours",
-                            "FLC/PID paper", "FLC <= PID (seeds)"], _compare_rows(runs, metric)))
+        parts.append(f"\n{metric} contour error [BLU], calibrated plant (best fit), plant seeds {list(seeds)}:")
+        parts.append(format_table(["case", "PID ours", "PID paper", "FLC ours", "FLC paper", "FLC/PID ours",
+                                   "FLC/PID paper", "FLC <= PID (seeds both ran)", "faulted PID/FLC"],
+                                  _compare_rows(runs, metric, rows_of)))
+    faults = fault_rows(runs, seeds)
+    if faults:
+        parts.append(f"\nfaulted runs ({len(faults)}; no figures, counted as a win for neither law):")
+        parts.append(format_table(["case", "law", "plant seed", "result", "fault"], faults))
+    return "\n".join(parts)
 
 
-def _ratio_line(runs: Mapping[tuple[str, str], list[tuple[float, float]]]) -> list[str]:
-    """FLC/PID of the means, max/RMS, per case."""
-    def ratio(case: str, k: int) -> float:
-        return statistics.fmean(v[k] for v in runs[(case, "flc")]) / statistics.fmean(v[k] for v in runs[(case, "pid")])
-
-    return [f"{ratio(r.case, 0):.2f}/{ratio(r.case, 1):.2f}" for r in TABLE5]
+def _ratio_line(runs: Comparison) -> list[str]:
+    """FLC/PID of the means (runs that finished), max/RMS, per case; the faulted runs' count when any."""
+    out = []
+    for r in TABLE5:
+        found = (runs[(r.case, "pid")], runs[(r.case, "flc")])
+        faulted = sum(isinstance(v, FaultRow) for results in found for v in results)
+        text = "/".join(_ratio(_ran(found[1], k), _ran(found[0], k)) for k in (0, 1))
+        out.append(text + (f" ({faulted} faulted)" if faulted else ""))
+    return out
 
 
 def _print_report(result: Fit, figures: Sequence[Figures], profiles: Mapping[str, tuple[float, float]],
-                  runs: Sequence[Mapping[tuple[str, str], list[tuple[float, float]]]], plan: BenchPlan) -> None:
+                  runs: Sequence[Comparison], plan: BenchPlan) -> None:
     """The fits, the parameters, the residuals (``figures``: shipped, best), PID vs FLC on every fit."""
     objective = result.objective
     print("\nfits (objective: RMS over the 12 PID figures of ln(ours/paper)):")
@@ -348,7 +397,7 @@ def _print_report(result: Fit, figures: Sequence[Figures], profiles: Mapping[str
     print(_box_table(result, profiles))
     print("\nresiduals against Table 5's PID column, plant seed 1:")
     print(_residual_table(objective, figures[0], figures[1]))
-    _print_compare(runs[0], plan.compare_seeds)
+    print(compare_text(runs[0], plan.compare_seeds))
     print("\nFLC/PID of the means (max/RMS) on each DE seed's fitted plant (paper: "
           + ", ".join(f"{r.max_flc_blu / r.max_pid_blu:.2f}/{r.rms_flc_blu / r.rms_pid_blu:.2f}" for r in TABLE5)
           + "):")
@@ -380,5 +429,6 @@ def paper000_calibrated_bench(options: argparse.Namespace) -> int:
         "plan": asdict(plan), "profile": profiles,
         "fits": [{"de_seed": s, "x": r.values(), "objective": r.objective, "evaluations": r.evaluations,
                   "on_bounds": result.on_bounds(r)} for s, r in zip(result.seeds, result.results)],
-        "compare": [{f"{c}/{law}": v for (c, law), v in r.items()} for r in runs]})
+        "compare": [{f"{c}/{law}": [asdict(x) if isinstance(x, FaultRow) else x for x in v]
+                     for (c, law), v in r.items()} for r in runs]})
     return 0
