@@ -14,6 +14,7 @@ from cnc_tools.reproductions.paper000.calibration import (
     compare_text,
     default_variables,
     fit,
+    fits_fault_text,
     pid_targets,
     plant_overrides,
     shipped_point,
@@ -96,3 +97,7 @@ def test_a_faulted_run_is_a_row_of_the_comparison_and_a_win_for_neither_law() ->
     rows = [line.split() for line in text.splitlines()
             if line.strip().startswith("circle_high ") and "EngineFault" not in line]
     assert len(rows) == 2 and all(row[-1] == "0/1" and row[-2] in ("0/1", "1/1") for row in rows), rows
+    every_fit = fits_fault_text((2, 1), [plain, mixed], (1, 2)).splitlines()
+    assert every_fit[1] == "faulted runs on the fitted plants (1; no figures, counted as a win for neither law):"
+    assert every_fit[3].split()[:6] == ["DE", "seed", "1", "circle_high", "flc", "1"], every_fit
+    assert fits_fault_text((2,), [plain], (1, 2)) == ""

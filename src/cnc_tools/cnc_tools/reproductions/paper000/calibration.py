@@ -361,8 +361,19 @@ def fault_rows(runs: Comparison, seeds: Sequence[int]) -> list[list[object]]:
             for seed, v in zip(seeds, found, strict=True) if isinstance(v, FaultRow)]
 
 
-def compare_text(runs: Comparison, seeds: Sequence[int], rows_of: Sequence[Table5Row] = TABLE5) -> str:
-    """The PID vs FLC tables (max, RMS) and, when a run faulted, a row for each faulted run."""
+def fits_fault_text(fits: Sequence[int], runs: Sequence[Comparison], seeds: Sequence[int]) -> str:
+    """A row per faulted run of every fit's comparison (DE seed, case, law, plant seed, fault); "" when none."""
+    rows = [[f"DE seed {fit_seed}", *row] for fit_seed, found in zip(fits, runs, strict=True)
+            for row in fault_rows(found, seeds)]
+    if not rows:
+        return ""
+    return (f"\nfaulted runs on the fitted plants ({len(rows)}; no figures, counted as a win for neither law):\n"
+            + format_table(["fit", "case", "law", "plant seed", "result", "fault"], rows))
+
+
+def compare_text(runs: Comparison, seeds: Sequence[int], rows_of: Sequence[Table5Row] = TABLE5,
+                 with_faults: bool = True) -> str:
+    """The PID vs FLC tables (max, RMS) and (``with_faults``) a row for each faulted run."""
     parts = []
     for metric in ("max", "rms"):
         parts.append(f"\n{metric} contour error [BLU], calibrated plant (best fit), plant seeds {list(seeds)}:")
@@ -370,7 +381,7 @@ def compare_text(runs: Comparison, seeds: Sequence[int], rows_of: Sequence[Table
                                    "FLC/PID paper", "FLC <= PID (seeds both ran)", "faulted PID/FLC"],
                                   _compare_rows(runs, metric, rows_of)))
     faults = fault_rows(runs, seeds)
-    if faults:
+    if faults and with_faults:
         parts.append(f"\nfaulted runs ({len(faults)}; no figures, counted as a win for neither law):")
         parts.append(format_table(["case", "law", "plant seed", "result", "fault"], faults))
     return "\n".join(parts)
@@ -397,12 +408,15 @@ def _print_report(result: Fit, figures: Sequence[Figures], profiles: Mapping[str
     print(_box_table(result, profiles))
     print("\nresiduals against Table 5's PID column, plant seed 1:")
     print(_residual_table(objective, figures[0], figures[1]))
-    print(compare_text(runs[0], plan.compare_seeds))
+    print(compare_text(runs[0], plan.compare_seeds, with_faults=False))  # every fit's faults: below
     print("\nFLC/PID of the means (max/RMS) on each DE seed's fitted plant (paper: "
           + ", ".join(f"{r.max_flc_blu / r.max_pid_blu:.2f}/{r.rms_flc_blu / r.rms_pid_blu:.2f}" for r in TABLE5)
           + "):")
     print(format_table(["fit", *(r.case for r in TABLE5)],
                        [[f"DE seed {s}", *_ratio_line(r)] for s, r in zip(result.seeds, runs)]))
+    faults = fits_fault_text(result.seeds, runs, plan.compare_seeds)
+    if faults:
+        print(faults)
 
 
 def paper000_calibrated_bench(options: argparse.Namespace) -> int:
