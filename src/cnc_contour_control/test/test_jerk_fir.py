@@ -230,10 +230,11 @@ def _polygon(sides: int, radius_m: float = 0.02) -> Program:
                                                    (_polyline([(0.01 * k, 0.0027 * (k % 2)) for k in range(8)],
                                                               2000 / 60000), "fir")])
 def test_quickest_runs_the_quicker_mode_and_says_which(program: Program, expected: str) -> None:
-    """The default ``jerk_mode`` quickest: the 36-gon's 10-degree corners at speed are quicker as S-curves, a
-    zig-zag's 30-degree turns through the filter; every limit and P held, done only at the end point."""
-    assert InterpolatorConfig().jerk_mode == "quickest"
-    config = InterpolatorConfig(path_tolerance_mm=0.01, clamp_feed=True)
+    """``jerk_mode`` quickest (the default is fir, whose override ramps keep the jerk limit): the 36-gon's 10-degree
+    corners at speed are quicker as S-curves, a zig-zag's 30-degree turns through the filter; every limit and P
+    held, done only at the end point."""
+    assert InterpolatorConfig().jerk_mode == "fir"
+    config = InterpolatorConfig(path_tolerance_mm=0.01, clamp_feed=True, jerk_mode="quickest")
     interpolator, trajectory = sample_reference(program, LIMITS, config, PERIOD_S)
     durations_s = {mode: Interpolator(program, LIMITS, InterpolatorConfig(path_tolerance_mm=0.01, clamp_feed=True,
                                                                           jerk_mode=mode)).duration_s
@@ -249,7 +250,7 @@ def test_quickest_runs_the_quicker_mode_and_says_which(program: Program, expecte
 
 def test_quickest_runs_fir_above_the_compared_length_and_names_a_mode_only_with_a_jerk_limit() -> None:
     program = _polygon(36)
-    short = InterpolatorConfig(path_tolerance_mm=0.01, jerk_compare_max_segments=35)
+    short = InterpolatorConfig(path_tolerance_mm=0.01, jerk_mode="quickest", jerk_compare_max_segments=35)
     assert Interpolator(program, LIMITS, short).jerk_mode_used == "fir"
     assert Interpolator(program, LIMITS, InterpolatorConfig(jerk_mode="fir")).jerk_mode_used == "scurve", "P 0"
     assert Interpolator(program, AxisLimits(LIMITS.max_velocity_m_s, LIMITS.max_acceleration_m_s2),

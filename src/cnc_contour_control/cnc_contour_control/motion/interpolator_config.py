@@ -59,8 +59,9 @@ class InterpolatorConfig:
         :meth:`Interpolator.reference` (:mod:`cnc_contour_control.motion.accel_decel`).
     jerk_mode : str
         With a jerk limit: ``fir`` (the plan through a moving average, :mod:`~cnc_contour_control.motion.jerk_fir`),
-        ``scurve`` (:mod:`~cnc_contour_control.motion.jerk_plan`) or ``quickest`` (the default: both, the quicker
-        kept; :attr:`Interpolator.jerk_mode_used <cnc_contour_control.motion.interpolation.Interpolator>` says which).
+        ``scurve`` (:mod:`~cnc_contour_control.motion.jerk_plan`) or ``quickest`` (both, the quicker kept;
+        :attr:`Interpolator.jerk_mode_used <cnc_contour_control.motion.interpolation.Interpolator>` says which).
+        ``fir`` is the default: the only mode whose feed-override ramps and feed holds keep the jerk limit.
     jerk_compare_max_segments : int
         ``quickest``: programs of at most this many segments are planned in both modes, in [0, 1e9]; a longer one
         runs ``fir`` (``scurve`` crawls on dense chords and plans 3-5 times slower there).
@@ -95,7 +96,7 @@ class InterpolatorConfig:
         description="slow down a segment whose feed exceeds the axis limits instead of refusing it")
     accel_decel: AccelDecelConfig = param(default_factory=AccelDecelConfig, read_only=True,
                                           description="acceleration/deceleration after interpolation (T_ip)")
-    jerk_mode: str = param("quickest", read_only=True, description="with a jerk limit: fir (moving average after the "
+    jerk_mode: str = param("fir", read_only=True, description="with a jerk limit: fir (moving average after the "
                            "(v, a) plan), scurve (S-curve planner) or quickest (both planned, the quicker kept)")
     jerk_compare_max_segments: int = param(
         1000, low=0, high=1.0e9, read_only=True,
