@@ -2,6 +2,7 @@
 (named and parametrised as the runner starts paper 000's circle), each subcommand as a user types it."""
 from __future__ import annotations
 
+import os
 import re
 import sys
 from collections.abc import Iterator
@@ -24,8 +25,12 @@ SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "paper000_circle_
 
 @pytest.fixture(scope="module")
 def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
-    """The lockstep graph, ticking for as long as the module's tests run."""
-    with ExitStack() as stack:
+    """The lockstep graph, ticking for as long as the module's tests run, and the tools, in a domain of this
+    process's own (the root conftest's second claim): after another in-process graph of this worker (a /cnc graph
+    of test_program_action or test_lifecycle_graph), this graph's services went unanswered for 90 s (get_state,
+    a RunProgram goal) in the worker's own domain, also at f4b6fda."""
+    with ExitStack() as stack, pytest.MonkeyPatch.context() as patch:
+        patch.setenv("ROS_DOMAIN_ID", os.environ["CNC_QUIET_DOMAIN_ID"])
         start_graph_in_process(stack, load_scenario(SCENARIO, {}), tmp_path_factory.mktemp("graph"))
         with TopicProbe({"/cnc/joint_states": JointState}) as probe:  # running: the plant ticks
             probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 10, 30.0, "the graph's ticks")
