@@ -22,7 +22,8 @@ from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
 from cnc_contour_control.motion.geometry import LineSegment, Program, Segment
-from cnc_contour_control.motion.interpolation import Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.jerk_filter import MovingAverage, filter_taps, moving_average_rows
 from cnc_contour_control.motion.reference_check import limit_ratios, sample_reference
 

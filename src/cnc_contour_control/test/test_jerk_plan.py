@@ -18,7 +18,8 @@ from hypothesis import strategies as st
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program, Segment
-from cnc_contour_control.motion.interpolation import Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.jerk_blend import Corner
 from cnc_contour_control.motion.jerk_profile import SCurve, peak_speed_m_s, ramp_length_m
 from cnc_contour_control.motion.reference_check import limit_ratios, sample_reference

@@ -6,8 +6,10 @@ import math
 import numpy as np
 import pytest
 
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import LineSegment, Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_tools.bench.blending import goals, planning_cost
 from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, arc_scallops, polygon, ramps_3axis, true_circle, zigzag
 from cnc_tools.bench.blending_limits import (

@@ -50,12 +50,11 @@ from numpy.typing import ArrayLike, NDArray
 from cnc_contour_control.core.config import require_non_negative
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.accel_decel import ReferenceFilter
-from cnc_contour_control.motion.axis_limits import AxisLimits as AxisLimits
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.blend_choice import CornerLimits
 from cnc_contour_control.motion.blending import BlendedProgram, quickest_blend
 from cnc_contour_control.motion.geometry import Program, Segment
-from cnc_contour_control.motion.interpolator_config import JERK_MODES as JERK_MODES
-from cnc_contour_control.motion.interpolator_config import InterpolatorConfig as InterpolatorConfig
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.jerk_fir import (
     FirSettings,
     capped_program,
@@ -73,8 +72,7 @@ from cnc_contour_control.motion.plan_arrays import (
     program_junction_speeds_m_s,
 )
 from cnc_contour_control.motion.plan_stream import start_stream, whole_plan
-from cnc_contour_control.motion.reference_types import ReferenceSample as ReferenceSample
-from cnc_contour_control.motion.reference_types import ReferenceTrajectory as ReferenceTrajectory
+from cnc_contour_control.motion.reference_types import ReferenceSample, ReferenceTrajectory
 
 FloatArray = NDArray[np.float64]
 

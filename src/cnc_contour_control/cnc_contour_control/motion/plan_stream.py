@@ -398,7 +398,7 @@ class _Shifted:
 
 def stream_settings(max_velocity_m_s: FloatArray, max_acceleration_m_s2: FloatArray, config: Any,
                     tolerance_m: float) -> StreamSettings:
-    """The settings of an :class:`~cnc_contour_control.motion.interpolation.InterpolatorConfig` (``config``)."""
+    """The settings of an :class:`~cnc_contour_control.motion.interpolator_config.InterpolatorConfig` (``config``)."""
     return StreamSettings(np.asarray(max_velocity_m_s, float), np.asarray(max_acceleration_m_s2, float),
                           config.arc_centripetal_fraction, config.arc_combined_budget, config.clamp_feed,
                           config.arc_speed_bands if config.arc_combined_budget else 1, config.look_ahead_segments,

@@ -13,8 +13,10 @@ from typing import Any
 
 import numpy as np
 
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import Program
-from cnc_contour_control.motion.interpolation import AxisLimits, Interpolator, InterpolatorConfig
+from cnc_contour_control.motion.interpolation import Interpolator
+from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 
 TOLERANCE_MM = 0.01
 MAX_VELOCITY_M_S = 2000.0 / 60000.0

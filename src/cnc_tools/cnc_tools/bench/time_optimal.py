@@ -20,8 +20,8 @@ import toppra.constraint
 from toppra.interpolator import AbstractGeometricPath
 
 from cnc_contour_control.core.errors import FaultError
+from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import Program
-from cnc_contour_control.motion.interpolation import AxisLimits
 
 _BEFORE_M = 1.0e-9
 _FREE_ACCELERATION_M_S2 = 1.0e9
