@@ -1,6 +1,7 @@
 """Tier 3: every way out of a run stops and reaps the graph, and the run's verdict tells how it ended."""
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import signal
@@ -159,10 +160,12 @@ class _StopWhenRunning:
             self.resume()
 
     def resume(self) -> None:
-        """SIGCONT the node if it is still stopped (also when the test fails)."""
+        """SIGCONT the node if it is still stopped (also when the test fails). The run may already have ended:
+        its fault can come inside the stop, and the runner then reaps the stopped node (SIGKILL after its grace)."""
         if self.pid is not None and not self.resumed:
-            os.kill(self.pid, signal.SIGCONT)
             self.resumed = True
+            with contextlib.suppress(ProcessLookupError):
+                os.kill(self.pid, signal.SIGCONT)
 
 
 def test_a_servo_stalled_for_a_second_in_real_time_faults_the_run_on_its_window(tmp_path: Path) -> None:
