@@ -70,6 +70,9 @@ def test_without_the_section_there_are_no_plans_and_the_graph_gets_the_same_sett
     ({"depth_schedule": [[0.0]]}, "preview.depth_schedule must be a list of [t_s, depth_mm] pairs"),
     ({"horizon_s": 1.0}, "preview.horizon_s: unknown key"),
     ({"window": {"before_s": -1.0}}, "before_s"),
+    ({"depth_schedule": [[True, 1.0]]}, "preview.depth_schedule_t_s[0] must be a number, got True"),
+    ({"depth_schedule": [[0.0, None]]}, "preview.depth_schedule_mm[0] must be a number, got None"),
+    ({"depth_schedule": [[0.0, float("nan")]]}, "preview.depth_schedule_mm[0] must be finite"),
 ])
 def test_a_bad_preview_is_refused_naming_the_value(preview: dict[str, Any], message: str) -> None:
     with pytest.raises(ConfigError) as err:

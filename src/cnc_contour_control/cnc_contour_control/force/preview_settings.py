@@ -20,7 +20,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from cnc_contour_control.core.config import build_config
+from cnc_contour_control.core.config import build_config, require_finite
 from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.core.force_model import DepthSchedule, TurningModelConfig
 from cnc_contour_control.core.params import check_ranges, param
@@ -64,7 +64,8 @@ class PreviewSettings:
                 object.__setattr__(self, name, build_config(cls, value, context=f"preview.{name}"))
             elif not isinstance(value, cls):
                 raise ConfigError(f"preview.{name} must be a mapping, got {value!r}")
-        times, depths = (tuple(float(v) for v in getattr(self, n)) for n in ("depth_schedule_t_s", "depth_schedule_mm"))
+        times, depths = (tuple(require_finite(f"{n}[{k}]", v, "preview") for k, v in enumerate(getattr(self, n)))
+                         for n in ("depth_schedule_t_s", "depth_schedule_mm"))  # a bool is no number
         if len(times) != len(depths):
             raise ConfigError(f"preview.depth_schedule_mm must have one depth per time ({len(times)}), "
                               f"got {len(depths)}")
