@@ -7,8 +7,9 @@ start and stops every node when the test ends, also when it fails.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
-from contextlib import ExitStack
+import os
+from collections.abc import Iterator, Mapping
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -16,6 +17,7 @@ from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
 from cnc_contour_control.nodes.servo_node import ServoNode
 from cnc_contour_control.testing import InProcessNode
 from cnc_plant_sim.nodes.plant_node import PlantNode
+from cnc_tools.runs.dds import claim_free_domain_id
 from cnc_tools.runs.graph_nodes import graph_specs
 from cnc_tools.runs.scenario import Scenario
 
@@ -53,3 +55,23 @@ def start_graph_in_process(stack: ExitStack, scenario: Scenario, run_dir: Path,
 
         nodes[spec.name] = stack.enter_context(InProcessNode(factory, params)).node
     return nodes
+
+
+@contextmanager
+def own_domain() -> Iterator[int]:
+    """While the block runs, ``ROS_DOMAIN_ID`` is a domain claimed for it alone (no other process on this host
+    holds it; released after): for a test module that hosts a ``/cnc`` graph in its worker process. After another
+    in-process graph of the same worker, in the worker's own domain, such a graph's services and goals went
+    unanswered for 60-90 s (a RunProgram goal, get_state; also at f4b6fda); what the earlier graph leaves there
+    is not found yet."""
+    claim = claim_free_domain_id()
+    before = os.environ.get("ROS_DOMAIN_ID")
+    os.environ["ROS_DOMAIN_ID"] = str(claim.domain_id)
+    try:
+        yield claim.domain_id
+    finally:
+        if before is None:
+            os.environ.pop("ROS_DOMAIN_ID", None)
+        else:
+            os.environ["ROS_DOMAIN_ID"] = before
+        claim.release()

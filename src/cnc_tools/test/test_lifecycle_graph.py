@@ -3,6 +3,7 @@ starts paper 000's circle): a servo cleaned up, given new gains, configured and 
 one node shut down faults the run naming it while the others stay up and re-armable."""
 from __future__ import annotations
 
+from collections.abc import Iterator
 from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
@@ -20,9 +21,18 @@ from sensor_msgs.msg import JointState
 from cnc_contour_control.testing import TopicProbe
 from cnc_contour_interfaces.action import RunProgram
 from cnc_tools.runs.scenario import load_scenario
-from cnc_tools.testing import start_graph_in_process
+from cnc_tools.testing import own_domain, start_graph_in_process
 
 pytestmark = pytest.mark.nodes
+
+
+@pytest.fixture(autouse=True)
+def _own_domain() -> Iterator[int]:
+    """Each test's in-process graph in a domain of its own (:func:`cnc_tools.testing.own_domain`)."""
+    with own_domain() as domain:
+        yield domain
+
+
 SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "paper000_circle_high.yaml"
 
 

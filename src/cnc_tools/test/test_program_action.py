@@ -27,9 +27,18 @@ from cnc_contour_interfaces.msg import Reference
 from cnc_tools.cli import send_program
 from cnc_tools.cli.main import main as cli
 from cnc_tools.runs.scenario import load_scenario
-from cnc_tools.testing import start_graph_in_process
+from cnc_tools.testing import own_domain, start_graph_in_process
 
 pytestmark = pytest.mark.nodes
+
+
+@pytest.fixture(autouse=True)
+def _own_domain() -> Iterator[int]:
+    """Each test's in-process graph in a domain of its own (:func:`cnc_tools.testing.own_domain`)."""
+    with own_domain() as domain:
+        yield domain
+
+
 SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "paper000_circle_high.yaml"
 T_NS = 10_000_000
 #: Bound of the completed programs' contour error. Measured: 0.22 mm (first) and 0.30 mm (third), where the

@@ -2,7 +2,6 @@
 (named and parametrised as the runner starts paper 000's circle), each subcommand as a user types it."""
 from __future__ import annotations
 
-import os
 import re
 import sys
 from collections.abc import Iterator
@@ -17,7 +16,7 @@ from cnc_contour_control.testing import WAIT_FLOOR_S, TopicProbe
 from cnc_tools.cli import send_program
 from cnc_tools.cli.main import main as cli
 from cnc_tools.runs.scenario import load_scenario
-from cnc_tools.testing import start_graph_in_process
+from cnc_tools.testing import own_domain, start_graph_in_process
 
 pytestmark = pytest.mark.nodes
 SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "paper000_circle_high.yaml"
@@ -25,12 +24,9 @@ SCENARIO = Path(__file__).resolve().parents[3] / "scenarios" / "paper000_circle_
 
 @pytest.fixture(scope="module")
 def graph(tmp_path_factory: pytest.TempPathFactory) -> Iterator[None]:
-    """The lockstep graph, ticking for as long as the module's tests run, and the tools, in a domain of this
-    process's own (the root conftest's second claim): after another in-process graph of this worker (a /cnc graph
-    of test_program_action or test_lifecycle_graph), this graph's services went unanswered for 90 s (get_state,
-    a RunProgram goal) in the worker's own domain, also at f4b6fda."""
-    with ExitStack() as stack, pytest.MonkeyPatch.context() as patch:
-        patch.setenv("ROS_DOMAIN_ID", os.environ["CNC_QUIET_DOMAIN_ID"])
+    """The lockstep graph, ticking for as long as the module's tests run, and the tools, in a domain of the
+    module's own (:func:`cnc_tools.testing.own_domain`)."""
+    with ExitStack() as stack, own_domain():
         start_graph_in_process(stack, load_scenario(SCENARIO, {}), tmp_path_factory.mktemp("graph"))
         with TopicProbe({"/cnc/joint_states": JointState}) as probe:  # running: the plant ticks
             probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 10, 30.0, "the graph's ticks")
