@@ -32,7 +32,7 @@ With a path tolerance (``path_tolerance_mm``, or G64 P) the profile is planned o
 :attr:`Interpolator.programmed_program`), or as written if that is quicker (never slower than exact stop).
 With a jerk limit (``AxisLimits.max_jerk_m_s3``) ``jerk_mode`` ``fir`` passes that plan through a moving average
 (:mod:`cnc_contour_control.motion.jerk_fir`), ``scurve`` plans S-curves (:mod:`cnc_contour_control.motion.jerk_plan`),
-``quickest`` (the default) plans both and keeps the quicker (:attr:`Interpolator.jerk_mode_used`).
+``quickest`` plans both and keeps the quicker (``fir`` is the default) (:attr:`Interpolator.jerk_mode_used`).
 """
 from __future__ import annotations
 

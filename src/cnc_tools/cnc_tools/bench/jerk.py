@@ -3,8 +3,8 @@
 Per program of :mod:`cnc_tools.bench.blending_corpus`, at the blending bench's tolerance, limits and jerk limit
 (:data:`cnc_tools.bench.blending_limits.MAX_JERK_M_S3`, the acceleration limit reached in 25 ms), for
 ``jerk_mode`` ``fir`` (:mod:`cnc_contour_control.motion.jerk_fir`), ``scurve``
-(:mod:`cnc_contour_control.motion.jerk_plan`) and ``quickest`` (the default; the mode it ran in its label): the cycle
-time over toppra's (v, a) bound on the blended path
+(:mod:`cnc_contour_control.motion.jerk_plan`) and ``quickest`` (the mode it ran in its label; ``fir`` is the default):
+the cycle time over toppra's (v, a) bound on the blended path
 of the planner without a jerk limit (:mod:`cnc_tools.bench.time_optimal`; toppra has no jerk limit, so its time
 is a lower bound), over that planner's time and over exact stop (G61) without a jerk limit; the worst velocity,
 acceleration and jerk ratio by finite differences of the reference every 1 ms
@@ -84,14 +84,14 @@ def _row(f: dict[str, Any], mode: str) -> list[object]:
 
 
 def _quickest_goals(figures: list[dict[str, Any]]) -> str:
-    """One line: the default mode's goals met per goal program (limits, P and toppra), and which mode ran."""
+    """One line: ``quickest``'s goals met per goal program (limits, P and toppra), and which mode ran."""
     parts = []
     for f in figures:
         met = goals(f, "quickest")
         if met["toppra"] is not None:
             ok = bool(met["limits"] and met["P"] and met["toppra"])
             parts.append(f"{f['program']} ({f['quickest']['mode_used']}) {goal_text(ok)}")
-    return f"jerk_mode quickest (the default), every goal within {TOPPRA_GOAL} toppra: " + ", ".join(parts)
+    return f"jerk_mode quickest (fir is the default), every goal within {TOPPRA_GOAL} toppra: " + ", ".join(parts)
 
 
 def sweep_figures(program: Program, schedule: str) -> dict[str, Any]:
