@@ -71,8 +71,8 @@ from cnc_contour_control.motion.plan_arrays import (
     plan_banded_limits,
     program_junction_speeds_m_s,
 )
-from cnc_contour_control.motion.plan_stream import start_stream, whole_plan
 from cnc_contour_control.motion.reference_types import ReferenceSample, ReferenceTrajectory
+from cnc_contour_control.motion.stream_start import start_stream, whole_plan
 
 FloatArray = NDArray[np.float64]
 
@@ -154,7 +154,8 @@ class Interpolator:
             fir_settings(limits, self.config.jerk_filter_period_s, tolerance_m, self.config.jerk_filter_tolerance_share)
         tolerance_m -= 0.0 if self._fir is None else self._fir.filter_tolerance_m
         self._jerk = None if limits.max_jerk_m_s3 is None or self._fir else self._plan_jerk(program, tolerance_m)
-        self._stream = None if self._jerk or self._fir else start_stream(self, program, limits, tolerance_m)
+        self._stream = None if self._jerk else start_stream(self, program, limits, tolerance_m, self._fir,
+                                                            planning_tolerance_m(program, self.config))
         #: The jerk-limited mode that runs (``fir`` or ``scurve``; ``jerk_mode`` quickest: the quicker), or None.
         self.jerk_mode_used = None if limits.max_jerk_m_s3 is None else "fir" if self._fir else "scurve"
         if self._stream is not None or self._jerk is not None:
@@ -206,7 +207,7 @@ class Interpolator:
         return plan
 
     def __getattr__(self, name: str) -> Any:
-        """Streaming: the whole plan's attributes, planned to the end on first use (:func:`plan_stream.whole_plan`)."""
+        """Streaming: the whole plan's attributes, planned to the end on first use (:func:`stream_start.whole_plan`)."""
         if name.startswith("__") or self.__dict__.get("_stream") is None:
             raise AttributeError(name)
         self.__dict__.update(whole_plan(self, name))
@@ -273,7 +274,7 @@ class Interpolator:
 
     def sample(self, t_s: float) -> ReferenceSample:
         """The reference at profile time ``t_s`` (s); before 0 holds the start, after the end holds the end."""
-        if self._fir is None or math.isnan(t_s) or t_s >= self.duration_s:
+        if self._fir is None or math.isnan(t_s) or t_s >= self._filtered_end_s(t_s):
             return self.plan_sample(t_s)
         row = self.sample_array([t_s])
         return ReferenceSample(row.position_m[0], row.velocity_m_s[0], row.acceleration_m_s2[0],
@@ -286,7 +287,7 @@ class Interpolator:
         retimes."""
         if math.isnan(t_s):
             raise ConfigError(f"t_s must be a number, got {t_s}")
-        if t_s >= (self._plan_end_s if self._fir is not None else self.planned_end_s(t_s)):
+        if t_s >= self._unfiltered_end_s(t_s):
             return self._end_sample()
         if self._jerk is not None:
             row = self.sample_array([t_s])
@@ -327,8 +328,22 @@ class Interpolator:
         """
         t = np.asarray(times_s, dtype=float).reshape(-1)
         if self._fir is not None:
-            return ReferenceTrajectory(*filtered_array(self._plan_array, t, self._fir, self.duration_s))
+            end_s = self._filtered_end_s(float(np.max(t, initial=0.0)))
+            return ReferenceTrajectory(*filtered_array(self._plan_array, t, self._fir, end_s))
         return self._plan_array(t)
+
+    def _unfiltered_end_s(self, t_s: float) -> float:
+        """The plan's end before the jerk filter (s), or inf while a stream has not reached it past ``t_s``."""
+        if self._fir is not None and self._stream is None:
+            return float(self._plan_end_s)
+        return self.planned_end_s(t_s)
+
+    def _filtered_end_s(self, t_s: float) -> float:
+        """fir: the profile's end, the filter drained (s), or inf while a stream has not reached it past ``t_s``."""
+        if self._stream is None:
+            return float(self.duration_s)
+        assert self._fir is not None
+        return self._stream.extend_to(t_s) + self._fir.window_s
 
     def _plan_array(self, t: FloatArray) -> ReferenceTrajectory:
         """:meth:`sample_array` before the jerk filter."""
@@ -338,7 +353,7 @@ class Interpolator:
             position[done] = self._end_point_m
             path = np.where(done, self._view.total_length_m, self._view.segment_start_m[index] + s_local)
             return ReferenceTrajectory(t, position, velocity, acceleration, path, index, speed, done)
-        end_s = self._plan_end_s if self._fir is not None else self.planned_end_s(float(np.max(t, initial=0.0)))
+        end_s = self._unfiltered_end_s(float(np.max(t, initial=0.0)))
         clipped = np.clip(t, 0.0, end_s)
         phases = self._phases if self._stream is None else self._stream.phases()
         k = np.maximum(np.searchsorted(phases.start_s[:-1], clipped, side="right") - 1, 0)

@@ -40,7 +40,7 @@ from __future__ import annotations
 import bisect
 import contextlib
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -49,6 +49,8 @@ from cnc_contour_control.core.errors import ProgramError
 from cnc_contour_control.motion.blend_choice import CornerLimits
 from cnc_contour_control.motion.blending import blend_program
 from cnc_contour_control.motion.geometry import Dwell, Program, Segment
+from cnc_contour_control.motion.jerk_fir import ATTEMPT_SHARES, FirSettings, capped_program
+from cnc_contour_control.motion.jerk_stream import chunk_deviation_m, chunk_holds_s
 from cnc_contour_control.motion.plan_arrays import (
     Phases,
     SpeedBands,
@@ -84,6 +86,10 @@ class StreamSettings:
     look_ahead_segments: int
     tolerance_m: float
     corner_rad: float
+    #: ``jerk_mode`` fir's filter (:mod:`~cnc_contour_control.motion.jerk_stream`), else None; ``path_tolerance_m``
+    #: the P its chunks are checked against, m.
+    fir: FirSettings | None = None
+    path_tolerance_m: float = 0.0
 
     @property
     def corner_limits(self) -> CornerLimits:
@@ -134,10 +140,13 @@ class _Blocks:
         blended = blend_program(self._sub_program(first, stop), settings.tolerance_m, settings.corner_rad,
                                 settings.corner_limits)
         sources = np.asarray(blended.source_segment or range(len(blended.planned.segments)), dtype=np.intp) + first
+        planned = blended.planned
+        if settings.fir is not None:  # fir's arc caps (a written arc may take the whole P)
+            planned = capped_program(planned, settings.fir, self._sub_program(first, stop))
         rows = np.flatnonzero((sources >= begin) & (sources < end))
-        new = [blended.planned.segments[i] for i in rows.tolist()]
+        new = [planned.segments[i] for i in rows.tolist()]
         dwell = self._dwells(sources[rows], begin, end)
-        self._append(new, dwell)
+        self._append(new, dwell, sources[rows])
         self._next = end
 
     def _dwells(self, sources: np.ndarray, begin: int, end: int) -> FloatArray:
@@ -151,21 +160,38 @@ class _Blocks:
         self._carry_dwell_s = float(dwell[-1]) + (float(programmed[-1]) if end == len(self.program.segments) else 0.0)
         return dwell[:-1]
 
-    def _append(self, new: list[Segment], dwell: FloatArray) -> None:
+    def _limits(self, new: list[Segment], start: int) -> tuple[FloatArray, SpeedBands]:
         s = self.settings
-        start = self.count
         speed, _, bands = plan_banded_limits(new, s.max_velocity_m_s, s.max_acceleration_m_s2,
                                              s.centripetal_fraction, s.combined_budget, s.clamp_feed, start,
                                              s.n_bands)
         if bands.n_bands != s.n_bands:
             bands = SpeedBands.single(speed, bands.accel_m_s2[:, -1], s.n_bands)
+        return speed, bands
+
+    def recap(self, first: int, stop: int, fir: FirSettings) -> None:
+        """Cap the arcs of planned segments ``first .. stop - 1`` again with ``fir`` (a streamed fir chunk over P)
+        and their limits' rows with them (an arc capped before is taken as a blend's: the smaller tolerance)."""
+        kept = self.segments[first - self.base:stop - self.base]
+        capped = capped_program(Program("chunk", self.program.axis_names, tuple(kept)), fir).segments
+        if all(a is b for a, b in zip(capped, kept)):
+            return
+        self.segments[first - self.base:stop - self.base] = capped
+        speed, bands = self._limits(list(capped), first)
+        for name, value in (("cruise", speed), ("edges", bands.edges_m_s), ("accel", bands.accel_m_s2)):
+            self._columns[name][first - self.base:stop - self.base] = value
+
+    def _append(self, new: list[Segment], dwell: FloatArray, sources: np.ndarray) -> None:
+        s = self.settings
+        speed, bands = self._limits(new, self.count)
         turns = junction_turns_rad(self.segments[-1:] + new)  # the junctions before new[1:], or before new[0:]
         smooth = (turns <= s.corner_rad) & (dwell[len(dwell) - len(turns):] == 0.0)
         length = np.array([seg.length_m for seg in new])
         ends = np.cumsum(np.concatenate(([self.total_m], length)))  # sequential: the whole program's cumsum
         self.total_m = float(ends[-1])
         for name, value in (("length", length), ("start", ends[:-1]), ("cruise", speed), ("edges", bands.edges_m_s),
-                            ("accel", bands.accel_m_s2), ("smooth", smooth), ("dwell", dwell)):
+                            ("accel", bands.accel_m_s2), ("smooth", smooth), ("dwell", dwell),
+                            ("source", sources)):
             self._grow(name, np.asarray(value))
         self.segments.extend(new)
 
@@ -235,6 +261,10 @@ class StreamPlan:
         self._chunk = max(settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
         self._phases: Phases | None = None
         self._forgotten_junctions = 0
+        #: Streamed fir: chunks planned again with smaller caps, and chunks still over P at the smallest (published).
+        self.replanned_chunks, self.over_tolerance_chunks = 0, 0
+        #: Streamed fir: the largest deviation (m) of a published chunk's filtered reference from the programmed path.
+        self.worst_deviation_m = 0.0
         #: Held while phases are published or forgotten (a :class:`~cnc_contour_control.motion.plan_background.
         #: BackgroundPlanner`'s condition once attached, which also hears of each chunk).
         self.guard: Any = contextlib.nullcontext()
@@ -254,6 +284,8 @@ class StreamPlan:
         """Drop the phases that end before ``t_s`` (s) and the planned segments before the first one kept, once
         ``FORGET_PHASES`` have gathered. Sampling before ``t_s`` afterwards is not supported (a forgotten segment raises
         :class:`ProgramError`), nor are the whole plan's arrays (:meth:`whole`)."""
+        if self.settings.fir is not None:  # the next chunk's check reaches back one filter window
+            t_s = min(t_s, self.planned_until_s - self.settings.fir.window_s)
         k = bisect.bisect_right(self.start_s, t_s) - 1
         if k < FORGET_PHASES:
             return
@@ -296,17 +328,51 @@ class StreamPlan:
         commit = end - j if last else chunk
         length, cruise = blocks.rows("length", j, end), blocks.rows("cruise", j, end)
         bands = SpeedBands(blocks.rows("edges", j, end), blocks.rows("accel", j, end))
-        caps = look_ahead_caps_m_s(bands.accel_m_s2[:, -1], length, window)  # inf past J + C unless last
-        speeds = banded_junction_speeds_m_s(cruise, bands, length, blocks.rows("smooth", j, end - 1), caps,
-                                            self.junction_speeds_m_s[-1])
-        self._commit(j, commit, speeds, last)
+        fir = self.settings.fir
+        for attempt in range(1 if fir is None else 2):
+            if attempt:  # fir over P: the chunk's arcs at fir_attempts' second caps (the window's stay as they were)
+                self.replanned_chunks += 1
+                share = ATTEMPT_SHARES[1]
+                assert fir is not None
+                blocks.recap(j, j + commit, replace(fir, filter_tolerance_m=share * fir.filter_tolerance_m,
+                                                    corner_tolerance_m=share * fir.corner_tolerance_m))
+                cruise = blocks.rows("cruise", j, end)
+                bands = SpeedBands(blocks.rows("edges", j, end), blocks.rows("accel", j, end))
+            caps = look_ahead_caps_m_s(bands.accel_m_s2[:, -1], length, window)  # inf past J + C unless last
+            speeds = banded_junction_speeds_m_s(cruise, bands, length, blocks.rows("smooth", j, end - 1), caps,
+                                                self.junction_speeds_m_s[-1])
+            phases = self._chunk_phases(j, commit, speeds, last)
+            if fir is None:
+                break
+            deviation_m = chunk_deviation_m(self.phases(), self._global(phases, j), self.segments,
+                                            _Shifted(blocks.column("source"), blocks.base), blocks.program, fir, last)
+            if deviation_m <= self.settings.path_tolerance_m:
+                break
+        if fir is not None:
+            self.over_tolerance_chunks += int(deviation_m > self.settings.path_tolerance_m)
+            self.worst_deviation_m = max(self.worst_deviation_m, deviation_m)
+        self._commit(j, commit, speeds, last, phases)
 
-    def _commit(self, j: int, commit: int, speeds: FloatArray, last: bool) -> None:
-        blocks = self._blocks
+    def _global(self, phases: Phases, j: int) -> Phases:
+        """A chunk's ``phases`` in profile time and global segment indices."""
+        return Phases(phases.start_s + self.planned_until_s, phases.s0_m, phases.v0_m_s, phases.accel_m_s2,
+                      phases.segment + j)
+
+    def _chunk_phases(self, j: int, commit: int, speeds: FloatArray, last: bool) -> Phases:
+        """The phases of planned segments ``j .. j + commit - 1`` at junction ``speeds``; fir: stops held."""
+        blocks, fir = self._blocks, self.settings.fir
         dwell = np.append(blocks.rows("dwell", j, j + commit), blocks.end_dwell_s() if last else 0.0)
+        if fir is not None:
+            before = int(j > 0)
+            segments = [self.segments[i] for i in range(j - before, j + commit)]
+            holds = chunk_holds_s(segments, speeds[:commit + 1], blocks.rows("accel", j - before, j + commit)[:, -1],
+                                  bool(before), self.settings.corner_rad, fir)
+            dwell[:commit] = np.maximum(dwell[:commit], holds)
         bands = SpeedBands(blocks.rows("edges", j, j + commit), blocks.rows("accel", j, j + commit))
-        phases = banded_phases(blocks.rows("length", j, j + commit), speeds[:commit], speeds[1:commit + 1],
-                               blocks.rows("cruise", j, j + commit), bands, dwell)
+        return banded_phases(blocks.rows("length", j, j + commit), speeds[:commit], speeds[1:commit + 1],
+                             blocks.rows("cruise", j, j + commit), bands, dwell)
+
+    def _commit(self, j: int, commit: int, speeds: FloatArray, last: bool, phases: Phases) -> None:
         with self.guard:
             self._publish(j, commit, speeds, last, phases)
 
@@ -394,56 +460,3 @@ class _Shifted:
 
     def __getitem__(self, index: Any) -> Any:
         return self._column[np.asarray(index) - self._base]
-
-
-def stream_settings(max_velocity_m_s: FloatArray, max_acceleration_m_s2: FloatArray, config: Any,
-                    tolerance_m: float) -> StreamSettings:
-    """The settings of an :class:`~cnc_contour_control.motion.interpolator_config.InterpolatorConfig` (``config``)."""
-    return StreamSettings(np.asarray(max_velocity_m_s, float), np.asarray(max_acceleration_m_s2, float),
-                          config.arc_centripetal_fraction, config.arc_combined_budget, config.clamp_feed,
-                          config.arc_speed_bands if config.arc_combined_budget else 1, config.look_ahead_segments,
-                          tolerance_m, math.radians(config.corner_angle_tolerance_deg))
-
-
-def start_stream(interpolator: Any, program: Program, limits: Any, tolerance_m: float) -> StreamPlan | None:
-    """A :class:`StreamPlan` for ``interpolator`` if its window is shorter than ``program``, else None (plan whole).
-
-    Hands the interpolator the stream's growing lists as its sampling views (``_view``: segments, path starts;
-    ``_phase_*``), so that its :meth:`sample` reads what is committed so far.
-    """
-    config = interpolator.config
-    if config.look_ahead_segments >= len(program.segments):
-        return None
-    stream = StreamPlan(program, stream_settings(limits.max_velocity_m_s, limits.max_acceleration_m_s2, config,
-                                                 tolerance_m))
-    interpolator.__dict__.update({"_view": stream, "_phase_start_s": stream.start_s, "_phase_s0_m": stream.s0_m,
-                                  "_phase_v0_m_s": stream.v0_m_s, "_phase_accel_m_s2": stream.accel_m_s2,
-                                  "_phase_segment": stream.segment})
-    return stream
-
-
-def whole_plan(interpolator: Any, name: str) -> dict[str, object]:
-    """The attributes of a streaming ``interpolator`` that need the whole plan, for attribute ``name``.
-
-    ``program`` and ``blended``: the whole program blended at once (the same segments as the stream's);
-    the profile's arrays (``duration_s``, ``junction_speeds_m_s``, ...): the stream planned to the end.
-
-    Raises
-    ------
-    AttributeError
-        If ``name`` is none of them.
-    """
-    stream: StreamPlan = interpolator.__dict__["_stream"]
-    if name in ("program", "blended"):
-        settings = stream.settings
-        blended = blend_program(interpolator.programmed_program, settings.tolerance_m, settings.corner_rad,
-                                settings.corner_limits)
-        return {"blended": blended, "program": blended.planned}
-    if name in ("duration_s", "_end_point_m"):  # what the end's sample needs, also after forget_before
-        duration_s = stream.finish()
-        last = stream.segments[-1]
-        return {"duration_s": duration_s, "_end_point_m": last.point(last.length_m)}
-    if name in ("_phases", "junction_speeds_m_s", "cruise_speed_m_s", "tangential_acceleration_m_s2",
-                "speed_bands"):
-        return stream.whole()
-    raise AttributeError(f"{type(interpolator).__name__!r} object has no attribute {name!r}")

@@ -1,0 +1,89 @@
+"""The FIR jerk mode streamed (``jerk_mode: fir``, ``look_ahead_segments`` below the program's length; ROS-free).
+
+:class:`~cnc_contour_control.motion.plan_stream.StreamPlan` plans the (v, a) plan a chunk at a time as without a
+jerk limit, with fir's planning changes applied per chunk (:mod:`~cnc_contour_control.motion.jerk_fir`): each
+block's arcs capped as it is blended (:func:`~cnc_contour_control.motion.jerk_fir.capped_program`, in
+``plan_stream._Blocks``) and each corner stop of a chunk held (:func:`chunk_holds_s`, ``stop_holds_s`` of the
+chunk and the segment before it). Before a chunk is published, :func:`chunk_deviation_m` measures the filtered
+reference at the multiples of the filter's period whose window ends in the chunk (its first ``n - 1`` samples
+reach back into the chunk before, kept for this) against the programmed segments its samples come from, as
+``within_tolerance`` does for the whole program; over ``P`` the chunk is planned again with the caps of
+``fir_attempts``' second attempt (a quarter of the tolerances): the tool never reaches a chunk that is not
+published. What the whole plan does next (every corner a stop, then ``scurve``) needs the whole program: a
+chunk still over ``P`` at a quarter is published and counted (``StreamPlan.over_tolerance_chunks``).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from cnc_contour_control.motion.geometry import Program, Segment
+from cnc_contour_control.motion.jerk_filter import moving_average_rows
+from cnc_contour_control.motion.jerk_fir import FirSettings, stop_holds_s
+from cnc_contour_control.motion.plan_arrays import Phases
+from cnc_contour_control.motion.points import FloatArray
+
+
+def chunk_holds_s(segments: Sequence[Segment], speeds_m_s: FloatArray, accel_m_s2: FloatArray, before: bool,
+                  corner_rad: float, settings: FirSettings) -> FloatArray:
+    """The hold (s) at each junction before the chunk's segments: ``(len(speeds_m_s) - 1,)``.
+
+    ``segments``: the chunk's, after the segment before it if ``before``; ``speeds_m_s``: the chunk's junction
+    speeds (its first junction to its last, ``commit + 1``); ``accel_m_s2``: each of ``segments``' tangential
+    acceleration (m/s²).
+    """
+    program = Program("chunk", tuple(f"a{k}" for k in range(len(segments[0].start_m))), tuple(segments))
+    commit = len(speeds_m_s) - 1
+    speeds = np.concatenate(([0.0], speeds_m_s[:commit], [0.0])) if before else np.append(speeds_m_s[:commit], 0.0)
+    holds = stop_holds_s(program, speeds, corner_rad, settings, accel_m_s2)
+    return holds[1:commit + 1] if before else holds[:commit]
+
+
+def _positions(phases: Phases, segments: Any, n_axes: int, times_s: FloatArray) -> tuple[FloatArray, np.ndarray]:
+    """The plan's positions (m) and planned segment (global index) at ``times_s`` (held at the phases' ends)."""
+    clipped = np.clip(times_s, phases.start_s[0], phases.start_s[-1])
+    k = np.maximum(np.searchsorted(phases.start_s[:-1], clipped, side="right") - 1, 0)
+    dt = clipped - phases.start_s[k]
+    s_local = phases.s0_m[k] + phases.v0_m_s[k] * dt + 0.5 * phases.accel_m_s2[k] * dt * dt
+    index = phases.segment[k]
+    position = np.zeros((times_s.size, n_axes))
+    for i in np.unique(index).tolist():
+        rows = np.flatnonzero(index == i)
+        segment = segments[i]
+        position[rows] = segment.point(np.clip(s_local[rows], 0.0, segment.length_m))
+    return position, index
+
+
+def chunk_deviation_m(kept: Phases, new: Phases, segments: Any, source: Any, programmed: Program,
+                      settings: FirSettings, last: bool) -> float:
+    """The largest distance (m) of the filtered reference from the programmed path over the new chunk.
+
+    ``kept``: the published phases (global times; ``start_s`` ends at the chunk's start), ``new``: the chunk's
+    (global times and segments); ``segments``/``source``: planned segment and its programmed segment by global
+    index. Samples at ``m T`` from the chunk's start to before its end (with ``last``, to the filter's drain).
+    """
+    n, period = settings.taps, settings.period_s
+    begin_s, end_s = float(new.start_s[0]), float(new.start_s[-1])
+    first_m = math.ceil(begin_s / period - 1e-9)
+    stop_m = math.ceil((end_s + (n if last else 0) * period) / period - 1e-9)
+    if stop_m <= first_m:
+        return 0.0
+    phases = Phases(np.concatenate((kept.start_s[:-1], new.start_s)), np.concatenate((kept.s0_m, new.s0_m)),
+                    np.concatenate((kept.v0_m_s, new.v0_m_s)), np.concatenate((kept.accel_m_s2, new.accel_m_s2)),
+                    np.concatenate((kept.segment, new.segment)))
+    times = period * np.arange(first_m - (n - 1), stop_m, dtype=np.float64)
+    raw, index = _positions(phases, segments, programmed.n_axes, np.maximum(times, 0.0))
+    points = moving_average_rows(raw, n)
+    sources = np.asarray(source[index], dtype=np.intp)
+    first = np.maximum(sources[:points.shape[0]] - 1, 0)
+    last_source = sources[n - 1:]
+    distance = np.full(points.shape[0], np.inf)
+    for j in range(int(first.min(initial=0)), int(last_source.max(initial=-1)) + 1):
+        rows = slice(int(np.searchsorted(last_source, j, side="left")), int(np.searchsorted(first, j, side="right")))
+        if rows.start < rows.stop:
+            near = programmed.segments[j].nearest(points[rows])[0]
+            distance[rows] = np.minimum(distance[rows], near)
+    return float(distance.max(initial=0.0))
