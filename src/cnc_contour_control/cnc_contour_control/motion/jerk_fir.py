@@ -41,7 +41,7 @@ from cnc_contour_control.core.errors import ConfigError
 from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.blending import BlendedProgram
-from cnc_contour_control.motion.geometry import Program
+from cnc_contour_control.motion.geometry import LineSegment, Program
 from cnc_contour_control.motion.jerk_filter import FloatArray, MovingAverage, filter_taps, moving_average_rows
 from cnc_contour_control.motion.reference_types import ReferenceSample, ReferenceTrajectory
 from cnc_contour_control.motion.segment_tangents import junction_turns_rad
@@ -62,6 +62,8 @@ class FirSettings:
     period_s: float
     filter_tolerance_m: float
     corner_tolerance_m: float
+    #: How far (m) :func:`pushed_corners` moves a capped blend's corner out of the turn (0: none).
+    push_m: float = 0.0
 
     @property
     def window_s(self) -> float:
@@ -84,18 +86,23 @@ class FirSettings:
 
 def fir_settings(limits: AxisLimits, period_s: float, tolerance_m: float, share: float) -> FirSettings:
     """The filter of ``limits`` (with ``max_jerk_m_s3``) at ``period_s`` (s) and ``share`` of ``tolerance_m`` (m)."""
-    return FirSettings(filter_taps(limits, period_s), period_s, share * tolerance_m, tolerance_m)
+    return FirSettings(filter_taps(limits, period_s), period_s, share * tolerance_m, tolerance_m,
+                       PUSH_SHARE * tolerance_m)
 
 
 #: Shares of the caps' tolerances :func:`fir_attempts` plans with, in order, the last one stopping at every corner.
-ATTEMPT_SHARES = (1.0, 0.25, 0.25)
+ATTEMPT_SHARES = (1.0, 1.0, 0.25, 0.25)
+#: Share of P a capped blend's corner is pushed out of the turn by (:func:`pushed_corners`), first attempt only.
+PUSH_SHARE = 0.9
 
 
 def fir_attempts(settings: FirSettings, blend_tolerance_m: float) -> list[tuple[FirSettings, float]]:
     """``settings`` with its caps' tolerances at each of :data:`ATTEMPT_SHARES` (tighter caps, slower curves), and
-    the blends' tolerance (m): ``blend_tolerance_m``, in the last attempt 0 (every corner a stop, held)."""
+    the blends' tolerance (m): ``blend_tolerance_m``, in the last attempt 0 (every corner a stop, held). Only the
+    first attempt pushes corners out (``push_m``)."""
     return [(dataclasses.replace(settings, filter_tolerance_m=share * settings.filter_tolerance_m,
-                                 corner_tolerance_m=share * settings.corner_tolerance_m),
+                                 corner_tolerance_m=share * settings.corner_tolerance_m,
+                                 push_m=settings.push_m if k == 0 else 0.0),
              blend_tolerance_m if k < len(ATTEMPT_SHARES) - 1 else 0.0) for k, share in enumerate(ATTEMPT_SHARES)]
 
 
@@ -127,13 +134,80 @@ def capped_program(program: Program, settings: FirSettings, written: Program | N
     kept = {id(segment) for segment in written.segments} if written is not None else set()
     if settings.window_s <= 0.0:
         return program
+    program, pushed = pushed_corners(program, settings, kept)
+    wider = dataclasses.replace(settings, filter_tolerance_m=settings.filter_tolerance_m + settings.push_m,
+                                corner_tolerance_m=settings.corner_tolerance_m + settings.push_m)
     segments, changed = list(program.segments), False
     for k, segment in enumerate(segments):
         if isinstance(segment, ArcSegment):
-            cap = settings.max_window_m(segment, id(segment) in kept) / settings.window_s
+            cap = (wider if k in pushed else settings).max_window_m(segment, id(segment) in kept) / settings.window_s
             if cap < segment.feed_m_s:
                 segments[k], changed = dataclasses.replace(segment, feed_m_s=cap), True
     return dataclasses.replace(program, segments=tuple(segments)) if changed else program
+
+
+def _refillet(arc: ArcSegment, before: FloatArray, vertex: FloatArray, after: FloatArray) -> ArcSegment | None:
+    """``arc``'s radius, filleting the lines along unit ``before`` and ``after`` that meet at ``vertex``."""
+    turn = math.acos(min(1.0, max(-1.0, float(before @ after))))
+    inward = after - before
+    if not 0.0 < turn < 0.75 * math.pi:
+        return None
+    inward = inward / float(np.linalg.norm(inward))
+    reach = arc.radius_m * math.tan(0.5 * turn)
+    return ArcSegment(vertex - reach * before, vertex + reach * after,
+                      vertex + arc.radius_m / math.cos(0.5 * turn) * inward, arc.clockwise, arc.plane, arc.feed_m_s,
+                      arc.source_line)
+
+
+def pushed_corners(program: Program, settings: FirSettings, kept: set[int]) -> tuple[Program, set[int]]:
+    """``program`` with its capped blends' corners moved ``push_m`` out of their turns, and the pushed arcs' indices.
+
+    A blend arc between two lines of its plane whose filter cap binds (below its feed) is re-filleted, at its radius,
+    at its corner moved ``push_m / cos(θ/2)`` along the bisector away from its centre: where both lines' corners
+    move, the lines move ``push_m`` out, parallel. The mean then cuts the corner from ``push_m`` outside, so the
+    cap may take ``push_m`` more (:func:`capped_program`). A line moves only when both its ends are such blends
+    (the others keep their ends: no new kink). The plan, not the reference, leaves the path by up to ``push_m``;
+    :func:`within_tolerance` judges the reference, and the next attempt plans without pushing.
+    """
+    segments = list(program.segments)
+    if settings.push_m <= 0.0 or len(segments) < 3:
+        return program, set()
+    lines = {k: s for k, s in enumerate(segments) if isinstance(s, LineSegment)}
+    arcs = {k: s for k, s in enumerate(segments) if isinstance(s, ArcSegment) and id(s) not in kept and s.is_planar}
+    fillets = {k for k, arc in arcs.items() if k - 1 in lines and k + 1 in lines
+               and not any(np.any(lines[j].unit_vector[[i for i in range(arc.n_axes) if i not in arc.plane]])
+                           for j in (k - 1, k + 1))}
+    movable = {k for k in lines if k - 1 in fillets and k + 1 in fillets}
+    pushed = {k for k in fillets if k - 1 in movable and k + 1 in movable
+              and settings.max_window_m(arcs[k]) / settings.window_s < arcs[k].feed_m_s}
+    if not pushed:
+        return program, set()
+    vertex: dict[int, FloatArray] = {}
+    for k in fillets:
+        arc, half = arcs[k], 0.5 * abs(arcs[k].sweep_rad)
+        corner = arc.start_m + arc.radius_m * math.tan(half) * lines[k - 1].unit_vector
+        centre = arc.start_m.copy()
+        centre[list(arc.plane)] = arc.center_m[list(arc.plane)]
+        out = (corner - centre) / float(np.linalg.norm(corner - centre))
+        vertex[k] = corner + (settings.push_m / math.cos(half) if k in pushed else 0.0) * out
+    moved = {k for k in movable if k - 1 in pushed or k + 1 in pushed}
+    direction = {k: lines[k].unit_vector for k in lines}
+    direction.update({k: (vertex[k + 1] - vertex[k - 1]) / float(np.linalg.norm(vertex[k + 1] - vertex[k - 1]))
+                      for k in moved})
+    out_segments = list(segments)
+    for k in {j for m in moved for j in (m - 1, m + 1)}:
+        refit = _refillet(arcs[k], direction[k - 1], vertex[k], direction[k + 1])
+        if refit is None:
+            return program, set()
+        out_segments[k] = refit
+    for k in {j for m in moved for j in (m - 2, m, m + 2)} & set(lines):
+        line, before, after = lines[k], out_segments[k - 1], out_segments[(k + 1) % len(segments)]
+        start = before.end_m if k - 1 in fillets and isinstance(before, ArcSegment) else line.start_m
+        end = after.start_m if k + 1 in fillets and isinstance(after, ArcSegment) else line.end_m
+        if float((end - start) @ line.unit_vector) < 0.5 * line.length_m:
+            return program, set()
+        out_segments[k] = LineSegment(start, end, line.feed_m_s, line.source_line)
+    return dataclasses.replace(program, segments=tuple(out_segments)), pushed
 
 
 def stop_holds_s(program: Program, speeds_m_s: FloatArray, tolerance_rad: float, settings: FirSettings,
