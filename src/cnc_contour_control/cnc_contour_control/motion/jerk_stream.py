@@ -7,10 +7,10 @@ block's arcs capped as it is blended (:func:`~cnc_contour_control.motion.jerk_fi
 chunk and the segment before it). Before a chunk is published, :func:`chunk_deviation_m` measures the filtered
 reference at the multiples of the filter's period whose window ends in the chunk (its first ``n - 1`` samples
 reach back into the chunk before, kept for this) against the programmed segments its samples come from, as
-``within_tolerance`` does for the whole program; over ``P`` the chunk is planned again with the caps of
-``fir_attempts``' second attempt (a quarter of the tolerances): the tool never reaches a chunk that is not
-published. What the whole plan does next (every corner a stop, then ``scurve``) needs the whole program: a
-chunk still over ``P`` at a quarter is published and counted (``StreamPlan.over_tolerance_chunks``).
+``within_tolerance`` does for the whole program; over ``P`` the chunk is planned again with smaller caps
+(:func:`stream_attempts`): the tool never reaches a chunk that is not published. What the whole plan does
+next (every corner a stop, then ``scurve``) needs the whole program: a chunk still over ``P`` with the smaller
+caps is published and counted (``StreamPlan.over_tolerance_chunks``).
 """
 from __future__ import annotations
 
@@ -22,9 +22,18 @@ import numpy as np
 
 from cnc_contour_control.motion.geometry import Program, Segment
 from cnc_contour_control.motion.jerk_filter import moving_average_rows
-from cnc_contour_control.motion.jerk_fir import FirSettings, stop_holds_s
+from cnc_contour_control.motion.jerk_fir import FirSettings, fir_attempts, stop_holds_s
 from cnc_contour_control.motion.plan_arrays import Phases
 from cnc_contour_control.motion.points import FloatArray
+
+
+def stream_attempts(settings: FirSettings) -> tuple[FirSettings, FirSettings]:
+    """The caps a stream plans with and those it plans a chunk over P again with: of ``fir_attempts``' attempts
+    that keep the blends, the first and the last that move no corner out (a pushed corner moves a line by its
+    neighbours two segments away, across a block's seam)."""
+    kept = [fir for fir, blend_m in fir_attempts(settings, 1.0)
+            if blend_m > 0.0 and getattr(fir, "push_m", 0.0) == 0.0]
+    return kept[0], kept[-1]
 
 
 def chunk_holds_s(segments: Sequence[Segment], speeds_m_s: FloatArray, accel_m_s2: FloatArray, before: bool,

@@ -40,7 +40,7 @@ from __future__ import annotations
 import bisect
 import contextlib
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -49,7 +49,7 @@ from cnc_contour_control.core.errors import ProgramError
 from cnc_contour_control.motion.blend_choice import CornerLimits
 from cnc_contour_control.motion.blending import blend_program
 from cnc_contour_control.motion.geometry import Dwell, Program, Segment
-from cnc_contour_control.motion.jerk_fir import ATTEMPT_SHARES, FirSettings, capped_program
+from cnc_contour_control.motion.jerk_fir import FirSettings, capped_program
 from cnc_contour_control.motion.jerk_stream import chunk_deviation_m, chunk_holds_s
 from cnc_contour_control.motion.plan_arrays import (
     Phases,
@@ -86,9 +86,10 @@ class StreamSettings:
     look_ahead_segments: int
     tolerance_m: float
     corner_rad: float
-    #: ``jerk_mode`` fir's filter (:mod:`~cnc_contour_control.motion.jerk_stream`), else None; ``path_tolerance_m``
-    #: the P its chunks are checked against, m.
+    #: ``jerk_mode`` fir's filter and caps (:mod:`~cnc_contour_control.motion.jerk_stream`), else None;
+    #: ``fir_smaller`` the caps of a chunk over ``path_tolerance_m`` (m, P) planned again.
     fir: FirSettings | None = None
+    fir_smaller: FirSettings | None = None
     path_tolerance_m: float = 0.0
 
     @property
@@ -328,14 +329,12 @@ class StreamPlan:
         commit = end - j if last else chunk
         length, cruise = blocks.rows("length", j, end), blocks.rows("cruise", j, end)
         bands = SpeedBands(blocks.rows("edges", j, end), blocks.rows("accel", j, end))
-        fir = self.settings.fir
-        for attempt in range(1 if fir is None else 2):
-            if attempt:  # fir over P: the chunk's arcs at fir_attempts' second caps (the window's stay as they were)
+        fir, smaller = self.settings.fir, self.settings.fir_smaller
+        for attempt in range(1 if fir is None or smaller is None else 2):
+            if attempt:  # fir over P: the chunk's arcs at the smaller caps (the window's stay as they were)
+                assert smaller is not None
                 self.replanned_chunks += 1
-                share = ATTEMPT_SHARES[1]
-                assert fir is not None
-                blocks.recap(j, j + commit, replace(fir, filter_tolerance_m=share * fir.filter_tolerance_m,
-                                                    corner_tolerance_m=share * fir.corner_tolerance_m))
+                blocks.recap(j, j + commit, smaller)
                 cruise = blocks.rows("cruise", j, end)
                 bands = SpeedBands(blocks.rows("edges", j, end), blocks.rows("accel", j, end))
             caps = look_ahead_caps_m_s(bands.accel_m_s2[:, -1], length, window)  # inf past J + C unless last

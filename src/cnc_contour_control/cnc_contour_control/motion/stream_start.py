@@ -12,6 +12,7 @@ import numpy as np
 from cnc_contour_control.motion.blending import blend_program
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.jerk_fir import FirSettings
+from cnc_contour_control.motion.jerk_stream import stream_attempts
 from cnc_contour_control.motion.plan_stream import StreamPlan, StreamSettings
 from cnc_contour_control.motion.points import FloatArray
 
@@ -20,10 +21,12 @@ def stream_settings(max_velocity_m_s: FloatArray, max_acceleration_m_s2: FloatAr
                     tolerance_m: float, fir: FirSettings | None = None,
                     path_tolerance_m: float = 0.0) -> StreamSettings:
     """The settings of an :class:`~cnc_contour_control.motion.interpolator_config.InterpolatorConfig` (``config``)."""
+    caps: tuple[FirSettings | None, FirSettings | None] = (None, None) if fir is None else stream_attempts(fir)
     return StreamSettings(np.asarray(max_velocity_m_s, float), np.asarray(max_acceleration_m_s2, float),
                           config.arc_centripetal_fraction, config.arc_combined_budget, config.clamp_feed,
                           config.arc_speed_bands if config.arc_combined_budget else 1, config.look_ahead_segments,
-                          tolerance_m, math.radians(config.corner_angle_tolerance_deg), fir, path_tolerance_m)
+                          tolerance_m, math.radians(config.corner_angle_tolerance_deg), *caps,
+                          path_tolerance_m=path_tolerance_m)
 
 
 def start_stream(interpolator: Any, program: Program, limits: Any, tolerance_m: float,
@@ -41,6 +44,8 @@ def start_stream(interpolator: Any, program: Program, limits: Any, tolerance_m: 
         return None
     stream = StreamPlan(program, stream_settings(limits.max_velocity_m_s, limits.max_acceleration_m_s2, config,
                                                  tolerance_m, fir, path_tolerance_m))
+    if stream.settings.fir is not None:  # the filter the interpolator samples with: the stream's caps
+        interpolator.__dict__["_fir"] = stream.settings.fir
     interpolator.__dict__.update({"_view": stream, "_phase_start_s": stream.start_s, "_phase_s0_m": stream.s0_m,
                                   "_phase_v0_m_s": stream.v0_m_s, "_phase_accel_m_s2": stream.accel_m_s2,
                                   "_phase_segment": stream.segment})
