@@ -227,13 +227,29 @@ def _polygon(sides: int, radius_m: float = 0.02) -> Program:
     return _polyline(points[:-1] + [points[0]], 2000 / 60000)
 
 
-@pytest.mark.parametrize(("program", "expected"), [(_polygon(36), "scurve"),
+def test_fir_passes_the_36_gon_within_1_15_of_the_feed_bound_pushing_its_corners_out() -> None:
+    """The blending bench's 36-gon (R 20 mm, 1300 mm/min, 250 mm/s², 10 m/s³, P 0.01 mm): the window's mean cuts
+    its 10-degree corners from outside (``jerk_fir.pushed_corners``), within 1.15 of a bound no plan beats (the
+    perimeter at the feed, plus the start and stop at the diagonal's tangential acceleration); limits and P held."""
+    feed_m_s = 1300 / 60000
+    program = _polyline([(0.02 * math.cos(a), 0.02 * math.sin(a))
+                         for a in np.linspace(0.0, 2.0 * math.pi, 37).tolist()[:-1] + [0.0]], feed_m_s)
+    interpolator = _check(program, LIMITS, 0.01)
+    assert interpolator.jerk_filter is not None and interpolator.jerk_filter.push_m > 0.0
+    perimeter_m = sum(segment.length_m for segment in program.segments)
+    bound_s = perimeter_m / feed_m_s + feed_m_s / (math.sqrt(2.0) * 0.25)
+    assert interpolator.duration_s <= 1.15 * bound_s, (interpolator.duration_s, bound_s)
+
+
+@pytest.mark.parametrize(("program", "expected"), [(_polyline([(0.02 * math.cos(math.radians(10.0 * k)),
+                                                                0.02 * math.sin(math.radians(10.0 * k)))
+                                                               for k in range(4)], 2000 / 60000), "scurve"),
                                                    (_polyline([(0.01 * k, 0.0027 * (k % 2)) for k in range(8)],
                                                               2000 / 60000), "fir")])
 def test_quickest_runs_the_quicker_mode_and_says_which(program: Program, expected: str) -> None:
-    """``jerk_mode`` quickest (the default is fir, whose override ramps keep the jerk limit): the 36-gon's 10-degree
-    corners at speed are quicker as S-curves, a zig-zag's 30-degree turns through the filter; every limit and P
-    held, done only at the end point."""
+    """``jerk_mode`` quickest (the default is fir, whose override ramps keep the jerk limit): three sides of the
+    36-gon (its two 10-degree corners next to the ends, which fir does not push out) are quicker as S-curves, a
+    zig-zag's 30-degree turns through the filter; every limit and P held, done only at the end point."""
     assert InterpolatorConfig().jerk_mode == "fir"
     config = InterpolatorConfig(path_tolerance_mm=0.01, clamp_feed=True, jerk_mode="quickest")
     interpolator, trajectory = sample_reference(program, LIMITS, config, PERIOD_S)
