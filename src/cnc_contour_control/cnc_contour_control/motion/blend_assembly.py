@@ -8,7 +8,8 @@ blend arc then starts where the planned path is (the previous planned
 segment's end), so the path stays contiguous. An untouched segment is the
 programmed object itself. Trimmed lines and arcs and the blend arcs are built
 all at once (:mod:`cnc_contour_control.motion.segment_batch`): one NumPy pass per kind
-instead of one constructor call per segment.
+instead of one constructor call per segment. A blend of several pieces (a 3-axis line-arc corner) brings
+its pieces as they are.
 """
 from __future__ import annotations
 
@@ -110,9 +111,25 @@ def planned_segments(program: Program, blends: BlendTable) -> tuple[list[Segment
     pieces = _pieces(program, blends)
     order, previous_end = _slots(program, pieces)
     is_blend = order % 2 == 0
-    arcs = iter(_blend_arcs(program, blends, previous_end[is_blend]))
+    several = blends.has_pieces
+    one = np.flatnonzero(~several)
+    arcs = iter(_blend_arcs(program, blends.subset(~several), previous_end[is_blend][one]))
     trimmed = _trimmed(program, pieces)
     segments = program.segments
-    out = [next(arcs) if slot % 2 == 0 else trimmed.get(slot // 2, segments[slot // 2]) for slot in order.tolist()]
-    first_after = np.searchsorted(order, 2 * np.arange(len(segments)) + 1).tolist()
-    return out, first_after, (order // 2).tolist()
+    out: list[Segment] = []
+    sources: list[int] = []
+    position = []
+    row = 0
+    for slot in order.tolist():
+        position.append(len(out))
+        if slot % 2 == 0:
+            chain = blends.pieces[row]
+            row += 1
+            added: Sequence[Segment] = [next(arcs)] if chain is None else chain
+        else:
+            added = [trimmed.get(slot // 2, segments[slot // 2])]
+        out.extend(added)
+        sources.extend([slot // 2] * len(added))
+    position.append(len(out))
+    first_after = np.asarray(position)[np.searchsorted(order, 2 * np.arange(len(segments)) + 1)].tolist()
+    return out, first_after, sources

@@ -72,11 +72,10 @@ def blend_speed_m_s(table: BlendTable, feed_m_s: FloatArray, limits: CornerLimit
     """A lower bound of the planner's cruise speed on each blend arc, m/s, ``(M,)``.
 
     The arc's feed (the smaller of its neighbours'), the velocity limits of its plane's axes, and
-    ``v² / R <= f amax_j`` on both of them (an axis's curvature never exceeds ``1 / R``).
+    ``v² / R <= f amax_j`` on both of them (an axis's curvature never exceeds ``1 / R``); for a blend of
+    several pieces every axis's limits and ``R`` the pieces' in-plane radius.
     """
-    plane = table.plane
-    vmax = np.asarray(limits.max_velocity_m_s, dtype=float)[plane].min(axis=1)
-    amax = np.asarray(limits.max_acceleration_m_s2, dtype=float)[plane].min(axis=1)
+    vmax, amax = _blend_axes_min(table, limits.max_velocity_m_s), _blend_axes_min(table, limits.max_acceleration_m_s2)
     return np.minimum(np.minimum(feed_m_s, vmax), np.sqrt(limits.centripetal_fraction * amax * table.radius_m))
 
 
@@ -100,8 +99,8 @@ def corner_times_s(segments: Sequence[Segment], table: BlendTable, limits: Corne
     l1, l2 = np.maximum(h1 - table.trim_m, 0.0), np.maximum(h2 - table.trim_after_m, 0.0)
     feed = np.minimum([segments[i].feed_m_s for i in (k - 1).tolist()], [segments[i].feed_m_s for i in k.tolist()])
     vb = blend_speed_m_s(table, feed, limits)
-    amax = np.asarray(limits.max_acceleration_m_s2, dtype=float)[table.plane].min(axis=1)
-    ab, arc_m = (1.0 - limits.centripetal_fraction) * amax, table.radius_m * _arc_sweep_rad(table)
+    amax = _blend_axes_min(table, limits.max_acceleration_m_s2)
+    ab, arc_m = (1.0 - limits.centripetal_fraction) * amax, _blend_length_m(table)
     u1, u2 = (v1, v2) if free else (np.minimum(v1, np.sqrt(2.0 * a1 * h1)), np.minimum(v2, np.sqrt(2.0 * a2 * h2)))
     w2 = np.minimum(vb, np.sqrt(u2 * u2 + 2.0 * a2 * l2))  # backward pass
     w1 = np.minimum(vb, np.sqrt(w2 * w2 + 2.0 * ab * arc_m))
@@ -158,6 +157,20 @@ def quickest_radius(segments: Sequence[Segment], candidates: Sequence[BlendTable
     for table in chosen[1:]:
         out = out.merged(table)
     return out
+
+
+def _blend_axes_min(table: BlendTable, limit: FloatArray) -> FloatArray:
+    """Per blend the smallest of ``limit`` (per axis) over its plane's axes; over all axes for several pieces."""
+    values = np.asarray(limit, dtype=float)
+    return np.where(table.has_pieces, values.min(), values[table.plane].min(axis=1))
+
+
+def _blend_length_m(table: BlendTable) -> FloatArray:
+    """Each blend's length, m: its arc's, or the sum of its pieces'."""
+    length = table.radius_m * _arc_sweep_rad(table)
+    for i in np.flatnonzero(table.has_pieces).tolist():
+        length[i] = sum(piece.length_m for piece in table.pieces[i])
+    return length
 
 
 def _arc_sweep_rad(table: BlendTable) -> FloatArray:

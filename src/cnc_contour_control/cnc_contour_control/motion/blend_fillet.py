@@ -21,8 +21,8 @@ away from the crossing is refined with :func:`scipy.optimize.minimize_scalar`.
 ~30× slower). The radius is the largest found (secant
 steps on ``r``, deviation nearly proportional to it) whose deviation is at most
 the tolerance and whose trims stay within each neighbour's share. Helices and
-curves outside one common plane are not filleted (the junction stays an exact
-stop).
+curves outside one common plane are not filleted (a line leaving a planar arc's
+plane: :mod:`cnc_contour_control.motion.blend_ramp`).
 """
 from __future__ import annotations
 

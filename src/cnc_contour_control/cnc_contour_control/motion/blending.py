@@ -11,16 +11,17 @@ tangent to both lines at ``P - d u1`` and ``P + d u2``, with
 both neighbours: the tolerance is measured to the programmed path (at the
 arc's midpoint, the farthest point, which lies ``R (1/cos(θ/2) - 1)`` from
 ``P``), so a sharp corner gets the whole tolerance. A line-arc or arc-arc corner in one coordinate plane
-gets the fillet circle tangent to both curves (:mod:`cnc_contour_control.motion.blend_fillet`),
-its deviation measured exactly and kept within the tolerance. Given the planner's
+gets the fillet circle tangent to both curves (:mod:`cnc_contour_control.motion.blend_fillet`), a line
+leaving a planar arc's plane three arcs (:mod:`cnc_contour_control.motion.blend_ramp`),
+their deviation measured exactly and kept within the tolerance. Given the planner's
 limits (:class:`~cnc_contour_control.motion.blend_choice.CornerLimits`), a blend is kept only where it is
 quicker than an exact stop (:func:`~cnc_contour_control.motion.blend_choice.faster_than_stop`). A corner is left
 as it is (an exact stop for the planner, unless already tangent) when: a dwell
 (G4) sits at the junction, the turn is below ``min_angle_rad`` or within 1e-6
 rad of a reversal, the arc's chord would be under 2 µm (``2 POSITION_TOLERANCE_M``;
 an arc with closer ends is a full circle), the two lines do not span one
-coordinate plane (an :class:`ArcSegment` lies in one), or a helix or an
-out-of-plane line takes part. The blended program is a plain
+coordinate plane (an :class:`ArcSegment` lies in one), or a helix, or a line moving two axes off the arc's
+plane or none in it takes part. The blended program is a plain
 :class:`Program`, so every consumer (planner, ``path`` topic) takes it as is.
 """
 from __future__ import annotations
@@ -39,7 +40,8 @@ from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.blend_assembly import planned_segments
 from cnc_contour_control.motion.blend_choice import CornerLimits, faster_than_stop, quickest_radius, slower_arcs
 from cnc_contour_control.motion.blend_fillet import lift, plan_fillet
-from cnc_contour_control.motion.blend_table import Blend, BlendTable
+from cnc_contour_control.motion.blend_ramp import plan_ramp
+from cnc_contour_control.motion.blend_table import Blend, BlendTable, one_arc
 from cnc_contour_control.motion.geometry import Dwell, LineSegment, Program, Segment
 from cnc_contour_control.motion.points import POSITION_TOLERANCE_M, FloatArray, IntArray
 from cnc_contour_control.motion.segment_tangents import junction_turns_rad
@@ -151,7 +153,7 @@ def _line_corners(program: Program, junctions: IntArray, turns_rad: FloatArray, 
     start, end = corner - trim[:, None] * u1, corner + trim[:, None] * u2
     center, deviation = start + radius[:, None] * normal, radius * (1.0 - np.cos(0.5 * turns_rad))
     return BlendTable(junctions[keep], radius[keep], trim[keep], deviation[keep], trim[keep], start[keep], end[keep],
-                      center[keep], np.c_[first, second][keep], clockwise[keep])
+                      center[keep], np.c_[first, second][keep], clockwise[keep], one_arc(keep.size))
 
 
 def _curve_corner(k: int, before: Segment, after: Segment, turn: float, tolerance_m: float) -> Blend | None:
@@ -166,13 +168,23 @@ def _curve_corner(k: int, before: Segment, after: Segment, turn: float, toleranc
         if planned is not None:
             break
     if planned is None:
-        return None
+        return _ramp_corner(k, before, after, tolerance_m)
     shape, corner = planned.shape, after.start_m
     if float(np.hypot(*(shape.end - shape.start))) <= _MIN_CHORD_M:
         return None
     return Blend(k, shape.radius_m, shape.trim_before_m, planned.deviation_m, shape.trim_after_m,
                  lift(shape.start, planned.plane, corner), lift(shape.end, planned.plane, corner),
                  lift(shape.center, planned.plane, corner), planned.plane, planned.side < 0.0)
+
+
+def _ramp_corner(k: int, before: Segment, after: Segment, tolerance_m: float) -> Blend | None:
+    """The blend of pieces of a 3-axis line-arc corner (:func:`blend_ramp.plan_ramp`), or None."""
+    ramp = plan_ramp(before, after, tolerance_m)
+    if ramp is None:
+        return None
+    last = ramp.pieces[-1]
+    return Blend(k, ramp.radius_m, ramp.trim_before_m, ramp.deviation_m, ramp.trim_after_m, ramp.pieces[0].start_m,
+                 last.end_m, last.center_m, last.plane, last.clockwise, ramp.pieces)
 
 
 def _plan_corners(program: Program, tolerance_m: float, min_angle_rad: float,
