@@ -25,9 +25,10 @@ start tangent (``Q`` then lies on that tangent beyond the arc, outside its
 circle). An arc followed by a line is blended as the reversed pair. The bound
 kept is the measured one: the largest exact distance (``Segment.nearest``) of
 the pieces from the line and the arc, on a grid of each piece refined by
-:func:`scipy.optimize.minimize_scalar`, at most the tolerance; ``ρ`` grows
-geometrically from a twentieth of the tolerance and the last one within it is
-kept. Helices, lines moving two axes off the arc's plane and plunges without
+:func:`scipy.optimize.minimize_scalar`, at most the tolerance; ``ρ`` shrinks
+geometrically from the pitch fillet's own largest within the tolerance
+(``P / (1 / cos(γ/2) - 1)``) and the first within it is kept (as one circle
+when one joins the arc, else as the S). Helices, lines moving two axes off the arc's plane and plunges without
 a move in the plane are not blended.
 """
 from __future__ import annotations
@@ -43,10 +44,9 @@ from cnc_contour_control.motion.geometry import LineSegment, Segment
 from cnc_contour_control.motion.points import POSITION_TOLERANCE_M, FloatArray
 
 _AXIS_EPS = 1.0e-12
-#: The first radius, as a share of the tolerance, and its growth per step.
-_START_SHARE = 0.05
+#: Shrink of the radius per step from the pitch fillet's own largest within the tolerance, and the steps.
 _GROWTH = 1.4
-_STEPS = 24
+_STEPS = 30
 _GRID = 33
 #: Grid of the joining point's arc angle on which the S's tangency is bracketed.
 _ANGLE_GRID = 64
@@ -77,18 +77,21 @@ def _ramp_axis(line: LineSegment, arc: ArcSegment) -> int | None:
     return moving[0] if len(moving) == 1 else None
 
 
-def _measure_m(pieces: tuple[ArcSegment, ...], line: Segment, arc: Segment) -> float:
-    """Largest exact distance (m) of the pieces from the nearer of ``line`` and ``arc``."""
+def _measure_m(pieces: tuple[ArcSegment, ...], line: Segment, arc: Segment, bound_m: float = math.inf) -> float:
+    """Largest exact distance (m) of the pieces from the nearer of ``line`` and ``arc`` (or, where it is over
+    ``bound_m`` on the grid already, that grid's largest)."""
     from scipy.optimize import minimize_scalar
 
     def distance(piece: ArcSegment, s: FloatArray) -> FloatArray:
         points = piece.point(np.atleast_1d(s))
         return np.minimum(line.nearest(points)[0], arc.nearest(points)[0])
 
-    worst = 0.0
-    for piece in pieces:
-        grid = np.linspace(0.0, piece.length_m, _GRID)
-        values = distance(piece, grid)
+    grids = [np.linspace(0.0, piece.length_m, _GRID) for piece in pieces]
+    sampled = [distance(piece, grid) for piece, grid in zip(pieces, grids)]
+    worst = max(float(values.max()) for values in sampled)
+    if worst > bound_m:  # the grid's largest is reached: no refinement can bring it under the bound
+        return worst
+    for piece, grid, values in zip(pieces, grids, sampled):
         i = int(np.argmax(values))
         low, high = grid[max(i - 1, 0)], grid[min(i + 1, _GRID - 1)]
         found = minimize_scalar(lambda s, p=piece: -float(distance(p, s)[0]), bounds=(low, high), method="bounded",
@@ -176,30 +179,67 @@ def _ess(q: FloatArray, heading: FloatArray, arc: ArcSegment, rho: float, first_
     return first, last, travel
 
 
+def _circle(q: FloatArray, heading: FloatArray, arc: ArcSegment) -> tuple[ArcSegment, float, float] | None:
+    """The one circle tangent to ``heading`` at ``q`` and to ``arc`` (its radius ``r`` solves
+    ``|q + σ r n - O| = R - turn σ r``), its radius (m) and where it joins the arc (m along it), or None."""
+    a, b = arc.plane
+    o, radius, turn = arc.center_m[[a, b]], arc.radius_m, arc.direction
+    h = heading[[a, b]] / math.hypot(heading[a], heading[b])
+    n, w = _left(h), q[[a, b]] - o
+    best = None
+    for side in (1.0, -1.0):
+        denominator = 2.0 * side * (float(w @ n) + turn * radius)
+        r = (radius * radius - float(w @ w)) / denominator if denominator != 0.0 else -1.0
+        if not r > 0.0 or radius - turn * side * r <= 0.0:
+            continue
+        center = q[[a, b]] + side * r * n
+        radial = center - o
+        end = o + radius * radial / math.hypot(radial[0], radial[1])
+        angle = (turn * (math.atan2(radial[1], radial[0]) - arc.start_angle_rad)) % (2.0 * math.pi)
+        travel = radius * angle
+        if not 0.0 < travel <= max_trim_m(arc) or float(side * _left(end - center) @ (turn * _left(end - o))) <= 0.0:
+            continue
+        end_m, center_m = q.copy(), q.copy()
+        end_m[[a, b]], center_m[[a, b]] = end, center
+        if math.dist(q, end_m) <= _MIN_CHORD_M:
+            continue
+        piece = ArcSegment(q, end_m, center_m, side < 0.0, (a, b), arc.feed_m_s)
+        if piece.sweep_rad < math.pi and (best is None or travel < best[2]):
+            best = (piece, r, travel)
+    return best
+
+
 def _line_then_arc(line: LineSegment, arc: ArcSegment, tolerance_m: float) -> RampBlend | None:
     z = _ramp_axis(line, arc)
     if z is None:
         return None
-    best: RampBlend | None = None
-    rho = _START_SHARE * tolerance_m
+    a, b = arc.plane
+    t, u = arc.tangent(0.0), line.unit_vector
+    h = a if abs(t[a]) >= abs(t[b]) else b
+    gamma = math.acos(min(max(math.copysign(1.0, t[h]) * u[h] / math.hypot(u[h], u[z]), -1.0), 1.0))
+    if not 1e-9 < gamma < math.pi - 1e-6:
+        return None
+    rho = min(tolerance_m / (1.0 / math.cos(0.5 * gamma) - 1.0),
+              0.999 * max_trim_m(line) * math.hypot(u[h], u[z]) / math.tan(0.5 * gamma))
     for _ in range(_STEPS):
         pitched = _pitch(line, arc, z, rho)
         if pitched is None:
-            break
+            return None
         pitch, heading, trim = pitched
-        found = None
+        options: list[tuple[tuple[ArcSegment, ...], float, float]] = []
+        circle = _circle(pitch.end_m, heading, arc)
+        if circle is not None:
+            options.append(((pitch, circle[0]), min(rho, circle[1]), circle[2]))
         for side in (-arc.direction, arc.direction):
-            found = _ess(pitch.end_m, heading, arc, rho, side)
-            if found is not None:
-                break
-        if found is not None:
-            pieces = (pitch, found[0], found[1])
-            deviation = _measure_m(pieces, line, arc)
-            if deviation > tolerance_m:
-                break
-            best = RampBlend(pieces, trim, found[2], rho, deviation)
-        rho *= _GROWTH
-    return best
+            ess = _ess(pitch.end_m, heading, arc, rho, side)
+            if ess is not None:
+                options.append(((pitch, ess[0], ess[1]), rho, ess[2]))
+        fits = [RampBlend(pieces, trim, travel, r, deviation) for pieces, r, travel in options
+                if (deviation := _measure_m(pieces, line, arc, tolerance_m)) <= tolerance_m]
+        if fits:
+            return max(fits, key=lambda blend: blend.radius_m)
+        rho /= _GROWTH
+    return None
 
 
 def plan_ramp(before: Segment, after: Segment, tolerance_m: float) -> RampBlend | None:
