@@ -154,9 +154,10 @@ def _refillet(arc: ArcSegment, before: FloatArray, vertex: FloatArray, after: Fl
         return None
     inward = inward / float(np.linalg.norm(inward))
     reach = arc.radius_m * math.tan(0.5 * turn)
-    return ArcSegment(vertex - reach * before, vertex + reach * after,
-                      vertex + arc.radius_m / math.cos(0.5 * turn) * inward, arc.clockwise, arc.plane, arc.feed_m_s,
-                      arc.source_line)
+    refit = ArcSegment(vertex - reach * before, vertex + reach * after,
+                       vertex + arc.radius_m / math.cos(0.5 * turn) * inward, arc.clockwise, arc.plane, arc.feed_m_s,
+                       arc.source_line)
+    return refit if abs(refit.sweep_rad - arc.sweep_rad) <= 0.5 * abs(arc.sweep_rad) else None  # same way round
 
 
 def pushed_corners(program: Program, settings: FirSettings, kept: set[int]) -> tuple[Program, set[int]]:
