@@ -73,10 +73,14 @@ _cnc_build() {
   want="$(cd "$CNC_ROOT" && _cnc_hash $(find src -name package.xml -o -name setup.py -o -name setup.cfg \
            -o -name CMakeLists.txt -o -name '*.msg' -o -name '*.action' | sort) 2>/dev/null)"
   # installed data files (setup.py globs them): a new or removed one needs a build, an edit does not (symlinks)
-  want="$want $(cd "$CNC_ROOT" && find src -path '*/config/*' -o -path '*/launch/*' | sort | sha256sum | cut -d' ' -f1)"
+  # (bytecode is not data: a launch file's import leaves launch/__pycache__, which must not trigger a build)
+  want="$want $(cd "$CNC_ROOT" && find src \( -path '*/config/*' -o -path '*/launch/*' \) -not -path '*/__pycache__*' \
+           | sort | sha256sum | cut -d' ' -f1)"
   if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     _cnc_log "colcon build"
-    (cd "$CNC_ROOT" && colcon --log-base "$CNC_ROOT/log" build --symlink-install \
+    # make's jobs without colcon's default load limit (-l N for N cores), which runs the message package's
+    # compile one file at a time on a machine already loaded: a user's own MAKEFLAGS wins.
+    (cd "$CNC_ROOT" && MAKEFLAGS="${MAKEFLAGS:--j$(nproc)}" colcon --log-base "$CNC_ROOT/log" build --symlink-install \
         --base-paths src --build-base build --install-base install \
         --event-handlers console_cohesion- status- summary+ >&2) || return 1
     echo "$want" > "$stamp"
