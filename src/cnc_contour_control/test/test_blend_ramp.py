@@ -67,7 +67,7 @@ def test_pieces_join_the_line_and_the_arc_tangentially(line_first: bool, elevati
     program = ramp_program(math.radians(elevation_deg), math.radians(heading_deg), line_first=line_first)
     before, after = program.segments
     blend = plan_ramp(before, after, 1e-4)
-    assert blend is not None and len(blend.pieces) == 3 and 0.0 < blend.deviation_m <= 1e-4
+    assert blend is not None and len(blend.pieces) in (2, 3) and 0.0 < blend.deviation_m <= 1e-4
     ends = [before.point(before.length_m - blend.trim_before_m)] + [p.end_m for p in blend.pieces]
     starts = [p.start_m for p in blend.pieces] + [after.point(blend.trim_after_m)]
     assert max(math.dist(p, q) for p, q in zip(ends, starts)) < 1e-12
@@ -76,14 +76,16 @@ def test_pieces_join_the_line_and_the_arc_tangentially(line_first: bool, elevati
     assert max(float(np.linalg.norm(p - q)) for p, q in zip(heads, tails)) < 1e-9
 
 
-def test_a_30_degree_ramp_into_an_xy_arc_is_blended_and_quicker() -> None:
+@pytest.mark.parametrize("tolerance_mm", [0.01, 0.1])
+def test_a_30_degree_ramp_into_an_xy_arc_is_blended_and_quicker(tolerance_mm: float) -> None:
+    """The ramp heads along the arc's start tangent: the S (no single circle joins there)."""
     program = ramp_program(math.radians(30), 0.0)
     stop, _ = sample_reference(program, LIMITS, InterpolatorConfig())
-    blended, reference = sample_reference(program, LIMITS, InterpolatorConfig(path_tolerance_mm=0.1))
+    blended, reference = sample_reference(program, LIMITS, InterpolatorConfig(path_tolerance_mm=tolerance_mm))
     assert [len(b.pieces) for b in blended.blended.blends] == [3]
     assert blended.junction_speeds_m_s[1] > 0.0
     assert blended.duration_s < stop.duration_s - 0.03
-    assert float(np.max(blended.blended.deviation_m(reference.position_m))) <= 1e-4
+    assert float(np.max(blended.blended.deviation_m(reference.position_m))) <= tolerance_mm * 1e-3
     assert limit_ratios(reference.position_m, SAMPLE_S, LIMITS).worst() <= 1.0 + 1e-9
 
 

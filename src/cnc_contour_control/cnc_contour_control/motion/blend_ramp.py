@@ -17,7 +17,7 @@ the next:
    tangent to ``h1`` at ``Q`` turning one way, then one of radius ``ρ`` turning
    the other way, tangent to the first and to the programmed arc (centre at
    ``R - turn σ ρ`` from the arc's centre). The arc angle ``θ`` of the joining
-   point solves ``|C1 - C2(θ)| = 2 ρ``, bracketed on a grid and found by
+   point solves ``|C1 - C2(θ)| = 2 ρ``, bracketed on a geometric and an even grid and found by
    :func:`scipy.optimize.brentq`.
 
 No single circle can do the second step when the line heads along the arc's
@@ -48,7 +48,8 @@ _AXIS_EPS = 1.0e-12
 _GROWTH = 1.4
 _STEPS = 30
 _GRID = 33
-#: Grid of the joining point's arc angle on which the S's tangency is bracketed.
+#: Points of the geometric grid (from ρ/1000 to the arc's share), and of the even one, of where the S joins
+#: the arc, on which its tangency is bracketed.
 _ANGLE_GRID = 64
 _MIN_CHORD_M = 2.0 * POSITION_TOLERANCE_M
 
@@ -153,30 +154,29 @@ def _ess(q: FloatArray, heading: FloatArray, arc: ArcSegment, rho: float, first_
         return math.dist(c1, c2) - 2.0 * rho
 
     limit = max_trim_m(arc)
-    grid = np.linspace(0.0, limit, _ANGLE_GRID + 1)[1:]
+    grid = np.union1d(np.geomspace(min(1e-3 * rho, 0.5 * limit), limit, _ANGLE_GRID),
+                      np.linspace(0.0, limit, _ANGLE_GRID + 1)[1:])
     values = [gap(float(s)) for s in grid]
-    root = next((i for i in range(1, len(grid)) if values[i - 1] * values[i] <= 0.0), None)
-    if root is None:
-        return None
-    travel = float(brentq(gap, float(grid[root - 1]), float(grid[root]), xtol=1e-15))
-    angle = a0 + turn * travel / radius
-    c2 = o + offset * np.array([math.cos(angle), math.sin(angle)])
-    mid2, end2 = 0.5 * (c1 + c2), o + radius * np.array([math.cos(angle), math.sin(angle)])
-    # each circle must run the way its neighbours do: the first along ``h`` at ``q``, the second along the arc
-    if float(first_side * _left(q[[a, b]] - c1) @ h) <= 0.0:
-        return None
-    if float(second * _left(end2 - c2) @ (turn * _left(end2 - o))) <= 0.0:
-        return None
-    mid, end, center1, center2 = (q.copy() for _ in range(4))
-    mid[[a, b]], end[[a, b]], center1[[a, b]], center2[[a, b]] = mid2, end2, c1, c2
-    if min(math.dist(q, mid), math.dist(mid, end)) <= _MIN_CHORD_M:
-        return None
-    feed = arc.feed_m_s
-    first = ArcSegment(q, mid, center1, first_side < 0.0, (a, b), feed)
-    last = ArcSegment(mid, end, center2, second < 0.0, (a, b), feed)
-    if max(first.sweep_rad, last.sweep_rad) >= math.pi:
-        return None
-    return first, last, travel
+    for i in range(1, len(grid)):
+        if values[i - 1] * values[i] > 0.0:
+            continue
+        travel = float(brentq(gap, float(grid[i - 1]), float(grid[i]), xtol=1e-15))
+        angle = a0 + turn * travel / radius
+        c2 = o + offset * np.array([math.cos(angle), math.sin(angle)])
+        mid2, end2 = 0.5 * (c1 + c2), o + radius * np.array([math.cos(angle), math.sin(angle)])
+        # each circle must run the way its neighbours do: the first along ``h`` at ``q``, the second along the arc
+        if float(first_side * _left(q[[a, b]] - c1) @ h) <= 0.0 or \
+                float(second * _left(end2 - c2) @ (turn * _left(end2 - o))) <= 0.0:
+            continue
+        mid, end, center1, center2 = (q.copy() for _ in range(4))
+        mid[[a, b]], end[[a, b]], center1[[a, b]], center2[[a, b]] = mid2, end2, c1, c2
+        if min(math.dist(q, mid), math.dist(mid, end)) <= _MIN_CHORD_M:
+            continue
+        first = ArcSegment(q, mid, center1, first_side < 0.0, (a, b), arc.feed_m_s)
+        last = ArcSegment(mid, end, center2, second < 0.0, (a, b), arc.feed_m_s)
+        if max(first.sweep_rad, last.sweep_rad) < math.pi:
+            return first, last, travel
+    return None
 
 
 def _circle(q: FloatArray, heading: FloatArray, arc: ArcSegment) -> tuple[ArcSegment, float, float] | None:
