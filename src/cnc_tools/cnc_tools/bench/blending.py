@@ -1,19 +1,19 @@
 """Bench ``blending``: corner blending within a path tolerance on a corpus of CAM-like programs.
 
-Per program of :mod:`cnc_tools.bench.blending_corpus`, at ``path_tolerance_mm``
-0.01, paper 000's limits (2000 mm/min, 250 mm/s² per axis), a machine tool's jerk limit
-(``MAX_JERK_M_S3``: the acceleration limit reached in 25 ms; measured, not given to the planner: the
-jerk-limited mode, :mod:`cnc_tools.bench.jerk`) and the bench's planner options
-(``BEST_OPTIONS`` in :mod:`~cnc_tools.bench.blending_limits`, the shipped defaults):
+Per program of :mod:`cnc_tools.bench.blending_corpus`, the planner as shipped: ``path_tolerance_mm`` 0.01,
+paper 000's limits (2000 mm/min, 250 mm/s² per axis), a machine tool's jerk limit (``MAX_JERK_M_S3``: the
+acceleration limit reached in 25 ms, given to the planner: ``limits_for(program, True)``) and the default
+options (``BEST_OPTIONS`` in :mod:`~cnc_tools.bench.blending_limits`; ``jerk_mode`` fir):
 
 - worst velocity, acceleration and jerk ratio per axis on the sampled reference, each the larger of the
   analytic value and the finite difference (:func:`sampled_ratios`; goal <= 1 + 1e-9);
-- worst deviation of the reference from the programmed path over the tolerance P, measured exactly
-  to the programmed segments each sample's planned segment comes from
-  (``BlendedProgram.local_deviation_m``, an upper bound of the contour distance; goal <= 1);
-- cycle time over the exact-stop (G61: tolerance 0, same limits) time (goal <= 1 on every program) and
-  over the time-optimal (v, a) bound on the same blended path (``toppra``, :mod:`cnc_tools.bench.time_optimal`;
-  goal <= ``TOPPRA_GOAL`` on the circles, the pocket and the raster: toppra has no jerk limit);
+- worst exact distance of the sampled reference from the programmed path (``Program.contour_distance``) over
+  the tolerance P (goal <= 1);
+- cycle time over the exact-stop time with the same jerk limit (G61: tolerance 0, same limits, which the
+  planner plans in ``scurve``; goal <= 1 on every program), and, as information, over exact stop without a
+  jerk limit; over the time-optimal (v, a) bound (``toppra``, :mod:`cnc_tools.bench.time_optimal`) on the
+  blended path of the planner without a jerk limit (goal <= ``TOPPRA_GOAL`` on the circles, the pocket and the
+  raster: toppra has no jerk limit, so its time is a lower bound);
 - the override sweep (:mod:`cnc_tools.bench.blending_override`) and the dense-CAM stream
   (:mod:`cnc_tools.bench.blending_stream`);
 - planning time per segment against program length (polygons of 0.2 mm sides; CPU time, beside the
@@ -40,11 +40,11 @@ from cnc_tools.bench.blending_limits import (
     MAX_ACCELERATION_M_S2,
     MAX_JERK_M_S3,
     MAX_VELOCITY_M_S,
+    SAMPLE_S,
     TOLERANCE_MM,
     bench_config,
     limits_for,
     reference_ratios,
-    worst_deviation_m,
 )
 
 #: Cycle time over toppra's (v, a) bound, on :data:`TOPPRA_PROGRAMS`.
@@ -59,20 +59,24 @@ def program_figures(program: Program, spacing_m: float) -> dict[str, Any]:
     """The bench's figures for one program."""
     from cnc_tools.bench.time_optimal import time_optimal_s  # toppra: only when the corpus table runs
 
-    # The blending planner without a jerk limit, so toppra's (v, a) bound is taken on the same blended path; its
-    # jerk is measured against MAX_JERK_M_S3 all the same. The jerk-limited mode's corners are not in
-    # Interpolator.program (toppra would see the sharp corners), so it has its own bench: `bench jerk`.
-    limits = limits_for(program)
-    started = time.perf_counter()
+    # The planner as shipped: the jerk limit given, the default jerk_mode (fir). fir's corners are not in
+    # Interpolator.program, so toppra's (v, a) bound is taken on the blended path of the planner without it.
+    limits, plain_limits = limits_for(program, True), limits_for(program)
+    started = time.process_time()
     interpolator = Interpolator(program, limits, bench_config())
-    plan_s = time.perf_counter() - started
+    plan_s = time.process_time() - started
     ratios = reference_ratios(interpolator)
-    optimal_s = time_optimal_s(interpolator.program, limits, spacing_m)
+    trajectory = interpolator.sample_array(np.arange(0.0, interpolator.duration_s + SAMPLE_S, SAMPLE_S))
+    deviation_m = float(np.max(program.contour_distance(trajectory.position_m)[0]))
+    plain = Interpolator(program, plain_limits, bench_config())
     exact_stop = Interpolator(program, limits, bench_config(0.0))
     return {"program": program.name, "segments": len(program.segments), "blends": len(interpolator.blended.blends),
-            "cycle_s": interpolator.duration_s, "exact_stop_s": exact_stop.duration_s,
-            "toppra_s": optimal_s, "plan_s": plan_s, **{name: value.tolist() for name, value in ratios.items()},
-            "deviation_over_p": worst_deviation_m(interpolator) / (TOLERANCE_MM * 1e-3)}
+            "jerk_mode_used": interpolator.jerk_mode_used, "cycle_s": interpolator.duration_s,
+            "exact_stop_s": exact_stop.duration_s, "exact_stop_mode": exact_stop.jerk_mode_used,
+            "exact_stop_no_jerk_s": Interpolator(program, plain_limits, bench_config(0.0)).duration_s,
+            "no_jerk_s": plain.duration_s, "toppra_s": time_optimal_s(plain.program, plain_limits, spacing_m),
+            "plan_cpu_s": plan_s, **{name: value.tolist() for name, value in ratios.items()},
+            "deviation_over_p": deviation_m / (TOLERANCE_MM * 1e-3)}
 
 
 def goals(f: dict[str, Any]) -> dict[str, bool | None]:
@@ -90,8 +94,10 @@ def _per_axis(values: list[float]) -> str:
 
 def _row(f: dict[str, Any]) -> list[object]:
     met = [goal_text(m) if m is not None else "-" for m in goals(f).values()]
-    return [f["program"], f["segments"], f["blends"], f"{f['exact_stop_s']:.3f}", f"{f['cycle_s']:.3f}",
-            f"{f['toppra_s']:.3f}", f"{f['cycle_s'] / f['toppra_s']:.4f}", f"{f['cycle_s'] / f['exact_stop_s']:.4f}",
+    return [f["program"], f["segments"], f["blends"], f["jerk_mode_used"], f"{f['exact_stop_s']:.3f}",
+            f"{f['exact_stop_no_jerk_s']:.3f}", f"{f['cycle_s']:.3f}", f"{f['toppra_s']:.3f}",
+            f"{f['cycle_s'] / f['toppra_s']:.4f}", f"{f['cycle_s'] / f['exact_stop_s']:.4f}",
+            f"{f['cycle_s'] / f['exact_stop_no_jerk_s']:.4f}",
             f"{f['deviation_over_p']:.4f}", _per_axis(f["velocity_ratio"]), _per_axis(f["acceleration_ratio"]),
             _per_axis(f["jerk_ratio"]), *met]
 
@@ -130,11 +136,14 @@ def corpus_table(quick: bool) -> tuple[float, list[dict[str, Any]]]:
     figures = [program_figures(make(), spacing_m) for make, in_quick in CORPUS.values() if in_quick or not quick]
     config = bench_config()
     print(f"blending at P = {TOLERANCE_MM} mm, {MAX_VELOCITY_M_S * 60000:.0f} mm/min, "
-          f"{MAX_ACCELERATION_M_S2 * 1e3:.0f} mm/s^2 per axis, jerk measured against {MAX_JERK_M_S3 * 1e3:.0f} mm/s^3 "
-          f"(not given to the planner: the jerk-limited mode is `bench jerk`); planner options (arcs: "
+          f"{MAX_ACCELERATION_M_S2 * 1e3:.0f} mm/s^2 and {MAX_JERK_M_S3 * 1e3:.0f} mm/s^3 per axis (jerk limit given); "
+          f"the shipped options (jerk_mode {config.jerk_mode}; arcs: "
           f"combined budget {config.arc_combined_budget}, centripetal fraction {config.arc_centripetal_fraction}, "
-          f"{config.arc_speed_bands} speed bands); true arc R 20 mm: {arc_s:.3f} s; toppra grid {spacing_m * 1e3:g} mm")
-    print(format_table(["program", "segs", "blends", "G61 s", "cycle s", "toppra s", "/toppra", "/G61", "dev/P",
+          f"{config.arc_speed_bands} speed bands); true arc R 20 mm: {arc_s:.3f} s; toppra grid {spacing_m * 1e3:g} mm "
+          f"on the blended path without the jerk limit; G61: exact stop with the jerk limit (scurve), G61 no jerk: "
+          f"without; dev: exact distance to the programmed path")
+    print(format_table(["program", "segs", "blends", "mode", "G61 s", "G61 no jerk s", "cycle s", "toppra s",
+                        "/toppra", "/G61", "/G61 no jerk", "dev/P",
                         "v ratio per axis", "a ratio per axis", "jerk ratio per axis", "dev<=P", "v,a<=1",
                         "jerk<=1", "<=G61", f"<={TOPPRA_GOAL} toppra"],
                        [_row(f) for f in figures]))
