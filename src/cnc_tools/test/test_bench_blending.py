@@ -10,7 +10,7 @@ from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.geometry import LineSegment, Program
 from cnc_contour_control.motion.interpolation import Interpolator
 from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
-from cnc_tools.bench.blending import goals, planning_cost
+from cnc_tools.bench.blending import goals, planning_cost, program_figures
 from cnc_tools.bench.blending_corpus import CORPUS, arc_chain, arc_scallops, polygon, ramps_3axis, true_circle, zigzag
 from cnc_tools.bench.blending_limits import (
     BEST_OPTIONS,
@@ -110,6 +110,15 @@ def test_goals_read_each_column() -> None:
                "jerk_ratio": [3.0], "cycle_s": 10.0, "exact_stop_s": 9.0, "toppra_s": 9.0}
     assert goals(figures) == {"deviation": True, "v, a": True, "jerk": False, "<= G61": False, "toppra": True}
     assert goals({**figures, "program": "star-5"})["toppra"] is None
+
+
+def test_the_bench_plans_as_shipped_with_the_jerk_limit_against_a_jerk_limited_exact_stop() -> None:
+    """A 6-gon: fir (the default) with the jerk limit holds it and P; G61 with it is scurve, slower than without."""
+    figures = program_figures(polygon(6), 2e-4)
+    assert figures["jerk_mode_used"] == "fir" and figures["exact_stop_mode"] == "scurve"
+    assert figures["exact_stop_s"] > figures["exact_stop_no_jerk_s"]
+    assert 0.5 < max(figures["jerk_ratio"]) <= 1.0 + 1e-9
+    assert all(met is not False for met in goals(figures).values())
 
 
 def test_the_override_sweep_holds_the_tolerance_and_the_limits_on_a_short_zigzag() -> None:
