@@ -381,7 +381,8 @@ class Interpolator:
             position[rows] = segment.point(s)
             velocity[rows] = speed[rows, None] * tangent
             acceleration[rows] = accel[rows, None] * tangent + (speed[rows] ** 2)[:, None] * segment.curvature_vector(s)
-        position[done] = self._end_point_m
+        if done.any():  # a stream knows its end point only once planned to it
+            position[done] = self._end_point_m
         return position, velocity, acceleration
 
     def reference(self, t_s: float) -> ReferenceSample:

@@ -7,15 +7,19 @@ block's arcs capped as it is blended (:func:`~cnc_contour_control.motion.jerk_fi
 chunk and the segment before it). Before a chunk is published, :func:`chunk_deviation_m` measures the filtered
 reference at the multiples of the filter's period whose window ends in the chunk (its first ``n - 1`` samples
 reach back into the chunk before, kept for this) against the programmed segments its samples come from, as
-``within_tolerance`` does for the whole program; over ``P`` the chunk is planned again with smaller caps
-(:func:`stream_attempts`): the tool never reaches a chunk that is not published. What the whole plan does
-next (every corner a stop, then ``scurve``) needs the whole program: a chunk still over ``P`` with the smaller
-caps is published and counted (``StreamPlan.over_tolerance_chunks``).
+``within_tolerance`` does for the whole program. Over ``P`` the chunk is planned again with smaller caps
+(:func:`stream_attempts`), then with every junction a stop held the filter's window. A chunk is published only
+once the next one is planned and checked (the samples across their junction are the next one's): if the next
+is over ``P`` even with stops, the one before is planned again to end at rest, and the next from that rest,
+held. The tool never reaches a chunk that is not published. A chunk still over ``P`` is published and counted
+(``StreamPlan.over_tolerance_chunks``; the whole plan would fall back to ``scurve``, which needs the whole
+program).
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -25,6 +29,36 @@ from cnc_contour_control.motion.jerk_filter import moving_average_rows
 from cnc_contour_control.motion.jerk_fir import FirSettings, fir_attempts, stop_holds_s
 from cnc_contour_control.motion.plan_arrays import Phases
 from cnc_contour_control.motion.points import FloatArray
+
+
+@dataclass
+class Chunk:
+    """A planned chunk: segments ``j .. j + commit - 1``, its junction speeds (m/s, from ``j``), its phases (from 0),
+    the attempt that planned it, its filtered reference's deviation (m), its start (s), the holds (s) at its first
+    junction and at the next chunk's first."""
+
+    j: int
+    commit: int
+    speeds: FloatArray
+    last: bool
+    phases: Phases
+    attempt: int
+    deviation_m: float
+    start_s: float
+    hold_first_s: float
+    hold_next_s: float
+
+    @property
+    def end_s(self) -> float:
+        """Its end in profile time, s."""
+        return self.start_s + float(self.phases.start_s[-1])
+
+    def after(self, kept: Phases) -> Phases:
+        """``kept`` (published, global) followed by this chunk's phases."""
+        return Phases(np.concatenate((kept.start_s[:-1], self.phases.start_s + self.start_s)),
+                      np.concatenate((kept.s0_m, self.phases.s0_m)), np.concatenate((kept.v0_m_s, self.phases.v0_m_s)),
+                      np.concatenate((kept.accel_m_s2, self.phases.accel_m_s2)),
+                      np.concatenate((kept.segment, self.phases.segment + self.j)))
 
 
 def stream_attempts(settings: FirSettings) -> tuple[FirSettings, FirSettings]:

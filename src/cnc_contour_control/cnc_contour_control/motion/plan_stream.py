@@ -1,33 +1,28 @@
 """Streaming planning: the feed profile planned chunk by chunk, a look-ahead window ahead of the tool.
 
-A controller's look-ahead buffer of ``W`` segments (``look_ahead_segments``)
-plans the speed at a junction from the segments it sees ahead and a stop at
-the last one's end (:func:`~cnc_contour_control.motion.plan_arrays.look_ahead_caps_m_s`).
-:class:`StreamPlan` does the same lazily: to commit the planned segments
-``J .. J + C - 1`` (a chunk, ``C = max(W, MIN_CHUNK_SEGMENTS)``) it
+A controller's look-ahead buffer of ``W`` segments (``look_ahead_segments``) plans the speed at a junction from
+the segments it sees ahead and a stop at the last one's end (:func:`~cnc_contour_control.motion.plan_arrays.
+look_ahead_caps_m_s`). :class:`StreamPlan` does the same lazily: to commit the planned segments ``J .. J + C - 1``
+(a chunk, ``C = max(W, MIN_CHUNK_SEGMENTS)``) it
 
-1. blends the programmed segments it needs (:func:`blending.blend_program` on a
-   slice with two segments of context before and one after: a corner's blend
-   depends only on its two neighbours, a blend arc's start on the planned
-   path's end before it), and computes their limits (``plan_banded_limits``);
-2. runs the junction passes over ``J .. J + C + W`` from the committed entry
-   speed at ``J`` to a stop at the window's end, with the look-ahead caps;
-3. commits the speeds at ``J + 1 .. J + C`` and the chunk's phases.
+1. blends the programmed segments it needs (:func:`blending.blend_program` on a slice with two segments of
+   context before and one after: a corner's blend depends only on its two neighbours, a blend arc's start on
+   the planned path's end before it), and computes their limits (``plan_banded_limits``);
+2. runs the junction passes over ``J .. J + C + W`` from the committed entry speed at ``J`` to a stop at the
+   window's end, with the look-ahead caps;
+3. commits the speeds at ``J + 1 .. J + C`` and the chunk's phases (``jerk_mode`` fir: its checks first,
+   :mod:`~cnc_contour_control.motion.jerk_stream`).
 
-Why this equals the whole plan with the same window (in exact arithmetic):
-the backward pass's speed at junction ``k`` is the least over ``m >= k`` of
-``sqrt(cap_m² + Σ_{k..m-1} 2 a_i L_i)``; every term with ``m >= k + W`` and
-every look-ahead cap beyond ``k`` is at least junction ``k``'s own look-ahead
-cap (reaches are non-negative and increasing; a banded segment's reach is never
-below the lowest band's, which the caps use), so junction ``k``'s speed
-depends on the caps at ``k .. k + W - 1`` only: a stop at ``J + C + W`` changes
-nothing at or before ``J + C``. The forward pass is causal. Rounding differs
-(cumulative sums over a chunk, not the program): the samples agree to 1e-12
-(``test_plan_stream.py``). Committed segments never change.
+Why this equals the whole plan with the same window (in exact arithmetic): the backward pass's speed at
+junction ``k`` is the least over ``m >= k`` of ``sqrt(cap_m² + Σ_{k..m-1} 2 a_i L_i)``; every term with
+``m >= k + W`` and every look-ahead cap beyond ``k`` is at least junction ``k``'s own look-ahead cap (reaches
+are non-negative and increasing; a banded segment's reach is never below the lowest band's, which the caps
+use), so junction ``k``'s speed depends on the caps at ``k .. k + W - 1`` only: a stop at ``J + C + W`` changes
+nothing at or before ``J + C``. The forward pass is causal. Rounding differs (cumulative sums over a chunk, not
+the program): the samples agree to 1e-12 (``test_plan_stream.py``). Committed segments never change.
 
-What differs from planning whole: a segment the limits refuse (a feed over
-them, ``clamp_feed`` false) raises its :class:`ProgramError` when the stream
-reaches it, from :meth:`StreamPlan.extend_to`, not at construction.
+What differs from planning whole: a segment the limits refuse (a feed over them, ``clamp_feed`` false) raises
+its :class:`ProgramError` when the stream reaches it, from :meth:`StreamPlan.extend_to`, not at construction.
 
 On line (:class:`~cnc_contour_control.motion.feed_override.LiveReference`) a
 :class:`~cnc_contour_control.motion.plan_background.BackgroundPlanner` plans the chunks in a thread ahead of
@@ -50,7 +45,7 @@ from cnc_contour_control.motion.blend_choice import CornerLimits
 from cnc_contour_control.motion.blending import blend_program
 from cnc_contour_control.motion.geometry import Dwell, Program, Segment
 from cnc_contour_control.motion.jerk_fir import FirSettings, capped_program
-from cnc_contour_control.motion.jerk_stream import chunk_deviation_m, chunk_holds_s
+from cnc_contour_control.motion.jerk_stream import Chunk, chunk_deviation_m, chunk_holds_s
 from cnc_contour_control.motion.plan_arrays import (
     Phases,
     SpeedBands,
@@ -266,6 +261,8 @@ class StreamPlan:
         self.replanned_chunks, self.over_tolerance_chunks = 0, 0
         #: Streamed fir: the largest deviation (m) of a published chunk's filtered reference from the programmed path.
         self.worst_deviation_m = 0.0
+        self._hold_first_s = 0.0  # the hold at the next chunk's first junction (after a chunk of stops)
+        self._pending: Chunk | None = None  # fir: the chunk planned, published once the next one is checked
         #: Held while phases are published or forgotten (a :class:`~cnc_contour_control.motion.plan_background.
         #: BackgroundPlanner`'s condition once attached, which also hears of each chunk).
         self.guard: Any = contextlib.nullcontext()
@@ -318,50 +315,85 @@ class StreamPlan:
         return self.extend_to(math.inf)
 
     def _plan_chunk(self) -> None:
-        """Commit the next chunk of planned segments: computed first, published under :attr:`guard`."""
-        chunk = self._chunk
-        j, window = self.committed_segments, self.settings.look_ahead_segments
-        blocks = self._blocks
+        """Commit the next chunk of planned segments: computed first, published under :attr:`guard` (fir: once the
+        next one is planned and checked, :mod:`~cnc_contour_control.motion.jerk_stream`)."""
+        if self.settings.fir is None:
+            chunk = self._plan_fir_chunk(self.committed_segments, self.junction_speeds_m_s[-1], 0, False, 0.0)
+            self._commit(chunk)
+            return
+        if self._pending is None:
+            self._pending = self._plan_fir_chunk(self.committed_segments, self.junction_speeds_m_s[-1], 0, False,
+                                                 self._hold_first_s)
+        pending = self._pending
+        if not pending.last:
+            j, tolerance_m = pending.j + pending.commit, self.settings.path_tolerance_m
+            after = self._plan_fir_chunk(j, float(pending.speeds[pending.commit]), 0, False, pending.hold_next_s,
+                                         pending)
+            if after.attempt or after.deviation_m > tolerance_m:  # its caps lowered: the seam a stop, held
+                self.replanned_chunks += 1
+                pending = self._plan_fir_chunk(pending.j, self.junction_speeds_m_s[-1], pending.attempt, True,
+                                               pending.hold_first_s, only=True)
+                after = self._plan_fir_chunk(j, 0.0, after.attempt, False, pending.hold_next_s, pending)
+        self._commit(pending)
+        self._pending = None if pending.last else after
+        self._hold_first_s = pending.hold_next_s
+
+    def _plan_fir_chunk(self, j: int, entry_m_s: float, first_attempt: int, end_stop: bool, hold_first_s: float,
+                        before: Chunk | None = None, only: bool = False) -> Chunk:
+        """Plan the chunk from planned segment ``j`` at ``entry_m_s`` (after the unpublished ``before``); fir: from
+        attempt ``first_attempt`` (``only``: that one, whose caps its entry speed was planned with) until within P
+        (1: the smaller caps, 2: every junction a stop), ``end_stop``: at rest at its end, ``hold_first_s``: the
+        hold at its first junction if at rest (s)."""
+        chunk, window, blocks = self._chunk, self.settings.look_ahead_segments, self._blocks
         blocks.ensure(j + chunk + window + 1)
         total = blocks.count
         end = min(j + chunk + window, total)
         last = blocks.exhausted and end == total
         commit = end - j if last else chunk
-        length, cruise = blocks.rows("length", j, end), blocks.rows("cruise", j, end)
-        bands = SpeedBands(blocks.rows("edges", j, end), blocks.rows("accel", j, end))
+        length = blocks.rows("length", j, end)
         fir, smaller = self.settings.fir, self.settings.fir_smaller
-        for attempt in range(1 if fir is None or smaller is None else 2):
-            if attempt:  # fir over P: the chunk's arcs at the smaller caps (the window's stay as they were)
-                assert smaller is not None
-                self.replanned_chunks += 1
+        start_s = self.planned_until_s if before is None else before.end_s
+        kept = self.phases() if before is None else before.after(self.phases())
+        deviation_m, attempt = 0.0, first_attempt
+        for attempt in range(first_attempt, 1 if fir is None or smaller is None else first_attempt + 1 if only else 3):
+            if attempt == 1 and smaller is not None:  # the chunk's arcs at the smaller caps (the window's as they were)
                 blocks.recap(j, j + commit, smaller)
-                cruise = blocks.rows("cruise", j, end)
-                bands = SpeedBands(blocks.rows("edges", j, end), blocks.rows("accel", j, end))
+            cruise, bands = blocks.rows("cruise", j, end), SpeedBands(blocks.rows("edges", j, end),
+                                                                       blocks.rows("accel", j, end))
             caps = look_ahead_caps_m_s(bands.accel_m_s2[:, -1], length, window)  # inf past J + C unless last
+            caps[1:commit + 1] = 0.0 if attempt == 2 else caps[1:commit + 1]  # every junction a stop
+            caps[commit] = 0.0 if end_stop else caps[commit]
             speeds = banded_junction_speeds_m_s(cruise, bands, length, blocks.rows("smooth", j, end - 1), caps,
-                                                self.junction_speeds_m_s[-1])
-            phases = self._chunk_phases(j, commit, speeds, last)
+                                                entry_m_s)
+            phases = self._chunk_phases(j, commit, speeds, last, attempt == 2, hold_first_s)
+            result = Chunk(j, commit, speeds, last, phases, attempt, deviation_m, start_s, hold_first_s,
+                            fir.window_s if fir is not None and (attempt == 2 or end_stop) else 0.0)
             if fir is None:
                 break
-            deviation_m = chunk_deviation_m(self.phases(), self._global(phases, j), self.segments,
-                                            _Shifted(blocks.column("source"), blocks.base), blocks.program, fir, last)
+            result.deviation_m = deviation_m = chunk_deviation_m(
+                kept, self._global(phases, j, start_s), self.segments, _Shifted(blocks.column("source"), blocks.base),
+                blocks.program, fir, last)
             if deviation_m <= self.settings.path_tolerance_m:
                 break
-        if fir is not None:
-            self.over_tolerance_chunks += int(deviation_m > self.settings.path_tolerance_m)
-            self.worst_deviation_m = max(self.worst_deviation_m, deviation_m)
-        self._commit(j, commit, speeds, last, phases)
+        self.replanned_chunks += attempt - first_attempt
+        return result
 
-    def _global(self, phases: Phases, j: int) -> Phases:
-        """A chunk's ``phases`` in profile time and global segment indices."""
-        return Phases(phases.start_s + self.planned_until_s, phases.s0_m, phases.v0_m_s, phases.accel_m_s2,
-                      phases.segment + j)
+    def _global(self, phases: Phases, j: int, start_s: float) -> Phases:
+        """A chunk's ``phases`` in profile time (from ``start_s``) and global segment indices."""
+        return Phases(phases.start_s + start_s, phases.s0_m, phases.v0_m_s, phases.accel_m_s2, phases.segment + j)
 
-    def _chunk_phases(self, j: int, commit: int, speeds: FloatArray, last: bool) -> Phases:
-        """The phases of planned segments ``j .. j + commit - 1`` at junction ``speeds``; fir: stops held."""
+    def _chunk_phases(self, j: int, commit: int, speeds: FloatArray, last: bool, stops: bool,
+                      hold_first_s: float) -> Phases:
+        """The phases of planned segments ``j .. j + commit - 1`` at junction ``speeds``; fir: stops held (with
+        ``stops``, every stop of the chunk held the filter's window; ``hold_first_s`` at its first junction)."""
         blocks, fir = self._blocks, self.settings.fir
         dwell = np.append(blocks.rows("dwell", j, j + commit), blocks.end_dwell_s() if last else 0.0)
         if fir is not None:
+            if speeds[0] <= 0.0:
+                dwell[0] = max(dwell[0], hold_first_s)
+            if stops:
+                held = np.flatnonzero(speeds[:commit] <= 0.0)
+                dwell[held] = np.maximum(dwell[held], fir.window_s)
             before = int(j > 0)
             segments = [self.segments[i] for i in range(j - before, j + commit)]
             holds = chunk_holds_s(segments, speeds[:commit + 1], blocks.rows("accel", j - before, j + commit)[:, -1],
@@ -371,9 +403,12 @@ class StreamPlan:
         return banded_phases(blocks.rows("length", j, j + commit), speeds[:commit], speeds[1:commit + 1],
                              blocks.rows("cruise", j, j + commit), bands, dwell)
 
-    def _commit(self, j: int, commit: int, speeds: FloatArray, last: bool, phases: Phases) -> None:
+    def _commit(self, chunk: Chunk) -> None:
+        if self.settings.fir is not None:
+            self.over_tolerance_chunks += int(chunk.deviation_m > self.settings.path_tolerance_m)
+            self.worst_deviation_m = max(self.worst_deviation_m, chunk.deviation_m)
         with self.guard:
-            self._publish(j, commit, speeds, last, phases)
+            self._publish(chunk.j, chunk.commit, chunk.speeds, chunk.last, chunk.phases)
 
     def _publish(self, j: int, commit: int, speeds: FloatArray, last: bool, phases: Phases) -> None:
         self.start_s.extend((phases.start_s[:-1] + self.planned_until_s).tolist())

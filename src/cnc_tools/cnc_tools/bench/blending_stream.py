@@ -14,6 +14,12 @@ what is behind the tool. Printed: the CPU time of the ticks (median, p99.9, max;
 (goal >= 0.9), and the plan's held entries (:meth:`StreamPlan.held_rows`) at the start, the largest in each
 half of the run and at the end (goal: the second half's largest no larger than the first's).
 
+The same stream again with the jerk bench's limit (:data:`~cnc_tools.bench.blending_limits.MAX_JERK_M_S3`) under
+the default ``jerk_mode`` fir, which then streams too (:mod:`cnc_contour_control.motion.jerk_stream`): the same
+figures, the worst velocity, acceleration and jerk ratio of the ticks' filtered reference
+(:func:`~cnc_tools.bench.blending_limits.sampled_ratios`, every tick) and its largest distance from the programmed
+spiral over P (every tick), and the chunks the planner planned again with smaller caps or left over P.
+
 Then the same program as G-code (``G64 P0.01``, a 10 mm lead-in from the origin) through the node graph in
 real time at T = 1 ms, the loop composed in one process (``--compose loop``, paper 000's drives and PID, the
 override at 100 % from a schedule so the node steps a ``LiveReference``): the plant's late commands over
@@ -39,7 +45,7 @@ from cnc_contour_control.motion.feed_override import LiveReference, OverrideConf
 from cnc_contour_control.motion.geometry import Program
 from cnc_tools.analysis.tables import format_table, goal_text
 from cnc_tools.bench.blending_corpus import FEED_M_S, polyline
-from cnc_tools.bench.blending_limits import bench_config, limits_for
+from cnc_tools.bench.blending_limits import bench_config, limits_for, sampled_ratios
 from cnc_tools.runs.folders import project_root, timestamp
 
 SEGMENTS = 150_000
@@ -71,16 +77,18 @@ def dense_spiral(segments: int, chord_m: float = FEED_M_S * TICK_S, start_radius
     return Program(f"dense-spiral-{segments}", program.axis_names, program.segments)
 
 
-def stream_run(program: Program) -> dict[str, Any]:
-    """Step ``program`` at 1 ms ticks of the wall clock with a streaming window; per-tick latency, feed, memory."""
+def stream_run(program: Program, jerk: bool = False) -> dict[str, Any]:
+    """Step ``program`` at 1 ms ticks of the wall clock with a streaming window; per-tick latency, feed, memory
+    (with ``jerk``: the jerk bench's limit, fir, and the reference's limit ratios and deviation)."""
     config = OverrideConfig(schedule_times_s=(0.0,), schedule_ratios=(1.0,))
     started = time.process_time()
-    live = LiveReference(program, limits_for(program), replace(bench_config(), look_ahead_segments=WINDOW), config)
+    limits = limits_for(program, jerk)
+    live = LiveReference(program, limits, replace(bench_config(), look_ahead_segments=WINDOW), config)
     if live.planner is None:
         raise ConfigError(f"{program.name}: {len(program.segments)} segments do not stream with a window of {WINDOW}")
     construct_s = time.process_time() - started
     stream = live.planner.stream
-    tick_s, feed, path, held = [], [], [], [stream.held_rows()]
+    tick_s, feed, path, held, rows = [], [], [], [stream.held_rows()], []
     clock, tick, next_s = time.perf_counter, 0, time.perf_counter()
     while True:
         next_s += TICK_S
@@ -89,6 +97,7 @@ def stream_run(program: Program) -> dict[str, Any]:
         tick_s.append(clock() - before)
         feed.append(sample.feed_m_s / sample.programmed_feed_m_s)
         path.append(sample.path_length_m)
+        rows.append(np.concatenate([sample.position_m, sample.velocity_m_s, sample.acceleration_m_s2]))
         if tick % 1000 == 0:
             held.append(stream.held_rows())
         if sample.done:
@@ -98,7 +107,25 @@ def stream_run(program: Program) -> dict[str, Any]:
     held.append(stream.held_rows())
     figures = _figures(program, construct_s, np.array(tick_s), np.array(feed), np.array(path), held,
                        stream.total_length_m)
-    return {**figures, "planner_waits": live.planner.waits, "load_1min": os.getloadavg()[0]}
+    out = {**figures, "planner_waits": live.planner.waits, "load_1min": os.getloadavg()[0],
+           "jerk_mode": live.interpolator.jerk_mode_used}
+    if jerk:
+        out.update(_reference_figures(program, np.array(rows), live))
+    return out
+
+
+def _reference_figures(program: Program, rows: np.ndarray, live: LiveReference) -> dict[str, Any]:
+    """The ticks' reference (rows: position, velocity, acceleration) against the limits and P."""
+    n = program.n_axes
+    ratios = sampled_ratios(rows[:, :n], rows[:, n:2 * n], rows[:, 2 * n:], TICK_S, n)
+    tolerance_m = live.interpolator.config.path_tolerance_mm * 1e-3
+    stream = live.planner.stream if live.planner is not None else None
+    assert stream is not None  # stream_run refuses a program that does not stream
+    return {"velocity_ratio": float(ratios["velocity_ratio"].max()),
+            "acceleration_ratio": float(ratios["acceleration_ratio"].max()),
+            "jerk_ratio": float(ratios["jerk_ratio"].max()),
+            "deviation_over_p": float(program.contour_distance(rows[:, :n])[0].max()) / tolerance_m,
+            "replanned_chunks": stream.replanned_chunks, "over_tolerance_chunks": stream.over_tolerance_chunks}
 
 
 def _figures(program: Program, construct_s: float, tick_s: np.ndarray, feed: np.ndarray, path_m: np.ndarray,
@@ -149,7 +176,8 @@ def graph_run(program: Program, run_dir: Path, window: int = WINDOW) -> dict[str
 
 
 def dense_cam(options: argparse.Namespace) -> dict[str, Any]:
-    """Print and return the dense-CAM stream's figures: in process, then through the composed graph."""
+    """Print and return the dense-CAM stream's figures: in process (without and with the jerk limit), then through
+    the composed graph."""
     segments = getattr(options, "segments", None) or (QUICK_SEGMENTS if options.quick else SEGMENTS)
     program = dense_spiral(segments)
     f = stream_run(program)
@@ -165,6 +193,21 @@ def dense_cam(options: argparse.Namespace) -> dict[str, Any]:
           f["held_start"], f["held_max_first_half"], f["held_max_second_half"], f["held_end"],
           goal_text(f["planner_waits"] == 0), goal_text(f["feed_ratio_min"] >= FEED_GOAL),
           goal_text(f["held_max_second_half"] <= f["held_max_first_half"])]]))
+    j = stream_run(program, jerk=True)
+    print(f"the same with the jerk limit {limits_for(program, True).max_jerk_m_s3} m/s^3, jerk_mode "
+          f"{j['jerk_mode']} (first chunk {j['plan_cpu_s']:.3f} s CPU); load {j['load_1min']:.1f}")
+    print(format_table(
+        ["ticks", "tick p50 us", "max us", "waited for plan", "feed/programmed min", "held start",
+         "held max 1st half", "2nd half", "end", "v ratio", "a ratio", "jerk ratio", "dev / P", "chunks re-planned",
+         "over P", "0 waits", "feed >= 90 %", "memory flat", "limits, P"],
+        [[j["ticks"], round(j["tick_p50_s"] * 1e6, 1), round(j["tick_max_s"] * 1e6, 1), j["planner_waits"],
+          round(j["feed_ratio_min"], 4), j["held_start"], j["held_max_first_half"], j["held_max_second_half"],
+          j["held_end"], round(j["velocity_ratio"], 4), round(j["acceleration_ratio"], 4), round(j["jerk_ratio"], 4),
+          round(j["deviation_over_p"], 4), j["replanned_chunks"], j["over_tolerance_chunks"],
+          goal_text(j["planner_waits"] == 0), goal_text(j["feed_ratio_min"] >= FEED_GOAL),
+          goal_text(j["held_max_second_half"] <= j["held_max_first_half"]),
+          goal_text(max(j["velocity_ratio"], j["acceleration_ratio"], j["jerk_ratio"]) <= 1.0 + 1e-9
+                    and j["deviation_over_p"] <= 1.0)]]))
     run_dir = Path(getattr(options, "out", None) or project_root() / "bags" / "bench" / "blending" / timestamp())
     runs = [graph_run(program, run_dir / "dense_cam_stream"), graph_run(program, run_dir / "dense_cam_whole", 10**9)]
     print(format_table(["composed graph (loop), real time, T = 1 ms", "status", "ticks", "simulated s",
@@ -177,4 +220,4 @@ def dense_cam(options: argparse.Namespace) -> dict[str, Any]:
     for g in runs:
         if g["graph_faults"]:
             print(f"  faults (window {g['graph_window']}): {g['graph_faults']}")
-    return {**f, "graph": runs}
+    return {**f, "jerk": j, "graph": runs}
