@@ -53,10 +53,14 @@ TOPPRA_PROGRAMS = ("circle-36-gon", "circle-360-gon", "circle-3600-gon", "pocket
 #: The streaming planner's window in the planning-cost table, planned segments.
 STREAM_WINDOW = 200
 PLAN_SIZES = (1_000, 10_000, 200_000)
+#: ``--quick``: the deviation's sample period, s (the exact contour distance of the pocket's 1 ms samples takes
+#: 7 s of CPU; the whole bench samples every ``SAMPLE_S``).
+QUICK_DEVIATION_S = 0.01
 
 
-def program_figures(program: Program, spacing_m: float) -> dict[str, Any]:
-    """The bench's figures for one program."""
+def program_figures(program: Program, spacing_m: float, deviation_dt_s: float = SAMPLE_S) -> dict[str, Any]:
+    """The bench's figures for one program (toppra's grid ``spacing_m``; the deviation sampled every
+    ``deviation_dt_s``)."""
     from cnc_tools.bench.time_optimal import time_optimal_s  # toppra: only when the corpus table runs
 
     # The planner as shipped: the jerk limit given, the default jerk_mode (fir). fir's corners are not in
@@ -66,7 +70,7 @@ def program_figures(program: Program, spacing_m: float) -> dict[str, Any]:
     interpolator = Interpolator(program, limits, bench_config())
     plan_s = time.process_time() - started
     ratios = reference_ratios(interpolator)
-    trajectory = interpolator.sample_array(np.arange(0.0, interpolator.duration_s + SAMPLE_S, SAMPLE_S))
+    trajectory = interpolator.sample_array(np.arange(0.0, interpolator.duration_s + deviation_dt_s, deviation_dt_s))
     deviation_m = float(np.max(program.contour_distance(trajectory.position_m)[0]))
     plain = Interpolator(program, plain_limits, bench_config())
     exact_stop = Interpolator(program, limits, bench_config(0.0))
@@ -133,7 +137,9 @@ def corpus_table(quick: bool) -> tuple[float, list[dict[str, Any]]]:
     """Print the per-program table; the true arc's time (s) and the figures."""
     spacing_m = 2e-4 if quick else 5e-5
     arc_s = Interpolator(true_circle(), limits_for(true_circle()), bench_config(0.0)).duration_s
-    figures = [program_figures(make(), spacing_m) for make, in_quick in CORPUS.values() if in_quick or not quick]
+    deviation_dt_s = QUICK_DEVIATION_S if quick else SAMPLE_S
+    figures = [program_figures(make(), spacing_m, deviation_dt_s) for make, in_quick in CORPUS.values()
+               if in_quick or not quick]
     config = bench_config()
     print(f"blending at P = {TOLERANCE_MM} mm, {MAX_VELOCITY_M_S * 60000:.0f} mm/min, "
           f"{MAX_ACCELERATION_M_S2 * 1e3:.0f} mm/s^2 and {MAX_JERK_M_S3 * 1e3:.0f} mm/s^3 per axis (jerk limit given); "
@@ -141,7 +147,7 @@ def corpus_table(quick: bool) -> tuple[float, list[dict[str, Any]]]:
           f"combined budget {config.arc_combined_budget}, centripetal fraction {config.arc_centripetal_fraction}, "
           f"{config.arc_speed_bands} speed bands); true arc R 20 mm: {arc_s:.3f} s; toppra grid {spacing_m * 1e3:g} mm "
           f"on the blended path without the jerk limit; G61: exact stop with the jerk limit (scurve), G61 no jerk: "
-          f"without; dev: exact distance to the programmed path")
+          f"without; dev: exact distance to the programmed path every {deviation_dt_s * 1e3:g} ms")
     print(format_table(["program", "segs", "blends", "mode", "G61 s", "G61 no jerk s", "cycle s", "no jerk s",
                         "toppra s", "/toppra", "/G61", "/G61 no jerk", "dev/P",
                         "v ratio per axis", "a ratio per axis", "jerk ratio per axis", "dev<=P", "v,a<=1",
