@@ -32,6 +32,10 @@ from cnc_contour_control.motion.plan_stream import StreamPlan
 SWITCH_INTERVAL_S = 1.0e-4
 #: How far the committed phases reach ahead of the tool (profile time, s) before the thread plans a chunk.
 LEAD_S = 0.5
+#: The same for ``jerk_mode`` fir: a chunk is published once the next one is planned and checked
+#: (:mod:`~cnc_contour_control.motion.jerk_stream`), about 1 s of dense CAM at a time (0.5 s left the tool
+#: waiting 120 times in 150 s at load 5, ``bench blending`` dense CAM).
+FIR_LEAD_S = 2.0
 _IDLE_WAIT_S = 0.5
 
 
@@ -70,12 +74,14 @@ class BackgroundPlanner:
         Attached at construction: its :meth:`StreamPlan.extend_to` then waits for this thread.
     owner : object
         The stream's user (a ``LiveReference``); the thread ends once it is collected.
-    lead_s : float
-        Profile time (s) the committed phases should reach ahead of the tool.
+    lead_s : float, optional
+        Profile time (s) the committed phases should reach ahead of the tool (default :data:`LEAD_S`, with a
+        jerk filter :data:`FIR_LEAD_S`).
     """
 
-    def __init__(self, stream: StreamPlan, owner: object, lead_s: float = LEAD_S) -> None:
-        self.stream, self.lead_s = stream, lead_s
+    def __init__(self, stream: StreamPlan, owner: object, lead_s: float | None = None) -> None:
+        self.stream = stream
+        self.lead_s = lead_s if lead_s is not None else LEAD_S if stream.settings.fir is None else FIR_LEAD_S
         self.condition = threading.Condition(threading.RLock())
         self._tool_s, self._wanted_s, self._closed = 0.0, 0.0, False
         self.error: CncError | None = None
