@@ -195,11 +195,11 @@ def test_override_schedules_keep_every_limit_and_p(program: Program, limits: Axi
 
 @pytest.mark.parametrize("tick_ns", [1_000_000, 10_000_000])
 def test_live_reference_is_done_only_once_the_filter_has_drained(tick_ns: int) -> None:
-    """At 1 ms and 10 ms ticks: ``done`` (the end of a run or goal) comes with the end point, n - 1 ticks after
-    the retimed plan's end, n = ceil(2 amax / (jmax T))."""
+    """At 1 ms and 10 ms ticks (the filter's period the tick's): ``done`` (the end of a run or goal) comes with the
+    end point, n - 1 ticks after the retimed plan's end, n = ceil(2 amax / (jmax T))."""
     program = _polyline([(0.0, 0.0), (0.004, 0.0)], 0.02)
-    live = LiveReference(program, LIMITS, InterpolatorConfig(path_tolerance_mm=0.01, jerk_mode="fir"),
-                         OverrideConfig())
+    config = InterpolatorConfig(path_tolerance_mm=0.01, jerk_mode="fir", jerk_filter_period_s=tick_ns * 1e-9)
+    live = LiveReference(program, LIMITS, config, OverrideConfig())
     fir = live.interpolator.jerk_filter
     assert fir is not None
     plan_end_s, samples, plan_done = live.interpolator.duration_s - fir.window_s, [], None

@@ -51,7 +51,7 @@ import numpy as np
 
 from cnc_contour_control.core.config import require_finite, require_non_negative
 from cnc_contour_control.core.errors import ConfigError
-from cnc_contour_control.core.lockstep import ns_to_s
+from cnc_contour_control.core.lockstep import NS_PER_S, ns_to_s
 from cnc_contour_control.core.params import check_ranges, param
 from cnc_contour_control.motion.accel_decel import ReferenceFilter
 from cnc_contour_control.motion.axis_limits import AxisLimits
@@ -246,7 +246,13 @@ class LiveReference:
         self._filter = ReferenceFilter(interpolator_config.accel_decel)
         #: The FIR jerk filter on the retimed reference (``jerk_mode`` fir), at the machine's limits.
         self.jerk_filter = None if self.interpolator.jerk_filter is None else LiveJerkFilter(limits)
+        #: The filter's own clock (ns): it steps every ``jerk_filter_period_s``, whatever the ticks' period.
+        self.filter_period_ns = round(interpolator_config.jerk_filter_period_s * NS_PER_S)
         self._last_ns: int | None = None
+        self._clock_ns: int | None = None
+        self._tick_ns = 0
+        self._before: ReferenceSample | None = None
+        self._at: ReferenceSample | None = None
         stream = self.interpolator._stream  # a streaming plan (window shorter than the program), else None
         #: Plans a streaming profile ahead of the tool in its own thread (None: planned whole).
         self.planner = BackgroundPlanner(stream, self) if stream is not None else None
@@ -262,6 +268,14 @@ class LiveReference:
         profile at rest with the ratio requested there); the sample's
         ``feed_override_ratio`` is the applied ratio.
         """
+        if self.jerk_filter is None:
+            sample = self._followed(stamp_ns, requested_ratio)
+        else:
+            sample = self._on_filter_clock(stamp_ns, requested_ratio)
+        return self._filtered(ns_to_s(stamp_ns), sample)
+
+    def _followed(self, stamp_ns: int, requested_ratio: float) -> ReferenceSample:
+        """The retimed sample at ``stamp_ns`` (dt from the last one followed)."""
         if self.planner is None:
             sample = self._advance(stamp_ns, requested_ratio)
         else:  # sampled under the plan's lock; the planner hears where the tool is
@@ -269,9 +283,28 @@ class LiveReference:
                 sample = self._advance(stamp_ns, requested_ratio)
                 self.planner.tool_at(self.follower.profile_time_s)
         self._last_ns = stamp_ns
-        if self.jerk_filter is not None:
-            sample = self.jerk_filter.step(stamp_ns, sample)
-        return self._filtered(ns_to_s(stamp_ns), sample)
+        return sample
+
+    def _on_filter_clock(self, stamp_ns: int, requested_ratio: float) -> ReferenceSample:
+        """The jerk-filtered reference at tick ``stamp_ns``: the follower and the filter step on the filter's clock
+        (every ``filter_period_ns`` from the first tick), so ticks whose period varies (a real-time graph under
+        load) keep the filter's fixed period and its jerk bound; a tick between two of its steps reads the straight
+        line between the two filtered samples (ticks on the clock: the samples themselves). An earlier stamp
+        restarts the filter, as :class:`LiveJerkFilter` does."""
+        assert self.jerk_filter is not None
+        if self._clock_ns is None or stamp_ns < self._tick_ns:
+            first = self.jerk_filter.step(stamp_ns, self._followed(stamp_ns, requested_ratio))
+            self._clock_ns, self._tick_ns, self._before, self._at = stamp_ns, stamp_ns, first, first
+            return first
+        assert self._before is not None and self._at is not None
+        while self._clock_ns < stamp_ns:
+            self._clock_ns += self.filter_period_ns
+            self._before, self._at = self._at, self.jerk_filter.step(
+                self._clock_ns, self._followed(self._clock_ns, requested_ratio))
+        self._tick_ns = stamp_ns
+        if self._clock_ns == stamp_ns:
+            return self._at
+        return between(self._before, self._at, 1.0 - (self._clock_ns - stamp_ns) / self.filter_period_ns)
 
     def _advance(self, stamp_ns: int, requested_ratio: float) -> ReferenceSample:
         if self._last_ns is None:
@@ -288,6 +321,16 @@ class LiveReference:
                                  + sample.acceleration_m_s2.tolist())
         return replace(sample, position_m=np.array(flat[:n]), velocity_m_s=np.array(flat[n:2 * n]),
                        acceleration_m_s2=np.array(flat[2 * n:]))
+
+
+def between(before: ReferenceSample, after: ReferenceSample, share: float) -> ReferenceSample:
+    """The straight line from ``before`` to ``after`` at ``share`` in [0, 1]: position, velocity and acceleration
+    (the feed their velocity's norm); every other field is ``before``'s, the sample already reached."""
+    velocity = before.velocity_m_s + share * (after.velocity_m_s - before.velocity_m_s)
+    return replace(before, position_m=before.position_m + share * (after.position_m - before.position_m),
+                   velocity_m_s=velocity, feed_m_s=float(np.linalg.norm(velocity)),
+                   acceleration_m_s2=before.acceleration_m_s2 + share * (after.acceleration_m_s2
+                                                                          - before.acceleration_m_s2))
 
 
 def check_source(source: str, config: OverrideConfig) -> str:

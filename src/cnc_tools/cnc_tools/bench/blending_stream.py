@@ -47,7 +47,7 @@ from cnc_contour_control.motion.feed_override import LiveReference, OverrideConf
 from cnc_contour_control.motion.geometry import Program
 from cnc_tools.analysis.tables import format_table, goal_text
 from cnc_tools.bench.blending_corpus import FEED_M_S, polyline
-from cnc_tools.bench.blending_limits import bench_config, limits_for, sampled_ratios
+from cnc_tools.bench.blending_limits import MAX_JERK_M_S3, bench_config, limits_for, sampled_ratios
 from cnc_tools.runs.folders import project_root, timestamp
 
 SEGMENTS = 150_000
@@ -155,9 +155,10 @@ def gcode(program: Program) -> str:
     return "\n".join(lines + ["M30", "%", ""])
 
 
-def graph_run(program: Program, run_dir: Path, window: int = WINDOW) -> dict[str, Any]:
+def graph_run(program: Program, run_dir: Path, window: int = WINDOW, jerk: bool = False) -> dict[str, Any]:
     """``program`` through the composed node graph in real time at T = 1 ms with a look-ahead of ``window``
-    planned segments; the plant's late commands and mean tick period."""
+    planned segments (with ``jerk``, the jerk bench's limit on every axis: the default ``fir`` streams); the
+    plant's late commands and mean tick period."""
     from cnc_tools.runs.graph import run_graph  # the node graph's runner: only this part of the bench needs it
     from cnc_tools.runs.scenario import build_scenario
 
@@ -168,16 +169,26 @@ def graph_run(program: Program, run_dir: Path, window: int = WINDOW) -> dict[str
                 "program": {"axes": ["x", "y"], "gcode_file": "dense.ngc"},
                 "interpolator": {"look_ahead_segments": window},
                 "feed_override": {"max_ratio": 1.0, "schedule": [[0.0, 1.0]]}})
+    if jerk:
+        raw["limits"] = {**raw["limits"], "max_jerk_mm_s3": MAX_JERK_M_S3 * 1e3}
     scenario = build_scenario({k: v for k, v in raw.items() if v is not None}, base_dir=run_dir)
     result = run_graph(scenario, run_dir, compose="loop", timeout_s=3600.0)
     ticks = int(result.summary.get("ticks", 0))
     late = int(result.summary.get("late_commands", 0))
     simulated_s = float(result.summary.get("simulated_time_s", 0.0))
-    return {"graph_window": window, "graph_status": result.summary.get("status"), "graph_ticks": ticks,
+    return {"graph_window": window, "graph_jerk": jerk, "graph_status": result.summary.get("status"),
+            "graph_ticks": ticks,
             "graph_simulated_s": simulated_s,
             "graph_mean_period_s": simulated_s / max(ticks, 1), "graph_late_commands": late,
             "graph_late_share": late / max(ticks * 2, 1), "graph_faults": result.faults,
             "graph_load_1min": os.getloadavg()[0]}
+
+
+def _graph_label(run: dict[str, Any]) -> str:
+    """A graph run's row label: streamed (with the jerk limit: fir) or planned whole."""
+    if run["graph_window"] != WINDOW:
+        return "planned whole before the run"
+    return f"streamed, window {WINDOW}" + (", jerk limit (fir)" if run["graph_jerk"] else "")
 
 
 def dense_cam(options: argparse.Namespace) -> dict[str, Any]:
@@ -216,11 +227,12 @@ def dense_cam(options: argparse.Namespace) -> dict[str, Any]:
           goal_text(max(j["velocity_ratio"], j["acceleration_ratio"], j["jerk_ratio"]) <= 1.0 + 1e-9
                     and max(j["deviation_over_p"], j["checked_deviation_over_p"]) <= 1.0)]]))
     run_dir = Path(getattr(options, "out", None) or project_root() / "bags" / "bench" / "blending" / timestamp())
-    runs = [graph_run(program, run_dir / "dense_cam_stream"), graph_run(program, run_dir / "dense_cam_whole", 10**9)]
+    runs = [graph_run(program, run_dir / "dense_cam_stream"),
+            graph_run(program, run_dir / "dense_cam_stream_jerk", jerk=True),
+            graph_run(program, run_dir / "dense_cam_whole", 10**9)]
     print(format_table(["composed graph (loop), real time, T = 1 ms", "status", "ticks", "simulated s",
                         "mean period ms", "late commands", "late share", "load (1 min)", "0 late"],
-                       [[f"streamed, window {g['graph_window']}" if g["graph_window"] == WINDOW
-                         else "planned whole before the run", g["graph_status"], g["graph_ticks"],
+                       [[_graph_label(g), g["graph_status"], g["graph_ticks"],
                          round(g["graph_simulated_s"], 2), round(g["graph_mean_period_s"] * 1e3, 3),
                          g["graph_late_commands"], round(g["graph_late_share"], 5), round(g["graph_load_1min"], 1),
                          goal_text(g["graph_late_commands"] == 0)] for g in runs]))
