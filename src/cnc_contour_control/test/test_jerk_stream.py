@@ -12,7 +12,7 @@ from contextlib import contextmanager
 from unittest import mock
 
 import numpy as np
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from cnc_contour_control.motion import interpolation, plan_stream
@@ -60,8 +60,17 @@ def polylines(draw: st.DrawFn) -> Program:
     return _polyline(points, draw(st.floats(0.005, 2000 / 60000)))
 
 
+#: 21 lines along x, a stop at a 1 rad corner, then a kink of 2.4e-8 rad (under the corner tolerance: passed at
+#: 21 mm/s) between lines that accelerate at the y limit: the kink's velocity turn, averaged over the window, took
+#: the filtered y acceleration to 1 + 1.2e-8 of the limit before the fir plan kept a reserve for it.
+KINK_POINTS = [[0.001953125 * k, 0.0] for k in range(22)] + [
+    [0.04141951837709553, 0.0006290266654255336], [0.0424747962964563, 0.002272524696618335],
+    [0.04353007421581707, 0.003916022727811136], [0.044585352135177836, 0.005559520759003937]]
+
+
 @SETTINGS
 @given(program=polylines(), tolerance_mm=st.sampled_from([0.005, 0.02]))
+@example(program=_polyline(np.array(KINK_POINTS), 0.03125), tolerance_mm=0.005)
 def test_streamed_fir_holds_the_limits_and_p_on_every_sample(program: Program, tolerance_mm: float) -> None:
     config = InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True, jerk_mode="fir",
                                 look_ahead_segments=WINDOW)
@@ -72,9 +81,9 @@ def test_streamed_fir_holds_the_limits_and_p_on_every_sample(program: Program, t
         times = np.arange(-3 * PERIOD_S, max(streamed.duration_s, whole.duration_s) + 3 * PERIOD_S, PERIOD_S)
         trajectory = streamed.sample_array(times)
     ratios = limit_ratios(trajectory.position_m, PERIOD_S, LIMITS)
-    # the (v, a) plan's own rounding at a stop reaches 1 + 2e-8 on some drawn programs, planned whole too
-    whole_worst = limit_ratios(whole.sample_array(times).position_m, PERIOD_S, LIMITS).worst()
-    assert ratios.worst() <= max(LIMIT_GOAL, whole_worst * (1.0 + 1e-12)), (ratios, whole_worst)
+    assert ratios.worst() <= LIMIT_GOAL, ratios
+    whole_ratios = limit_ratios(whole.sample_array(times).position_m, PERIOD_S, LIMITS)
+    assert whole_ratios.worst() <= LIMIT_GOAL, whole_ratios
     deviation_m = program.contour_distance(trajectory.position_m)[0]
     assert deviation_m.max() <= tolerance_mm * 1e-3 * LIMIT_GOAL + 1e-15
     assert trajectory.done[-1] and not trajectory.done[0]

@@ -61,6 +61,7 @@ from cnc_contour_control.motion.jerk_fir import (
     filtered_array,
     fir_attempts,
     fir_settings,
+    kink_acceleration_m_s2,
     stop_holds_s,
     within_tolerance,
 )
@@ -186,7 +187,7 @@ class Interpolator:
         """The (v, a) plan over the quickest blend of ``program`` (:func:`quickest_blend`)."""
         self._plans: dict[int, dict[str, Any]] = {}
         blended = quickest_blend(program, tolerance_m, tolerance_rad, CornerLimits(
-            np.asarray(self.limits.max_velocity_m_s), np.asarray(self.limits.max_acceleration_m_s2),
+            np.asarray(self.limits.max_velocity_m_s), np.asarray(self._planning_limits().max_acceleration_m_s2),
             self.config.arc_centripetal_fraction), self._planned_duration_s)
         self.__dict__.update(self._plans.pop(id(blended.planned)))  # an earlier attempt's blend is in the snapshots
         self.blended = blended
@@ -236,7 +237,7 @@ class Interpolator:
         program = program if self._fir is None else capped_program(program, self._fir, self.programmed_program)
         self.program = self._view = program
         self.cruise_speed_m_s, self.tangential_acceleration_m_s2, self.speed_bands = _plan_limits(
-            program.segments, self.limits, self.config)
+            program.segments, self._planning_limits(), self.config)
         self.junction_speeds_m_s = program_junction_speeds_m_s(program, self.cruise_speed_m_s, self.speed_bands,
                                                                tolerance_rad, self.config.look_ahead_segments)
         speeds = self.junction_speeds_m_s
@@ -249,6 +250,15 @@ class Interpolator:
         self._phase_s0_m, self._phase_v0_m_s = phases.s0_m.tolist(), phases.v0_m_s.tolist()
         self._phase_accel_m_s2, self._phase_segment = phases.accel_m_s2.tolist(), phases.segment.tolist()
         self.duration_s = float(phases.start_s[-1])
+
+    def _planning_limits(self) -> AxisLimits:
+        """:attr:`limits`, with a fir plan's accelerations less its kinks' reserve (:func:`kink_acceleration_m_s2`)."""
+        if self._fir is None:
+            return self.limits
+        limits = self.limits
+        accel = kink_acceleration_m_s2(np.asarray(limits.max_velocity_m_s), np.asarray(limits.max_acceleration_m_s2),
+                                       self._fir, math.radians(self.config.corner_angle_tolerance_deg))
+        return dataclasses.replace(limits, max_acceleration_m_s2=tuple(accel.tolist()))
 
     def _planned_duration_s(self, program: Program) -> float:
         """Plan ``program`` and keep that plan (:func:`~cnc_contour_control.motion.blending.quickest_blend` compares

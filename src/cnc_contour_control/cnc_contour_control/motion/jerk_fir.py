@@ -90,6 +90,25 @@ def fir_settings(limits: AxisLimits, period_s: float, tolerance_m: float, share:
                        PUSH_SHARE * tolerance_m)
 
 
+def kink_acceleration_m_s2(max_velocity_m_s: FloatArray, max_acceleration_m_s2: FloatArray, settings: FirSettings,
+                           tolerance_rad: float) -> FloatArray:
+    """The axis accelerations (m/s², ``(n_axes,)``) the fir plan is planned with: the limits' less what a junction
+    passed at speed (a turn of at most ``tolerance_rad``, taken as straight) adds to the filtered acceleration.
+
+    Across such a kink the velocity turns by ``θ`` in no time, so the mean over the window ``T_w`` of the axis
+    acceleration is ``(v(t) T_j' - v(t - T_w) T_j) / T_w``: the tangential part on the new direction (at most
+    ``a |T_j| + a θ``) and the turn's ``v θ / T_w``. With ``v <= |vmax|`` and ``a <= |amax|`` (2-norms) each axis
+    keeps ``θ (|amax| + |vmax| / T_w)`` in reserve (at most half its limit), one kink per window; a plan solved
+    to the limit on a segment next to the kink then holds it after the filter.
+    """
+    acceleration = np.asarray(max_acceleration_m_s2, dtype=float)
+    if settings.window_s <= 0.0 or tolerance_rad <= 0.0:
+        return acceleration
+    reserve = tolerance_rad * (float(np.linalg.norm(acceleration))
+                               + float(np.linalg.norm(max_velocity_m_s)) / settings.window_s)
+    return np.maximum(acceleration - reserve, 0.5 * acceleration)
+
+
 #: Shares of the caps' tolerances :func:`fir_attempts` plans with, in order, the last one stopping at every corner.
 ATTEMPT_SHARES = (1.0, 1.0, 0.25, 0.25)
 #: Share of P a capped blend's corner is pushed out of the turn by (:func:`pushed_corners`), first attempt only.

@@ -11,7 +11,7 @@ import numpy as np
 
 from cnc_contour_control.motion.blending import blend_program
 from cnc_contour_control.motion.geometry import Program
-from cnc_contour_control.motion.jerk_fir import FirSettings
+from cnc_contour_control.motion.jerk_fir import FirSettings, kink_acceleration_m_s2
 from cnc_contour_control.motion.jerk_stream import stream_attempts
 from cnc_contour_control.motion.plan_stream import StreamPlan, StreamSettings
 from cnc_contour_control.motion.points import FloatArray
@@ -22,6 +22,9 @@ def stream_settings(max_velocity_m_s: FloatArray, max_acceleration_m_s2: FloatAr
                     path_tolerance_m: float = 0.0) -> StreamSettings:
     """The settings of an :class:`~cnc_contour_control.motion.interpolator_config.InterpolatorConfig` (``config``)."""
     caps: tuple[FirSettings | None, FirSettings | None] = (None, None) if fir is None else stream_attempts(fir)
+    if fir is not None:  # the whole plan's accelerations (Interpolator._planning_limits)
+        max_acceleration_m_s2 = kink_acceleration_m_s2(np.asarray(max_velocity_m_s, float), max_acceleration_m_s2,
+                                                       fir, math.radians(config.corner_angle_tolerance_deg))
     return StreamSettings(np.asarray(max_velocity_m_s, float), np.asarray(max_acceleration_m_s2, float),
                           config.arc_centripetal_fraction, config.arc_combined_budget, config.clamp_feed,
                           config.arc_speed_bands if config.arc_combined_budget else 1, config.look_ahead_segments,
