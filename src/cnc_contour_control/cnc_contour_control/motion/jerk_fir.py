@@ -20,6 +20,10 @@ The average leaves the path where it curves. Two planning changes keep it within
 - **Stops at corners** hold still for ``T_w``: no window then holds samples of both lines while moving (a
   window across a moving corner would cut it by up to ``amax T_w² sin θ / 8``). At rest the mean is on the path.
 
+A junction passed at speed (a turn under ``corner_angle_tolerance_deg``) turns the velocity in no time, which
+the average spreads over ``T_w``: the plan's axis accelerations keep a reserve for it
+(:func:`kink_acceleration_m_s2`, whole and streamed alike).
+
 With a feed override the interpolator is planned with :func:`~cnc_contour_control.motion.feed_override.
 planning_limits` (acceleration ÷ k², jerk ÷ k³), so its window ``T_w`` is ``k_max`` times the machine's: the
 caps hold at every ratio up to ``k_max`` while :class:`LiveJerkFilter` filters the retimed reference tick by tick
