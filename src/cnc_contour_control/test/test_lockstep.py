@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.errors import ConfigError, FaultError, InputFault
 from cnc_contour_control.core.lockstep import (
     StampMatcher,
     duration_to_ns,
@@ -117,8 +117,9 @@ def test_a_far_future_input_held_before_the_first_tick_is_a_fault_once_the_first
     matcher = StampMatcher(("joint_states", "reference"), 1.0, max_ahead_ns=stamp_horizon_ns(T_NS))
     assert matcher.add("joint_states", 1000 * 1_000_000_000, None, 0.0) is None  # nothing to compare with yet
     matcher.add("joint_states", 0, None, 0.0)
-    with pytest.raises(FaultError, match="joint_states stamped t=1000.000000 s"):
+    with pytest.raises(InputFault, match="joint_states stamped t=1000.000000 s") as raised:
         matcher.add("reference", 0, None, 0.0)
+    assert raised.value.input_name == "joint_states", "the input at fault, not the one whose arrival found it"
 
 
 def test_a_stage_lagging_behind_one_input_in_real_time_is_no_fault() -> None:

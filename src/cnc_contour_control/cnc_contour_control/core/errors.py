@@ -18,5 +18,13 @@ class FaultError(CncError, RuntimeError):
     """A run-time fault: non-finite data, a missing message past its timeout, a dead node."""
 
 
+class InputFault(FaultError):
+    """A fault of one input (``input_name``, a topic relative to the node), found perhaps while another arrived."""
+
+    def __init__(self, input_name: str, message: str) -> None:
+        super().__init__(message)
+        self.input_name = input_name
+
+
 class BagError(CncError, IOError):
     """A recording is missing, truncated, corrupt or lacks a required topic."""

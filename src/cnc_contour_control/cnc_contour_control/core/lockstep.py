@@ -12,7 +12,7 @@ from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from cnc_contour_control.core.errors import ConfigError, FaultError
+from cnc_contour_control.core.errors import ConfigError, FaultError, InputFault
 
 NS_PER_S = 1_000_000_000
 
@@ -164,7 +164,7 @@ class StampMatcher:
         if pending is None:  # (not setdefault: that builds a _Pending for every input of a tick)
             pending = self._pending[stamp_ns] = _Pending(now_s)
         if name in pending.items:
-            raise FaultError(f"{name}: a second message for tick t={ns_to_s(stamp_ns):.6f} s "
+            raise InputFault(name, f"{name}: a second message for tick t={ns_to_s(stamp_ns):.6f} s "
                              "(another publisher outside the run?)")
         pending.items[name] = item
         if len(pending.items) < len(self.required):
@@ -209,8 +209,9 @@ class StampMatcher:
             if other_ns is not None and (base_ns is None or other_ns > base_ns):
                 base_ns = other_ns
         if base_ns is not None and stamp_ns - base_ns > self.max_ahead_ns:
-            raise FaultError(f"{name} stamped t={ns_to_s(stamp_ns):.6f} s, more than {ns_to_s(self.max_ahead_ns)} s "
-                             f"after tick t={ns_to_s(base_ns):.6f} s (a message from outside the run?)")
+            raise InputFault(name, f"{name} stamped t={ns_to_s(stamp_ns):.6f} s, more than "
+                             f"{ns_to_s(self.max_ahead_ns)} s after tick t={ns_to_s(base_ns):.6f} s "
+                             "(a message from outside the run?)")
 
     def expect(self, stamp_ns: int, now_s: float) -> None:
         """Start waiting for tick ``stamp_ns`` now, before any of its inputs arrived."""

@@ -22,7 +22,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 
-from cnc_contour_control.core.errors import CncError, FaultError
+from cnc_contour_control.core.errors import CncError, FaultError, InputFault
 from cnc_contour_control.core.lockstep import NS_PER_S, StampMatcher, join_ns, split_ns
 from cnc_contour_control.core.stop_signals import StopSignals
 from cnc_contour_control.core.topics import RUN_ID_KEY, qualify
@@ -213,6 +213,7 @@ class SuiteNode(ManagedNode):
         self._diagnostics = self.create_publisher(DiagnosticArray, "/diagnostics", 100)
         self.created_s = wall_time_s()
         self._waits: dict[str, str] = {}  # what this node waits for, by who noticed it
+        self._checked_topics: dict[str, str] = {}  # resolved names of the topics subscribe_checked took, by topic
         self.create_timer(WAIT_REPORT_AFTER_S, self._report_waits)
         self.start_lifecycle()  # unmanaged: configure and activate now (nodes/lifecycle.py)
 
@@ -302,11 +303,13 @@ class SuiteNode(ManagedNode):
     def subscribe_checked(self, msg_type: type, topic: str, accept: Callable[[Any], Any],
                           then: Callable[[Any], None] | None = None, qos: QoSProfile = LOCKSTEP_QOS) -> Any:
         """Subscribe; a fault while ``accept`` checks a message names the topic; ``then`` gets a non-None result."""
-        resolved = self.resolve_topic_name(topic)
+        resolved = self._checked_topics[topic] = self.resolve_topic_name(topic)
 
         def receive(msg: Any) -> None:
-            try:  # a fault while checking names the topic
+            try:  # a fault while checking names the topic: the one at fault, which may be another input's
                 result = accept(msg)
+            except InputFault as err:  # (e.g. a held input checked when this one released the first tick)
+                raise FaultError(f"{self._checked_topics.get(err.input_name, resolved)}: {err}") from err
             except FaultError as err:
                 raise FaultError(f"{resolved}: {err}") from err
             if result is not None:  # taken in (a whole tick, or a message of one): the run has reached its stamp
