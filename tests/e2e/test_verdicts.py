@@ -143,7 +143,11 @@ def test_a_node_killed_mid_run_gives_a_faulted_verdict_naming_it(tmp_path: Path,
 
 
 class _StopWhenRunning:
-    """on_poll: once the run's summary says running, SIGSTOP one node for ``pause_s``, then SIGCONT it."""
+    """on_poll: once the run's summary says running with its loop closed (``MIN_TICKS`` ticks: before tick 0's
+    commands are in, a real-time plant waits for them as at startup, so a stall then makes no command late),
+    SIGSTOP one node for ``pause_s``, then SIGCONT it."""
+
+    MIN_TICKS = 20
 
     def __init__(self, run_dir: Path, name: str, pause_s: float) -> None:
         self.run_dir, self.name, self.pause_s = run_dir, name, pause_s
@@ -152,7 +156,8 @@ class _StopWhenRunning:
         self.resumed = False
 
     def __call__(self) -> None:
-        if self.pid is None and _summary(self.run_dir).get("status") == "running":
+        summary = _summary(self.run_dir) if self.pid is None else {}
+        if self.pid is None and summary.get("status") == "running" and summary.get("ticks", 0) >= self.MIN_TICKS:
             self.pid = _node_pids(self.run_dir)[self.name]
             os.kill(self.pid, signal.SIGSTOP)
             self.stopped_at = time.monotonic()
