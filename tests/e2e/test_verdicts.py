@@ -145,9 +145,13 @@ def test_a_node_killed_mid_run_gives_a_faulted_verdict_naming_it(tmp_path: Path,
 class _StopWhenRunning:
     """on_poll: once the run's summary says running with its loop closed (``MIN_TICKS`` ticks: before tick 0's
     commands are in, a real-time plant waits for them as at startup, so a stall then makes no command late),
-    SIGSTOP one node for ``pause_s``, then SIGCONT it."""
+    SIGSTOP one node for ``pause_s``, then SIGCONT it.
 
-    MIN_TICKS = 20
+    300 ticks: a stall of k ticks after N ticks makes k of 2 (N + k) commands late, so the run's overall share
+    (``max_late_share`` 0.25) stays under its bound while k < N; a stop at tick 50 (20 ticks in a summary written
+    once a second, under load) let the overall share trip before the 100-tick window did."""
+
+    MIN_TICKS = 300
 
     def __init__(self, run_dir: Path, name: str, pause_s: float) -> None:
         self.run_dir, self.name, self.pause_s = run_dir, name, pause_s
