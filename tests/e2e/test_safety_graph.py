@@ -55,8 +55,10 @@ def test_realtime_graph_at_a_deadline_it_cannot_keep_faults_on_the_late_share(tm
         result = run_graph(scenario, tmp_path, record=False)
     except NodeDied as err:  # a stage that fell its queue behind may end the run first: not this test's case
         pytest.fail(f"expected the plant's late-share fault, got {err}")
+    # late commands, or (a plant whose own ticks stretch sees each command within the stretched period) the
+    # ticks' mean period: both say the machine does not hold T = 0.1 ms
     assert result.summary["status"] == "faulted"
-    assert "max_late_share" in result.faults[0], result.faults
+    assert "max_late_share" in result.faults[0] or "max_period_ratio" in result.faults[0], result.faults
 
 
 def test_plant_and_servos_report_every_second_of_run_time_into_the_bag(tmp_path: Path) -> None:
@@ -75,10 +77,11 @@ def test_plant_and_servos_report_every_second_of_run_time_into_the_bag(tmp_path:
 
 
 def test_estop_mid_run_latches_stops_the_axes_and_is_in_the_bag(tmp_path: Path) -> None:
-    # A lockstep graph may run hundreds of ticks ahead of this process's probe: a press "at tick 40" landed near
-    # the end of a 300-tick run once (CI, 2 cores), so the run has 1000 ticks and the coast is judged from the
-    # plant's latch tick. (In real time at T = 10 ms, four test workers on two cores made 43 % of commands late.)
-    scenario = load_scenario(CIRCLE, {"duration_s": 10.0})
+    # A lockstep graph may run hundreds of ticks ahead of this process's probe (a starved test worker: 1000 ticks
+    # once ended before the press at the probe's tick 41 arrived), so the run has 3000 ticks and the coast is judged
+    # from the plant's latch tick. (In real time at T = 10 ms, four test workers on two cores made 43 % of commands
+    # late.)
+    scenario = load_scenario(CIRCLE, {"duration_s": 30.0})
     ns = "/cnc/estop_e2e"
     # extra_subscribers=1: every lockstep topic waits for one more reader, this probe's
     probed = {f"{ns}/reference": Reference, f"{ns}/servo/x/command": AxisCommand,

@@ -89,3 +89,39 @@ def test_the_watchdog_faults_exactly_when_a_share_is_exceeded(pattern: list[list
     except FaultError:
         faulted = True
     assert faulted == _oracle_faults(pattern, params)
+
+
+def test_ticks_that_do_not_keep_the_period_fault_though_every_command_came() -> None:
+    """A plant asked for 10 kHz that ticks at 3 kHz sees each command within its stretched period: the period
+    itself is judged."""
+    dog = CommandWatchdog(WatchdogParams(late_window_ticks=10), 1, ("x",), sample_time_s=1.0e-4)
+    for k in range(9):
+        dog.tick(k * 300_000, [True], [0.0])
+        dog.check()  # nine ticks: the window is not full yet
+    dog.tick(9 * 300_000, [True], [0.0])
+    with pytest.raises(FaultError, match=r"every 0.300 ms on average, 3.00 x sample_time_s 0.1 ms.*max_period_ratio 2"):
+        dog.check()
+    assert dog.late_commands == 0
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.5, 4.0), min_size=2, max_size=40), st.integers(2, 12),
+       st.sampled_from([0.0, 1.5, 2.0, 3.0]))
+def test_the_period_faults_exactly_when_a_windows_mean_exceeds_the_ratio(periods: list[float], window: int,
+                                                                         ratio: float) -> None:
+    """Generated tick periods (in sample times): a fault iff some full window's mean period exceeds the ratio."""
+    params = WatchdogParams(late_window_ticks=window, max_period_ratio=ratio)
+    dog = CommandWatchdog(params, 1, sample_time_s=T_NS * 1e-9)
+    stamps = [0]
+    for p in periods:
+        stamps.append(stamps[-1] + round(p * T_NS))
+    expected = ratio > 0.0 and any((stamps[end] - stamps[end - window + 1]) / (window - 1) > ratio * T_NS
+                                   for end in range(window - 1, len(stamps)))
+    faulted = False
+    try:
+        for stamp in stamps:
+            dog.tick(stamp, [True], [0.0])
+            dog.check()
+    except FaultError:
+        faulted = True
+    assert faulted == expected

@@ -126,7 +126,7 @@ class PlantNode(SuiteNode):
                                     max_ahead_ns=0)  # only the tick it published
         self.commands = [0.0] * len(self.axes)
         self.received = [False] * len(self.axes)
-        self.watchdog = CommandWatchdog(run, len(self.axes), self.axes)  # real time only
+        self.watchdog = CommandWatchdog(run, len(self.axes), self.axes, run.sample_time_s)  # real time only
         self.latch = EstopLatch()  # estop, ~/enable, ~/reset: zero commands while latched or disabled
         self.safety = SafetyInterface(self, self.latch, lambda: self.clock.stamp_ns)
         self.started = False

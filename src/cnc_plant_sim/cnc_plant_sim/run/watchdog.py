@@ -15,6 +15,11 @@ The run's share alone would let a long run hide a stalled second (a servo
 stopped for 1 s of a 10 s run is 10 %): so, per axis, a share above
 ``max_late_share_window`` within any ``late_window_ticks`` consecutive ticks
 is a fault too, naming the axis and the window's time.
+A plant that cannot tick at its own period would count none of this: each
+tick's commands arrive within the stretched period, and a run asked for at
+10 kHz that ticked at 2 kHz would say finished. So, given the sample time,
+the mean period of the window's ticks above ``max_period_ratio`` times it is
+a fault too: the machine does not hold the period in real time.
 Lockstep runs wait for every command and never consult the watchdog.
 """
 from __future__ import annotations
@@ -47,6 +52,10 @@ class WatchdogParams:
                                                      "late_window_ticks ticks above this faults the run (1: never)")
     late_window_ticks: int = param(100, low=1, high=1_000_000_000, read_only=True,
                                    description="real time: ticks of the window max_late_share_window is judged on")
+    max_period_ratio: float = param(2.0, low=0.0, high=1.0e6, read_only=True,
+                                    description="real time: the plant's mean tick period within any "
+                                                "late_window_ticks ticks above this multiple of sample_time_s "
+                                                "faults the run (0: never)")
 
     def __post_init__(self) -> None:
         check_ranges(self)
@@ -63,10 +72,14 @@ class CommandWatchdog:
         Number of axes (commands per tick).
     axis_names : sequence of str, optional
         The axes' names, for the faults (default: their indices).
+    sample_time_s : float, optional
+        The period the ticks should keep (s); None: their period is not judged.
     """
 
-    def __init__(self, params: WatchdogParams, n_axes: int, axis_names: Sequence[str] = ()) -> None:
+    def __init__(self, params: WatchdogParams, n_axes: int, axis_names: Sequence[str] = (),
+                 sample_time_s: float | None = None) -> None:
         self.params = params
+        self.sample_time_s = sample_time_s
         self.n_axes = int(n_axes)
         self.axis_names = tuple(axis_names) or tuple(str(i) for i in range(self.n_axes))
         self.max_age_ns = seconds_to_ns(params.command_max_age_s)
@@ -112,8 +125,10 @@ class CommandWatchdog:
 
     def check(self) -> None:
         """Raise :class:`FaultError` when the late share exceeds ``max_late_share`` (after the minimum ticks), or
-        one axis's share within the last ``late_window_ticks`` ticks exceeds ``max_late_share_window``."""
+        one axis's share within the last ``late_window_ticks`` ticks exceeds ``max_late_share_window``, or their
+        mean period exceeds ``max_period_ratio`` times the sample time."""
         self._check_window()
+        self._check_period()
         if self.ticks < self.params.late_share_min_ticks or self.late_share <= self.params.max_late_share:
             return
         raise FaultError(f"plant: {self.late_commands} of {self.ticks * self.n_axes} commands late "
@@ -131,3 +146,15 @@ class CommandWatchdog:
                                  f"{end_s:.3f} s late ({100 * late / window:.1f} %): exceeds "
                                  f"max_late_share_window {self.params.max_late_share_window:g} "
                                  f"(late_window_ticks {window})")
+
+    def _check_period(self) -> None:
+        window, ratio = self.params.late_window_ticks, self.params.max_period_ratio
+        if self.sample_time_s is None or ratio == 0.0 or len(self._window) < max(window, 2):
+            return
+        start_ns, end_ns = self._window[0][0], self._window[-1][0]
+        mean_s = (end_ns - start_ns) * 1e-9 / (len(self._window) - 1)
+        if mean_s > ratio * self.sample_time_s:
+            raise FaultError(f"plant: ticks from t = {start_ns * 1e-9:.3f} s to {end_ns * 1e-9:.3f} s came every "
+                             f"{mean_s * 1e3:.3f} ms on average, {mean_s / self.sample_time_s:.2f} x sample_time_s "
+                             f"{self.sample_time_s * 1e3:g} ms: late beyond max_period_ratio {ratio:g} "
+                             f"(late_window_ticks {window}); this machine does not hold the period in real time")
