@@ -20,6 +20,7 @@ from cnc_contour_control.motion.geometry import LineSegment, Program
 from cnc_contour_control.motion.interpolation import Interpolator
 from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program import load_program
+from cnc_contour_control.motion.reference_types import ReferenceSample
 
 LIMITS = AxisLimits((0.05, 0.05), (0.5, 0.5))
 DT_S = 1e-3
@@ -63,6 +64,32 @@ def test_a_step_in_the_request_ramps_within_the_limits() -> None:
     assert ratios[399] == 1.0 and ratios[401] > 0.3            # no jump: the ratio ramps down
     assert ratios[700] == pytest.approx(0.3)                     # and gets there
     assert samples[-1].done and positions[-1][0] == pytest.approx(0.05)
+
+
+class CountingFollower(OverrideFollower):
+    """Counts the samples each tick evaluates."""
+
+    evaluations = 0
+
+    def _scaled(self, ratio: float, dt_s: float) -> tuple[ReferenceSample, bool]:
+        self.evaluations += 1
+        return super()._scaled(ratio, dt_s)
+
+
+@settings(max_examples=12, deadline=None)
+@given(st.floats(0.005, 0.03), st.floats(0.01, 0.05), st.floats(0.05, 2.0))
+def test_a_steady_ratio_costs_one_sample_per_tick(length_m: float, feed_m_s: float, a_max: float) -> None:
+    """A plan accelerating at the limit, followed at ratio 1: one sample per tick, and the plan's own clock (the
+    share of the limit failed there, and each tick bisected 41 samples to find the same one: in a real-time graph
+    whose jerk filter steps several times per late tick that cost fed on itself)."""
+    limits = AxisLimits((0.05, 0.05), (a_max, a_max))
+    f = CountingFollower(Interpolator(line(length_m, feed_m_s), limits), limits, OverrideConfig())
+    positions, ratios, samples = run(f, [1.0] * 20_000, scheduled=0)
+    assert samples[-1].done and np.all(ratios == 1.0)
+    assert f.evaluations == len(samples) - 1, "advance(0) at the start evaluates none"
+    clock = [s.profile_time_s for s in samples[:-1]]  # the last: the plan's end, inside its tick
+    assert clock == pytest.approx([k * DT_S for k in range(len(clock))], abs=1e-12)
+    assert_within_limits(positions, samples, limits)
 
 
 def test_feed_hold_stops_on_the_path_and_resumes() -> None:

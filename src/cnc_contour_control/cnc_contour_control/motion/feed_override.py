@@ -191,9 +191,13 @@ class OverrideFollower:
                        profile_time_s=tau, feed_override_ratio=ratio), ok
 
     def _largest_step(self, target: float, dt_s: float) -> tuple[float, ReferenceSample]:
-        """The ratio nearest ``target`` on the way from the current one that keeps the limits, and its sample."""
+        """The ratio nearest ``target`` on the way from the current one that keeps the limits, and its sample.
+
+        At the ratio already applied there is nothing to bisect: the sample is the plan's own at that ratio (a plan
+        accelerating at the limit fails the share's check there, and 41 samples per tick found the same one).
+        """
         sample, ok = self._scaled(target, dt_s)
-        if ok:
+        if ok or target == self.ratio:
             return target, sample
         feasible, infeasible = self.ratio, target
         best = self._scaled(feasible, dt_s)[0]
