@@ -113,6 +113,15 @@ class BackgroundPlanner:
                 self.condition.wait(_IDLE_WAIT_S)
             return stream.planned_until_s if stream.finished else math.inf
 
+    def status_values(self) -> dict[str, str]:
+        """The plan's state for a status: calls that waited for it, rows it holds, profile time planned ahead of the
+        tool (s), whether it reached the program's end."""
+        with self.condition:
+            stream = self.stream
+            return {"planner_waits": str(self.waits), "plan_held_rows": str(stream.held_rows()),
+                    "plan_ahead_s": f"{max(stream.planned_until_s - self._tool_s, 0.0):.6f}",
+                    "plan_finished": str(stream.finished).lower()}
+
     def close(self) -> None:
         """End the thread (after the chunk in hand); the stream plans no further."""
         with self.condition:

@@ -22,6 +22,7 @@ import math
 from collections import deque
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticStatus
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
@@ -71,6 +72,10 @@ OUTPUT_SOURCE = "not known to the interpolator: each servo's command is on servo
 #: The first tick's override may take this many feed_override_timeout_s: the regulator's publisher opens
 #: only once its readers are discovered (a start-up cost, as the plant's startup_timeout_s allows for).
 FIRST_OVERRIDE_TIMEOUT_FACTOR = 4.0
+#: The status a streaming plan reports every ``PLAN_STATUS_PERIOD_S`` (wall s): ticks that waited for the planner,
+#: rows it holds, its lead (:meth:`BackgroundPlanner.status_values`).
+PLAN_STATUS = "streaming plan"
+PLAN_STATUS_PERIOD_S = 1.0
 
 
 class InterpolatorNode(SuiteNode):
@@ -129,6 +134,8 @@ class InterpolatorNode(SuiteNode):
             self.subscribe_checked(FeedOverride, "feed_override", self._accept_override)
         if run.feed_override_source == "previous_tick":
             self.create_timer(min(0.1, run.feed_override_timeout_s / 4), self.guarded(self._watch_override))
+        if self.live is not None and self.live.planner is not None:
+            self.create_timer(PLAN_STATUS_PERIOD_S, self.guarded(self._report_plan))
 
     def deactivate(self) -> None:
         """Lifecycle deactivate: stop on the path within the limits (a running goal ends ABORTED once at rest; a
@@ -208,6 +215,12 @@ class InterpolatorNode(SuiteNode):
                        f"(stamp {self.inbox.awaited_ns} ns) within {limit_s} s (feed_override_timeout_s = "
                        f"{self._override_timeout_s} s"
                        f"{', x' + str(FIRST_OVERRIDE_TIMEOUT_FACTOR) + ' for the first' if first else ''})")
+
+    def _report_plan(self) -> None:
+        """A streaming plan's state on /diagnostics (see :data:`PLAN_STATUS`), until the node finishes."""
+        planner = self.live.planner if self.live is not None else None
+        if planner is not None and not self.finished:
+            self.report(DiagnosticStatus.OK, PLAN_STATUS, planner.status_values())
 
     def _sample(self, stamp_ns: int) -> ReferenceSample:
         """The reference at the stamp: at the programmed feed, or following the override's request."""

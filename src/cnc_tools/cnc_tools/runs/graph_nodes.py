@@ -152,7 +152,8 @@ def _plant_parameters(run: _Run, stage: Stage, node: str, axis: str | None) -> d
         sample_time_s=scenario.sample_time_s, duration_s=scenario.duration_s, mode=scenario.mode,
         summary_file=str(run.run_dir / "summary.json"),
         command_timeout_s=PLANT_TIMEOUT_FACTOR * run.input_timeout_s,
-        startup_timeout_s=max(PlantRunParams.startup_timeout_s, PLANT_TIMEOUT_FACTOR * run.input_timeout_s))
+        startup_timeout_s=max(PlantRunParams.startup_timeout_s, PLANT_TIMEOUT_FACTOR * run.input_timeout_s),
+        **scenario.realtime)
     # other models' sections are None: the node declares only its model's
     plant = {k: v for k, v in config_values(scenario.plant).items() if v is not None}
     if not scenario.plant.faults.active:  # the node's defaults: no faults (an empty mapping is no parameter)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import copy
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -38,14 +38,17 @@ from cnc_contour_control.motion.travel import TravelLimits
 from cnc_plant_sim.models.plant import PlantConfig
 from cnc_plant_sim.models.velocity_loop import VelocityLoopOptions
 from cnc_plant_sim.run.run_params import PlantRunParams
+from cnc_plant_sim.run.watchdog import WatchdogParams
 from cnc_tools.runs.scenario_format import check_format
 
 MODES = ("lockstep", "realtime")
 #: Scenario sections that switch on an optional stage of the pipeline (the section's name is the stage's).
 OPTIONAL_STAGE_KEYS: tuple[str, ...] = ("estimator", "compensator", "force_regulator")
 _TOP_KEYS = ("name", "format_version", "description", "sample_time_s", "duration_s", "settle_s", "seed", "mode",
-             "plant", "limits", "program", "servo", "interpolator", "paper", "feed_override", "homing",
+             "plant", "limits", "program", "servo", "interpolator", "paper", "feed_override", "homing", "realtime",
              *OPTIONAL_STAGE_KEYS)
+#: The plant's real-time watchdog options a scenario may set (its ``realtime`` section).
+_REALTIME_KEYS = tuple(f.name for f in fields(WatchdogParams))
 _LIMIT_KEYS = ("max_velocity_mm_min", "max_acceleration_mm_s2", "max_jerk_mm_s3", "travel_mm")
 _HOMING_KEYS = ("position_mm", "feed_mm_min", "require_homing")
 
@@ -75,6 +78,8 @@ class Scenario:
     travel: TravelLimits = field(default_factory=TravelLimits)
     #: Home position, homing feeds, ``require_homing`` (the ``homing`` section; the interpolator's action mode).
     homing: HomingParams = field(default_factory=HomingParams)
+    #: The plant's real-time watchdog options the scenario sets (the ``realtime`` section; the rest: defaults).
+    realtime: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def axes(self) -> tuple[str, ...]:
@@ -190,6 +195,7 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
     planner = Interpolator(program, planned, interpolator)
     _check_travel(travel, planner)
     duration_s = _duration(raw, planner.duration_s)
+    realtime = _realtime(raw.get("realtime"))
     _as_the_nodes_take(sample_time_s=sample_time_s, duration_s=duration_s, mode=mode)
     scenario = Scenario(
         name=name,
@@ -208,6 +214,7 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
         feed_override=feed_override,
         travel=travel,
         homing=homing,
+        realtime=realtime,
         **_cross_axis(raw),
     )
     check_format(raw, scenario.servos, sample_time_s)
@@ -238,6 +245,21 @@ def _section(raw: Mapping[str, Any], key: str, default: Mapping[str, Any] | None
     if not isinstance(value, Mapping):
         raise ConfigError(f"scenario.{key} must be a mapping, got {value!r}")
     return dict(value)
+
+
+def _realtime(section: Any) -> dict[str, Any]:
+    """The ``realtime`` section: the plant's watchdog options (``max_late_share``, ``max_period_ratio``, ...), each
+    checked against the node's range."""
+    if section is None:
+        return {}
+    if not isinstance(section, Mapping):
+        raise ConfigError(f"scenario.realtime must be a mapping, got {section!r}")
+    _refuse_unknown(section, _REALTIME_KEYS, "scenario.realtime")
+    try:
+        WatchdogParams(**section)
+    except (ConfigError, TypeError) as err:
+        raise ConfigError(f"scenario.realtime.{err}") from err
+    return dict(section)
 
 
 def _as_the_nodes_take(**values: Any) -> None:
