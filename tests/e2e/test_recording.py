@@ -75,8 +75,13 @@ def test_recorder_closes_the_bag_cleanly_on_sigterm(tmp_path: Path) -> None:
         for topic, kind in (("/cnc/reference", Reference), ("/cnc/servo/x/command", AxisCommand),
                             ("/cnc/servo/y/command", AxisCommand)):
             probe.node.create_subscription(kind, topic, lambda _m: None, 10)
-        # The recorder may trail the probe by a few ticks: wait for a margin above what the bag must hold.
+        # The recorder may trail the probe by a few ticks: wait for a margin above what the bag must hold, and for
+        # the recorder's own reader (its stop handler is installed before its node exists: a SIGTERM earlier, to
+        # a process still importing, ends it with -15)
         probe.wait_for(lambda: len(probe.received("/cnc/joint_states")) > 60, 30.0, "the run to be going")
+        probe.wait_for(lambda: any(info.node_name == "recorder" for info in
+                                   probe.node.get_subscriptions_info_by_topic("/cnc/joint_states")),
+                       30.0, "the recorder's reader")
         recorder = run.processes["recorder"]
         recorder.send_signal(signal.SIGTERM)
         assert recorder.wait(timeout=20) == 0

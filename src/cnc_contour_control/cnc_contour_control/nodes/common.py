@@ -6,6 +6,7 @@ package's ``conversions`` module and call the ROS-free core.
 from __future__ import annotations
 
 import importlib
+import signal
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -473,6 +474,9 @@ def spin_node(factory: Callable[[], SuiteNode], args: Sequence[str] | None = Non
             if node is not None:
                 flush_and_destroy(node, flush=not stop.requested)
             rclpy.try_shutdown()
+    if stop.requested and stop.installed:  # stopping: a second signal during the interpreter's exit is no kill
+        for signum in stop.signals:
+            signal.signal(signum, signal.SIG_IGN)
     return code
 
 
