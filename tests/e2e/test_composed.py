@@ -73,8 +73,9 @@ def test_fault_inside_the_composed_process_names_the_node_and_everything_is_reap
                 publisher.publish(bad)
 
         with pytest.raises(NodeDied) as caught:
-            run_graph(scenario, tmp_path / "run", record=True, compose="loop", namespace=namespace,
-                      on_poll=inject, timeout_s=300.0)
+            result = run_graph(scenario, tmp_path / "run", record=True, compose="loop", namespace=namespace,
+                               on_poll=inject, timeout_s=300.0)
+            pytest.fail(f"the run ended without the compensator's fault: {result.summary}")
     assert caught.value.node == "compensator"
     message = str(caught.value)
     assert "in the composed process" in message and "exited with code 3" in message, message

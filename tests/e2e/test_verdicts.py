@@ -61,7 +61,12 @@ def test_a_signal_to_cnc_contour_run_stops_and_reaps_every_node(tmp_path: Path, 
                               text=True)
     pids: dict[str, int] = {}
     try:
-        wait_until(lambda: _summary(run_dir).get("status") == "running", 90.0, "the graph to run")
+        try:
+            wait_until(lambda: _summary(run_dir).get("status") == "running", 90.0, "the graph to run")
+        except AssertionError as err:  # say what the run said instead
+            parent.kill()
+            raise AssertionError(f"{err}; summary {_summary(run_dir)}; stderr {parent.communicate()[1][-2000:]}") \
+                from err
         pids = _node_pids(run_dir)
         assert all(_alive(pid) for pid in pids.values())
         parent.send_signal(sig)
@@ -124,7 +129,8 @@ def test_a_node_killed_mid_run_gives_a_faulted_verdict_naming_it(tmp_path: Path,
     scenario = load_scenario(CIRCLE, {"duration_s": LONG_S})
     killer = _KillWhenRunning(tmp_path, node)
     with pytest.raises(NodeDied, match=f"node {node} ") as died:
-        run_graph(scenario, tmp_path, record=True, on_poll=killer, timeout_s=120.0)
+        result = run_graph(scenario, tmp_path, record=True, on_poll=killer, timeout_s=120.0)
+        pytest.fail(f"the run ended before {node} was killed: {result.summary}")  # what stopped it, if it ends
     assert died.value.node == node and killer.pid is not None
     assert not any(_alive(pid) for pid in _node_pids(tmp_path).values()), "every node reaped"
     summary = _summary(tmp_path)
