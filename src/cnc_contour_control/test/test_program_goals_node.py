@@ -126,8 +126,7 @@ def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_
         planning_ticks, planning_s = len(machine.tick_s), sum(machine.tick_s)
         valid = big.with_name("valid.ngc")
         valid.write_text(big.read_text().replace("G1 X0 Q3", "G1 X0"))
-        # read and checked like the huge one before its answer (5.3 s beside two busy loops): the same tick budget
-        planned = machine.until(client.send_goal_async(RunProgram.Goal(program_file=str(valid))), max_ticks=20_000)
+        planned = machine.until(client.send_goal_async(RunProgram.Goal(program_file=str(valid))))
         machine.until(planned.cancel_goal_async())
         cancelled = machine.until(planned.get_result_async()).result
         feedback: list[Any] = []
