@@ -195,7 +195,7 @@ def build_scenario(raw: Mapping[str, Any], base_dir: Path | None = None, source:
     planner = Interpolator(program, planned, interpolator)
     _check_travel(travel, planner)
     duration_s = _duration(raw, planner.duration_s)
-    realtime = _realtime(raw.get("realtime"))
+    realtime = _realtime(_section(raw, "realtime", {}))
     _as_the_nodes_take(sample_time_s=sample_time_s, duration_s=duration_s, mode=mode)
     scenario = Scenario(
         name=name,
@@ -247,13 +247,9 @@ def _section(raw: Mapping[str, Any], key: str, default: Mapping[str, Any] | None
     return dict(value)
 
 
-def _realtime(section: Any) -> dict[str, Any]:
+def _realtime(section: dict[str, Any]) -> dict[str, Any]:
     """The ``realtime`` section: the plant's watchdog options (``max_late_share``, ``max_period_ratio``, ...), each
     checked against the node's range."""
-    if section is None:
-        return {}
-    if not isinstance(section, Mapping):
-        raise ConfigError(f"scenario.realtime must be a mapping, got {section!r}")
     _refuse_unknown(section, _REALTIME_KEYS, "scenario.realtime")
     try:
         WatchdogParams(**section)
