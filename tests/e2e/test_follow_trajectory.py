@@ -19,12 +19,11 @@ from pathlib import Path
 import pytest
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from cnc_contour_control.nodes.common import stamp_to_ns
-from cnc_contour_control.testing import TopicProbe, stop_processes
+from cnc_contour_control.testing import ThreadSafeActionClient, TopicProbe, stop_processes
 from cnc_contour_interfaces.action import FollowTrajectory
 from cnc_contour_interfaces.msg import ControllerState, Reference
 from cnc_tools.cli.main import main as cli
@@ -70,7 +69,7 @@ def test_a_trajectory_of_x_and_y_moves_them_while_z_holds_and_nothing_faults(tmp
     probed = {f"{NS}/reference": Reference, f"{NS}/joint_states": JointState, "/diagnostics": DiagnosticArray,
               state_topic: ControllerState}
     with TopicProbe(probed) as probe, nodes_by_hand(tmp_path) as processes:
-        client = ActionClient(probe.node, FollowTrajectory, f"{NS}/follow_trajectory")
+        client = ThreadSafeActionClient(probe.node, FollowTrajectory, f"{NS}/follow_trajectory")
         probe.wait_for(client.server_is_ready, 60.0, "the FollowTrajectory server")
         probe.wait_for(lambda: len(probe.received(f"{NS}/joint_states")) > 20, 60.0, "the machine ticking")
         start = list(probe.received(f"{NS}/joint_states")[-1].position)

@@ -33,13 +33,12 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rcl_interfaces.srv import SetParameters
-from rclpy.action import ActionClient
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_srvs.srv import SetBool, Trigger
 
 from cnc_contour_control.nodes.common import stamp_to_ns
-from cnc_contour_control.testing import TopicProbe, stop_processes
+from cnc_contour_control.testing import ThreadSafeActionClient, TopicProbe, stop_processes
 from cnc_contour_interfaces.action import RunProgram
 from cnc_contour_interfaces.msg import FeedOverride, Reference
 from cnc_tools.cli.main import main as cli
@@ -97,7 +96,7 @@ class Operator:
 
     def __init__(self, probe: TopicProbe) -> None:
         self.probe = probe
-        self.client = ActionClient(probe.node, RunProgram, f"{NS}/run_program")
+        self.client = ThreadSafeActionClient(probe.node, RunProgram, f"{NS}/run_program")
         self.override = probe.publisher(FeedOverride, f"{NS}/feed_override", 10)
         self.feedback: list[Any] = []
 

@@ -19,6 +19,7 @@ from types import ModuleType
 from typing import Any
 
 import rclpy
+from rclpy.action import ActionClient
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -126,6 +127,36 @@ class TopicProbe(_BackgroundNode):
 #: returns as soon as its condition holds, so the bound costs nothing, while DDS discovery, a service's first
 #: answer or a process's start can take tens of seconds beside CPU-bound processes on two cores.
 WAIT_FLOOR_S = 90.0
+
+
+class ThreadSafeActionClient(ActionClient):  # type: ignore[misc]  # rclpy's ActionClient has no type hints
+    """rclpy's ``ActionClient`` for a thread that sends while another thread's executor takes the answers.
+
+    Jazzy's rclpy (7.1.5 on PyPI) sends a goal, cancel or result request and only then registers its future, with
+    no lock (ros2/rclpy#1123, fixed upstream by #1308). An answer the executor's thread takes in between is logged as
+    "Ignoring unexpected ... response" and its future never completes. One lock, held around each send with its
+    registration and around each take, closes the gap: a taken answer's request is always registered.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._requests_lock = threading.Lock()
+
+    def take_data(self) -> Any:
+        with self._requests_lock:
+            return super().take_data()
+
+    def send_goal_async(self, *args: Any, **kwargs: Any) -> Any:
+        with self._requests_lock:
+            return super().send_goal_async(*args, **kwargs)
+
+    def _cancel_goal_async(self, goal_handle: Any) -> Any:
+        with self._requests_lock:
+            return super()._cancel_goal_async(goal_handle)
+
+    def _get_result_async(self, goal_handle: Any) -> Any:
+        with self._requests_lock:
+            return super()._get_result_async(goal_handle)
 
 
 def wait_until(condition: Callable[[], bool], timeout_s: float, what: str, poll_s: float = 0.01) -> None:

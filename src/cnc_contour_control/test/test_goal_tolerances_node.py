@@ -16,14 +16,13 @@ from typing import Any
 
 import pytest
 from builtin_interfaces.msg import Duration
-from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from cnc_contour_control.nodes.common import ns_to_stamp, stamp_to_ns
 from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, ThreadSafeActionClient, TopicProbe
 from cnc_contour_interfaces.action import FollowTrajectory, RunProgram
 from cnc_contour_interfaces.msg import ControllerState, JointTolerance, Reference
 
@@ -70,7 +69,7 @@ class Machine:
             self.tick()
         raise AssertionError(f"no answer within {max_ticks} ticks")
 
-    def run(self, client: ActionClient, goal: Any, offset: Offset = no_offset,
+    def run(self, client: ThreadSafeActionClient, goal: Any, offset: Offset = no_offset,
             cancel_after: int | None = None) -> Any:
         self.offset = no_offset
         handle = self.until(client.send_goal_async(goal))
@@ -104,7 +103,7 @@ def tolerance(name: str, position_m: float, velocity_m_s: float = 0.0) -> JointT
     return JointTolerance(name=name, position=position_m, velocity=velocity_m_s)
 
 
-def back_home(machine: Machine, client: ActionClient) -> None:
+def back_home(machine: Machine, client: ThreadSafeActionClient) -> None:
     result = machine.run(client, RunProgram.Goal(gcode="G0 X0 Y0 Z0"))
     assert result.outcome == RunProgram.Result.COMPLETED, (result.reason, machine.reference_m)
 
@@ -112,7 +111,7 @@ def back_home(machine: Machine, client: ActionClient) -> None:
 def test_run_program_goals_end_with_their_tolerance_codes_naming_axis_amount_time_and_line() -> None:
     ns = f"/tol_{uuid.uuid4().hex[:8]}"
     with TopicProbe({f"{ns}/reference": Reference}) as probe, InProcessNode(InterpolatorNode, PARAMS, namespace=ns):
-        client = ActionClient(probe.node, RunProgram, f"{ns}/run_program")
+        client = ThreadSafeActionClient(probe.node, RunProgram, f"{ns}/run_program")
         probe.wait_for(client.server_is_ready, 20.0, "the RunProgram server")
         machine = Machine(probe, ns)
         probe.wait_for(lambda: machine.pub.get_subscription_count() > 0, 20.0, "the joint_states reader")
@@ -160,7 +159,7 @@ def test_a_trajectory_of_two_of_three_axes_moves_them_holds_the_third_and_the_st
     state_topic = f"{ns}/interpolator/controller_state"
     with TopicProbe({f"{ns}/reference": Reference, state_topic: ControllerState}) as probe, \
             InProcessNode(InterpolatorNode, PARAMS, namespace=ns):
-        client = ActionClient(probe.node, FollowTrajectory, f"{ns}/follow_trajectory")
+        client = ThreadSafeActionClient(probe.node, FollowTrajectory, f"{ns}/follow_trajectory")
         probe.wait_for(client.server_is_ready, 20.0, "the FollowTrajectory server")
         machine = Machine(probe, ns)
         probe.wait_for(lambda: machine.pub.get_subscription_count() > 0, 20.0, "the joint_states reader")

@@ -14,7 +14,6 @@ import uuid
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
@@ -22,7 +21,7 @@ from trajectory_msgs.msg import JointTrajectory
 from cnc_contour_control.core.errors import CncError
 from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
 from cnc_contour_control.nodes.servo_node import ServoNode
-from cnc_contour_control.testing import InProcessNode, TopicProbe, sibling_module
+from cnc_contour_control.testing import InProcessNode, ThreadSafeActionClient, TopicProbe, sibling_module
 from cnc_contour_interfaces.action import RunProgram
 from cnc_contour_interfaces.msg import AxisCommand, Reference
 
@@ -50,7 +49,7 @@ def test_require_homing_then_home_then_travel_limits_refuse_before_any_move() ->
     ns = f"/homing_{uuid.uuid4().hex[:8]}"
     with TopicProbe({f"{ns}/reference": Reference, "/diagnostics": DiagnosticArray}) as probe, \
             InProcessNode(InterpolatorNode, PARAMS, namespace=ns):
-        client = ActionClient(probe.node, RunProgram, f"{ns}/run_program")
+        client = ThreadSafeActionClient(probe.node, RunProgram, f"{ns}/run_program")
         probe.wait_for(client.server_is_ready, 20.0, "the RunProgram server")
         machine = _GOALS.Machine(probe, ns)
         probe.wait_for(lambda: machine.pub.get_subscription_count() > 0, 20.0, "the joint_states reader")

@@ -12,13 +12,12 @@ from lifecycle_msgs.srv import ChangeState, GetState
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
-from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
 from cnc_contour_control.nodes.common import ns_to_stamp, stamp_to_ns
 from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, ThreadSafeActionClient, TopicProbe
 from cnc_contour_interfaces.action import RunProgram
 from cnc_contour_interfaces.msg import Reference
 
@@ -118,7 +117,7 @@ def test_cleanup_lets_new_parameters_be_configured_and_a_second_program_runs_wit
     params = {**ACTION_MODE, "settle_time_s": 0.02, "feedback_period_s": 0.05}
     with TopicProbe({f"{NS}/reference": Reference}) as probe, \
             InProcessNode(InterpolatorNode, params, namespace=NS) as node:
-        client = ActionClient(probe.node, RunProgram, f"{NS}/run_program")
+        client = ThreadSafeActionClient(probe.node, RunProgram, f"{NS}/run_program")
         joints = probe.publisher(JointState, f"{NS}/joint_states")
         position_m, k = [0.0, 0.0], 0
 

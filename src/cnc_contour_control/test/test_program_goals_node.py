@@ -20,7 +20,6 @@ import pytest
 import rclpy
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
-from rclpy.action import ActionClient
 from rclpy.context import Context
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
@@ -28,7 +27,7 @@ from std_msgs.msg import Header
 
 from cnc_contour_control.nodes.common import ns_to_stamp, stamp_to_ns
 from cnc_contour_control.nodes.interpolator_node import InterpolatorNode
-from cnc_contour_control.testing import InProcessNode, TopicProbe
+from cnc_contour_control.testing import InProcessNode, ThreadSafeActionClient, TopicProbe
 from cnc_contour_interfaces.action import RunProgram
 from cnc_contour_interfaces.msg import Reference
 
@@ -78,7 +77,7 @@ def change(probe: TopicProbe, ns: str, transition_id: int) -> bool:
                            ChangeState.Request(transition=Transition(id=transition_id))).success)
 
 
-def run_goal(machine: Machine, client: ActionClient, goal: Any, max_ticks: int = 2000) -> Any:
+def run_goal(machine: Machine, client: ThreadSafeActionClient, goal: Any, max_ticks: int = 2000) -> Any:
     handle = machine.until(client.send_goal_async(goal), max_ticks)
     assert handle.accepted, "every goal is accepted; a refusal is its result"
     return machine.until(handle.get_result_async(), max_ticks).result
@@ -112,7 +111,7 @@ def test_goals_are_answered_with_a_code_and_a_reason_and_never_stall_a_tick(tmp_
     assert RunProgram.Result().outcome == RunProgram.Result.UNKNOWN != RunProgram.Result.COMPLETED
     with TopicProbe({f"{ns}/reference": Reference}) as probe, \
             host(InterpolatorNode, PARAMS, namespace=ns) as interpolator:
-        client = ActionClient(probe.node, RunProgram, f"{ns}/run_program")
+        client = ThreadSafeActionClient(probe.node, RunProgram, f"{ns}/run_program")
         assert change(probe, ns, Transition.TRANSITION_CONFIGURE)
         probe.wait_for(client.server_is_ready, 20.0, "the RunProgram server")
         machine = Machine(probe, ns)

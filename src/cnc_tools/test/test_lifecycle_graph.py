@@ -15,10 +15,9 @@ from lifecycle_msgs.srv import ChangeState
 from rcl_interfaces.msg import Parameter as ParameterMsg
 from rcl_interfaces.msg import ParameterType, ParameterValue
 from rcl_interfaces.srv import GetParameters, SetParameters
-from rclpy.action import ActionClient
 from sensor_msgs.msg import JointState
 
-from cnc_contour_control.testing import TopicProbe
+from cnc_contour_control.testing import ThreadSafeActionClient, TopicProbe
 from cnc_contour_interfaces.action import RunProgram
 from cnc_tools.runs.scenario import load_scenario
 from cnc_tools.testing import own_domain, start_graph_in_process
@@ -53,7 +52,7 @@ def errors(probe: TopicProbe) -> list[Any]:
     return [s for a in probe.received("/diagnostics") for s in a.status if s.level == DiagnosticStatus.ERROR]
 
 
-def run_program(probe: TopicProbe, client: ActionClient, gcode: str) -> Any:
+def run_program(probe: TopicProbe, client: ThreadSafeActionClient, gcode: str) -> Any:
     probe.wait_for(client.server_is_ready, 20.0, "the RunProgram server")
     sent = client.send_goal_async(RunProgram.Goal(gcode=gcode))
     probe.wait_for(sent.done, 20.0, "the goal's answer")
@@ -66,7 +65,7 @@ def test_cleanup_new_gains_configure_activate_and_a_second_program_runs(tmp_path
     """The plant paused (deactivate: no tick waits), servo_x deactivated, cleaned up, kp set, configured, activated."""
     with ExitStack() as stack:
         nodes, probe = start_graph(stack, tmp_path)
-        client = ActionClient(probe.node, RunProgram, "/cnc/run_program")
+        client = ThreadSafeActionClient(probe.node, RunProgram, "/cnc/run_program")
         first = run_program(probe, client, "G1 X1 F1200")
         assert change(probe, "plant", Transition.TRANSITION_DEACTIVATE)
         probe.wait_for(lambda: nodes["plant"]._tick_held, 10.0, "the plant to hold its next tick")

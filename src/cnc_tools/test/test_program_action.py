@@ -17,10 +17,9 @@ from typing import Any
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.action import ActionClient
 
 from cnc_contour_control.nodes.common import LATCHED_QOS, stamp_to_ns
-from cnc_contour_control.testing import TopicProbe
+from cnc_contour_control.testing import ThreadSafeActionClient, TopicProbe
 from cnc_contour_interfaces.action import RunProgram
 from cnc_contour_interfaces.msg import Path as PathMsg
 from cnc_contour_interfaces.msg import Reference
@@ -57,7 +56,7 @@ def action_graph(tmp_path: Path) -> Iterator[None]:
         yield
 
 
-def send(probe: TopicProbe, client: ActionClient, gcode: str, feedback: list[Any] | None = None,
+def send(probe: TopicProbe, client: ThreadSafeActionClient, gcode: str, feedback: list[Any] | None = None,
          program_file: str = "") -> Any:
     """Send a goal, wait for the answer; its goal handle (``accepted`` tells)."""
     callback = None if feedback is None else (lambda msg: feedback.append(msg.feedback))
@@ -105,7 +104,7 @@ def test_three_programs_by_action_with_a_cancel_and_a_rejection(tmp_path: Path,
     with TopicProbe(probed) as probe, action_graph(tmp_path):
         paths: list[Any] = []
         probe.node.create_subscription(PathMsg, "/cnc/path", paths.append, LATCHED_QOS)
-        client = ActionClient(probe.node, RunProgram, "/cnc/run_program")
+        client = ThreadSafeActionClient(probe.node, RunProgram, "/cnc/run_program")
         probe.wait_for(client.server_is_ready, 30.0, "the RunProgram server")
         probe.wait_for(lambda: len(probe.received("/cnc/reference")) > 10, 60.0, "hold references while idle")
 
@@ -190,7 +189,7 @@ def test_a_huge_program_file_is_planned_while_the_machine_ticks(tmp_path: Path) 
     probed = {"/cnc/reference": Reference, "/diagnostics": DiagnosticArray}
     with TopicProbe(probed) as probe, action_graph(tmp_path):
         probe.watch("/cnc/reference", lambda msg: arrivals.append(time.monotonic()))
-        client = ActionClient(probe.node, RunProgram, "/cnc/run_program")
+        client = ThreadSafeActionClient(probe.node, RunProgram, "/cnc/run_program")
         probe.wait_for(client.server_is_ready, 30.0, "the RunProgram server")
         probe.wait_for(lambda: len(arrivals) > 10, 60.0, "hold references while idle")
         feedback: list[Any] = []
