@@ -60,6 +60,7 @@ from cnc_contour_control.motion.interpolation import Interpolator
 from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.jerk_fir import LiveJerkFilter
 from cnc_contour_control.motion.plan_background import BackgroundPlanner
+from cnc_contour_control.motion.plan_process import ProcessPlanner
 from cnc_contour_control.motion.reference_types import ReferenceSample
 
 _BISECTIONS = 40
@@ -140,6 +141,10 @@ def planning_limits(limits: AxisLimits, config: OverrideConfig) -> AxisLimits:
     if jerk is not None:
         changes["max_jerk_m_s3"] = tuple(j / scale**3 for j in jerk)
     return replace(limits, **changes)
+
+
+#: The planner of a streamed plan on line, by ``InterpolatorConfig.stream_planner``.
+STREAM_PLANNER_CLASSES: dict[str, type[BackgroundPlanner]] = {"process": ProcessPlanner, "thread": BackgroundPlanner}
 
 
 class OverrideFollower:
@@ -258,8 +263,9 @@ class LiveReference:
         self._before: ReferenceSample | None = None
         self._at: ReferenceSample | None = None
         stream = self.interpolator._stream  # a streaming plan (window shorter than the program), else None
-        #: Plans a streaming profile ahead of the tool in its own thread (None: planned whole).
-        self.planner = BackgroundPlanner(stream, self) if stream is not None else None
+        planner_class = STREAM_PLANNER_CLASSES[interpolator_config.stream_planner]
+        #: Plans a streaming profile ahead of the tool in a thread or a child process (None: planned whole).
+        self.planner = None if stream is None else planner_class(stream, self)
 
     def request(self, stamp_ns: int, latest_ratio: float) -> float:
         """The ratio requested at tick ``stamp_ns``: the schedule's if there is one, else ``latest_ratio``."""

@@ -13,6 +13,8 @@ from cnc_contour_control.motion.accel_decel import AccelDecelConfig
 #: The jerk-limited modes (``InterpolatorConfig.jerk_mode``): ``quickest`` plans a program in both others (up to
 #: ``jerk_compare_max_segments`` segments, else ``fir``) and keeps the quicker.
 JERK_MODES = ("quickest", "fir", "scurve")
+#: Where a streamed plan is planned on line (``InterpolatorConfig.stream_planner``).
+STREAM_PLANNERS = ("process", "thread")
 
 
 @dataclass(frozen=True)
@@ -69,6 +71,10 @@ class InterpolatorConfig:
         ``fir``: the filter's sample period T, s, in [1e-5, 0.1]; its jerk bound holds at every multiple of T.
     jerk_filter_tolerance_share : float
         ``fir``: share of the path tolerance left to the filter, in [0.05, 0.95] (the blends get the rest).
+    stream_planner : str
+        On line, where a streamed plan is planned ahead of the tool: ``process`` (a child process,
+        :mod:`~cnc_contour_control.motion.plan_process`) or ``thread`` (in the node's process,
+        :mod:`~cnc_contour_control.motion.plan_background`, sharing the interpreter lock with the ticks).
     """
 
     corner_angle_tolerance_deg: float = param(
@@ -105,12 +111,17 @@ class InterpolatorConfig:
                                         description="fir: the jerk filter's sample period (jerk held at multiples)")
     jerk_filter_tolerance_share: float = param(0.5, low=0.05, high=0.95, read_only=True,
                                                description="fir: share of the path tolerance left to the filter")
+    stream_planner: str = param("process", read_only=True,
+                                description="on line, where a streamed plan (look_ahead_segments shorter than the "
+                                            "program) is planned ahead of the tool: process (a child process, "
+                                            "another core) or thread (in the node's process)")
 
     def __post_init__(self) -> None:
         if not isinstance(self.accel_decel, AccelDecelConfig):
             object.__setattr__(self, "accel_decel", build_config(AccelDecelConfig, self.accel_decel, "accel_decel"))
         check_ranges(self)
         require_choice("jerk_mode", self.jerk_mode, JERK_MODES)
+        require_choice("stream_planner", self.stream_planner, STREAM_PLANNERS)
         for name in ("clamp_feed", "arc_combined_budget"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ConfigError(f"{name} must be true or false, got {getattr(self, name)!r}")

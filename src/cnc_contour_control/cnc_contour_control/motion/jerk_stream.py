@@ -3,7 +3,7 @@
 :class:`~cnc_contour_control.motion.plan_stream.StreamPlan` plans the (v, a) plan a chunk at a time as without a
 jerk limit, with fir's planning changes applied per chunk (:mod:`~cnc_contour_control.motion.jerk_fir`): each
 block's arcs capped as it is blended (:func:`~cnc_contour_control.motion.jerk_fir.capped_program`, in
-``plan_stream._Blocks``) and each corner stop of a chunk held (:func:`chunk_holds_s`, ``stop_holds_s`` of the
+``plan_blocks.PlanBlocks``) and each corner stop of a chunk held (:func:`chunk_holds_s`, ``stop_holds_s`` of the
 chunk and the segment before it). Before a chunk is published, :func:`chunk_deviation_m` measures the filtered
 reference at the multiples of the filter's period whose window ends in the chunk (its first ``n - 1`` samples
 reach back into the chunk before, kept for this) against the programmed segments its samples come from, as

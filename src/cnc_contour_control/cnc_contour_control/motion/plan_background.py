@@ -142,6 +142,10 @@ class BackgroundPlanner:
         finally:
             _switch_interval.restore()
 
+    def _step(self) -> None:
+        """Commit the next chunk (outside the lock)."""
+        self.stream.plan_chunk()
+
     def _plan(self) -> None:
         try:
             while True:
@@ -151,7 +155,7 @@ class BackgroundPlanner:
                     if self._ended():
                         return
                     self.stream.forget_before(self._tool_s)
-                self.stream.plan_chunk()
+                self._step()
         except CncError as err:
             with self.condition:
                 self.error = err

@@ -35,16 +35,12 @@ from __future__ import annotations
 import bisect
 import contextlib
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from cnc_contour_control.core.errors import ProgramError
-from cnc_contour_control.motion.blend_choice import CornerLimits
-from cnc_contour_control.motion.blending import blend_program
-from cnc_contour_control.motion.geometry import Dwell, Program, Segment
-from cnc_contour_control.motion.jerk_fir import FirSettings, capped_program
+from cnc_contour_control.motion.geometry import Program, Segment
 from cnc_contour_control.motion.jerk_stream import Chunk, chunk_deviation_m, chunk_holds_s
 from cnc_contour_control.motion.plan_arrays import (
     Phases,
@@ -52,185 +48,16 @@ from cnc_contour_control.motion.plan_arrays import (
     banded_junction_speeds_m_s,
     banded_phases,
     look_ahead_caps_m_s,
-    plan_banded_limits,
 )
+from cnc_contour_control.motion.plan_blocks import PlanBlocks, StreamSettings
+from cnc_contour_control.motion.plan_views import PlannedSegments, ShiftedColumn
 from cnc_contour_control.motion.points import FloatArray
-from cnc_contour_control.motion.segment_tangents import junction_turns_rad
 
 #: Fewest planned segments committed per chunk: a short window still plans in blocks worth a NumPy pass (at 1024
 #: streaming costs what the whole plan does per segment, 256 took 1.5 times as much; bench ``blending``).
 MIN_CHUNK_SEGMENTS = 1024
 #: Phases behind the tool that :meth:`StreamPlan.forget_before` lets gather before it drops them.
 FORGET_PHASES = 2048
-
-
-@dataclass(frozen=True)
-class StreamSettings:
-    """What a stream plans with: axis limits (m/s, m/s², ``(n_axes,)``), the planner's options, the tolerances.
-
-    ``n_bands`` is the width of every segment's :class:`SpeedBands` (the planner's ``arc_speed_bands`` with the
-    combined budget, else 1), ``tolerance_m`` the blend tolerance, ``corner_rad`` the tangent-corner angle.
-    """
-
-    max_velocity_m_s: FloatArray
-    max_acceleration_m_s2: FloatArray
-    centripetal_fraction: float
-    combined_budget: bool
-    clamp_feed: bool
-    n_bands: int
-    look_ahead_segments: int
-    tolerance_m: float
-    corner_rad: float
-    #: ``jerk_mode`` fir's filter and caps (:mod:`~cnc_contour_control.motion.jerk_stream`), else None;
-    #: ``fir_smaller`` the caps of a chunk over ``path_tolerance_m`` (m, P) planned again.
-    fir: FirSettings | None = None
-    fir_smaller: FirSettings | None = None
-    path_tolerance_m: float = 0.0
-
-    @property
-    def corner_limits(self) -> CornerLimits:
-        """The limits with which blending chooses a blend or a stop per corner."""
-        return CornerLimits(self.max_velocity_m_s, self.max_acceleration_m_s2, self.centripetal_fraction)
-
-
-class _Blocks:
-    """The planned program, blended and limited block by block as far as asked; per planned segment arrays."""
-
-    def __init__(self, program: Program, settings: StreamSettings) -> None:
-        self.program, self.settings = program, settings
-        self.segments: list[Segment] = []
-        self._next = 0  # programmed segments already turned into planned ones
-        self.base = 0  # planned segments forgotten (global index of ``segments[0]`` and of each column's row 0)
-        self._carry_dwell_s = 0.0
-        self._columns: dict[str, np.ndarray] = {}
-        self._sizes: dict[str, int] = {}
-        self.total_m = 0.0  # length of the planned segments so far, m
-
-    @property
-    def exhausted(self) -> bool:
-        """Whether every programmed segment has been planned."""
-        return self._next >= len(self.program.segments)
-
-    @property
-    def count(self) -> int:
-        """Planned segments so far, forgotten ones included."""
-        return self.base + len(self.segments)
-
-    def ensure(self, count: int) -> None:
-        """Plan programmed segments until at least ``count`` planned ones exist or the program is exhausted."""
-        block = max(self.settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
-        while self.count < count and not self.exhausted:
-            self._add(self._next, min(self._next + block, len(self.program.segments)))
-
-    def _sub_program(self, first: int, stop: int) -> Program:
-        program = self.program
-        dwells = tuple(Dwell(d.before_segment - first, d.duration_s, d.source_line) for d in program.dwells
-                       if first < d.before_segment < stop)
-        return Program(program.name, program.axis_names, program.segments[first:stop], dwells,
-                       program.path_tolerance_m)
-
-    def _add(self, begin: int, end: int) -> None:
-        """Plan the pieces of programmed segments ``begin .. end - 1``."""
-        first, stop = max(begin - 2, 0), min(end + 1, len(self.program.segments))
-        settings = self.settings
-        blended = blend_program(self._sub_program(first, stop), settings.tolerance_m, settings.corner_rad,
-                                settings.corner_limits)
-        sources = np.asarray(blended.source_segment or range(len(blended.planned.segments)), dtype=np.intp) + first
-        planned = blended.planned
-        if settings.fir is not None:  # fir's arc caps (a written arc may take the whole P)
-            planned = capped_program(planned, settings.fir, self._sub_program(first, stop))
-        rows = np.flatnonzero((sources >= begin) & (sources < end))
-        new = [planned.segments[i] for i in rows.tolist()]
-        dwell = self._dwells(sources[rows], begin, end)
-        self._append(new, dwell, sources[rows])
-        self._next = end
-
-    def _dwells(self, sources: np.ndarray, begin: int, end: int) -> FloatArray:
-        """Dwell before each new planned segment, s: a programmed junction's goes to the first planned piece after
-        it (the whole plan's ``first_after``); one after the block's last piece is carried to the next block."""
-        programmed = self.program.junction_dwell_s
-        dwell = np.zeros(len(sources) + 1)
-        dwell[0] = self._carry_dwell_s
-        for k in (np.flatnonzero(programmed[begin:end] > 0.0) + begin).tolist():
-            dwell[int(np.searchsorted(sources, k))] += programmed[k]
-        self._carry_dwell_s = float(dwell[-1]) + (float(programmed[-1]) if end == len(self.program.segments) else 0.0)
-        return dwell[:-1]
-
-    def _limits(self, new: list[Segment], start: int) -> tuple[FloatArray, SpeedBands]:
-        s = self.settings
-        speed, _, bands = plan_banded_limits(new, s.max_velocity_m_s, s.max_acceleration_m_s2,
-                                             s.centripetal_fraction, s.combined_budget, s.clamp_feed, start,
-                                             s.n_bands)
-        if bands.n_bands != s.n_bands:
-            bands = SpeedBands.single(speed, bands.accel_m_s2[:, -1], s.n_bands)
-        return speed, bands
-
-    def recap(self, first: int, stop: int, fir: FirSettings) -> None:
-        """Cap the arcs of planned segments ``first .. stop - 1`` again with ``fir`` (a streamed fir chunk over P)
-        and their limits' rows with them (an arc capped before is taken as a blend's: the smaller tolerance)."""
-        kept = self.segments[first - self.base:stop - self.base]
-        capped = capped_program(Program("chunk", self.program.axis_names, tuple(kept)), fir).segments
-        if all(a is b for a, b in zip(capped, kept)):
-            return
-        self.segments[first - self.base:stop - self.base] = capped
-        speed, bands = self._limits(list(capped), first)
-        for name, value in (("cruise", speed), ("edges", bands.edges_m_s), ("accel", bands.accel_m_s2)):
-            self._columns[name][first - self.base:stop - self.base] = value
-
-    def _append(self, new: list[Segment], dwell: FloatArray, sources: np.ndarray) -> None:
-        s = self.settings
-        speed, bands = self._limits(new, self.count)
-        turns = junction_turns_rad(self.segments[-1:] + new)  # the junctions before new[1:], or before new[0:]
-        smooth = (turns <= s.corner_rad) & (dwell[len(dwell) - len(turns):] == 0.0)
-        length = np.array([seg.length_m for seg in new])
-        ends = np.cumsum(np.concatenate(([self.total_m], length)))  # sequential: the whole program's cumsum
-        self.total_m = float(ends[-1])
-        for name, value in (("length", length), ("start", ends[:-1]), ("cruise", speed), ("edges", bands.edges_m_s),
-                            ("accel", bands.accel_m_s2), ("smooth", smooth), ("dwell", dwell),
-                            ("source", sources)):
-            self._grow(name, np.asarray(value))
-        self.segments.extend(new)
-
-    def _grow(self, name: str, rows: np.ndarray) -> None:
-        """Append ``rows`` to column ``name`` (capacity doubled when full: amortised O(1) per row)."""
-        size = self._sizes.get(name, 0)
-        column = self._columns.get(name)
-        if column is None or size + len(rows) > len(column):
-            grown = np.empty((max(2 * (size + len(rows)), 1024),) + rows.shape[1:], dtype=rows.dtype)
-            if column is not None:
-                grown[:size] = column[:size]
-            self._columns[name] = column = grown
-        column[size:size + len(rows)] = rows
-        self._sizes[name] = size + len(rows)
-
-    def column(self, name: str) -> np.ndarray:
-        """One per-segment array over the planned segments kept (from :attr:`base`), a view (``smooth``: per inner
-        junction, row ``i`` the junction after segment ``base + i``)."""
-        return self._columns[name][:self._sizes[name]]
-
-    def rows(self, name: str, first: int, stop: int) -> np.ndarray:
-        """Rows of column ``name`` for planned segments ``first .. stop - 1`` (global indices, not forgotten)."""
-        return self._columns[name][first - self.base:stop - self.base]
-
-    def forget(self, first: int) -> None:
-        """Drop the planned segments before global index ``first`` and their rows."""
-        n = min(first, self.count - 1) - self.base  # the last segment stays: the next block's junction needs it
-        if n <= 0:
-            return
-        del self.segments[:n]
-        for name, column in self._columns.items():
-            size = self._sizes[name]
-            column[:size - n] = column[n:size]
-            self._sizes[name] = size - n
-        self.base += n
-
-    def held_rows(self) -> int:
-        """Rows held: planned segments kept plus the columns' capacity (what the plan's memory grows with)."""
-        return len(self.segments) + sum(len(column) for column in self._columns.values())
-
-    def end_dwell_s(self) -> float:
-        """The dwell at the program's end, s (once exhausted)."""
-        return self._carry_dwell_s
 
 
 class StreamPlan:
@@ -242,10 +69,13 @@ class StreamPlan:
     profile's end.
     """
 
-    def __init__(self, program: Program, settings: StreamSettings) -> None:
+    def __init__(self, program: Program, settings: StreamSettings, chunk_segments: int | None = None) -> None:
         self.settings = settings
-        self._blocks = _Blocks(program, settings)
-        self.segments = _Planned(self._blocks)
+        #: Planned segments committed per chunk (a planner process plans with its parent's).
+        self.chunk_segments = self._chunk = (max(settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
+                                             if chunk_segments is None else chunk_segments)
+        self._blocks = PlanBlocks(program, settings, self._chunk)
+        self.segments = PlannedSegments(self._blocks)
         self.start_s: list[float] = []
         self.s0_m: list[float] = []
         self.v0_m_s: list[float] = []
@@ -254,7 +84,6 @@ class StreamPlan:
         self.junction_speeds_m_s: list[float] = [0.0]
         self.planned_until_s = 0.0
         self.finished = False
-        self._chunk = max(settings.look_ahead_segments, MIN_CHUNK_SEGMENTS)
         self._phases: Phases | None = None
         self._forgotten_junctions = 0
         #: Streamed fir: chunks planned again with smaller caps, and chunks still over P at the smallest (published).
@@ -338,6 +167,18 @@ class StreamPlan:
         self._pending = None if pending.last else after
         self._hold_first_s = pending.hold_next_s
 
+    def receive(self, j: int, commit: int, speeds: FloatArray, last: bool, phases: Phases, segments: list[Segment],
+                rows: dict[str, np.ndarray], total_m: float) -> None:
+        """Commit the chunk another process planned from planned segment ``j`` (``commit`` segments, their ``rows``
+        of every column, the junction ``speeds`` from ``j`` and the ``phases`` from 0, as :meth:`plan_chunk` would
+        have committed it here): :mod:`~cnc_contour_control.motion.plan_process`."""
+        with self.guard:
+            if j != self.committed_segments:
+                raise ProgramError(f"a chunk from planned segment {j} does not follow the {self.committed_segments} "
+                                   "committed here")
+            self._blocks.put(j, segments, rows, total_m)
+            self._publish(j, commit, speeds, last, phases)
+
     def _plan_fir_chunk(self, j: int, entry_m_s: float, first_attempt: int, end_stop: bool, hold_first_s: float,
                         before: Chunk | None = None, only: bool = False) -> Chunk:
         """Plan the chunk from planned segment ``j`` at ``entry_m_s`` (after the unpublished ``before``); fir: from
@@ -370,9 +211,9 @@ class StreamPlan:
                             fir.window_s if fir is not None and (attempt == 2 or end_stop) else 0.0)
             if fir is None:
                 break
+            sources = ShiftedColumn(blocks.column("source"), blocks.base)
             result.deviation_m = deviation_m = chunk_deviation_m(
-                kept, self._global(phases, j, start_s), self.segments, _Shifted(blocks.column("source"), blocks.base),
-                blocks.program, fir, last)
+                kept, self._global(phases, j, start_s), self.segments, sources, blocks.program, fir, last)
             if deviation_m <= self.settings.path_tolerance_m:
                 break
         self.replanned_chunks += attempt - first_attempt
@@ -424,15 +265,20 @@ class StreamPlan:
             self.guard.notify_all()
 
     @property
+    def program(self) -> Program:
+        """The program it plans (as programmed)."""
+        return self._blocks.program
+
+    @property
     def n_axes(self) -> int:
         """Number of axes."""
         return self._blocks.program.n_axes
 
     @property
-    def segment_start_m(self) -> _Shifted:
+    def segment_start_m(self) -> ShiftedColumn:
         """Path length at the start of every planned segment so far, m (as :attr:`Program.segment_start_m`; indexed
         by global segment index, int or int array)."""
-        return _Shifted(self._blocks.column("start"), self._blocks.base)
+        return ShiftedColumn(self._blocks.column("start"), self._blocks.base)
 
     @property
     def total_length_m(self) -> float:
@@ -465,32 +311,3 @@ class StreamPlan:
                 "junction_speeds_m_s": np.array(self.junction_speeds_m_s),
                 "cruise_speed_m_s": self._blocks.column("cruise"), "tangential_acceleration_m_s2": accel[:, -1],
                 "speed_bands": SpeedBands(edges, accel)}
-
-
-class _Planned:
-    """The planned segments so far by global index (``len``: all of them, forgotten ones included)."""
-
-    def __init__(self, blocks: _Blocks) -> None:
-        self._blocks = blocks
-
-    def __len__(self) -> int:
-        return self._blocks.count
-
-    def __getitem__(self, index: int) -> Segment:
-        blocks = self._blocks
-        if index < 0:
-            return blocks.segments[index]
-        if index < blocks.base:
-            raise ProgramError(f"planned segment {index} was forgotten (kept from {blocks.base}): sampled behind the "
-                               "tool")
-        return blocks.segments[index - blocks.base]
-
-
-class _Shifted:
-    """A kept column indexed by global segment index (``int`` or an int array)."""
-
-    def __init__(self, column: np.ndarray, base: int) -> None:
-        self._column, self._base = column, base
-
-    def __getitem__(self, index: Any) -> Any:
-        return self._column[np.asarray(index) - self._base]

@@ -13,7 +13,8 @@ from cnc_contour_control.motion.blending import blend_program
 from cnc_contour_control.motion.geometry import Program
 from cnc_contour_control.motion.jerk_fir import FirSettings, kink_acceleration_m_s2
 from cnc_contour_control.motion.jerk_stream import stream_attempts
-from cnc_contour_control.motion.plan_stream import StreamPlan, StreamSettings
+from cnc_contour_control.motion.plan_blocks import StreamSettings
+from cnc_contour_control.motion.plan_stream import StreamPlan
 from cnc_contour_control.motion.points import FloatArray
 
 
