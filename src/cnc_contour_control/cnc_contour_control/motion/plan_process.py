@@ -79,6 +79,7 @@ class _RecordingStream(StreamPlan):
             del self.published[old]
         message["counters"] = (self.replanned_chunks, self.over_tolerance_chunks, self.worst_deviation_m)
         message["total_m"] = self.total_length_m
+        message["held_rows"] = self.held_rows()
         return message
 
     def prefetch(self, index: int) -> None:
@@ -252,8 +253,8 @@ class ProcessPlanner(BackgroundPlanner):
     def __init__(self, stream: StreamPlan, owner: object, lead_s: float | None = None) -> None:
         self.remote = PlannerProcess(stream)
         self._committed_chunks = 1  # the stream's constructor committed chunk 0 here
-        #: Chunks the child planned and this process committed.
-        self.received_chunks = 0
+        #: Chunks the child planned and this process committed; the rows the child's plan held at the last one.
+        self.received_chunks, self.child_held_rows = 0, 0
         super().__init__(stream, owner, lead_s)
         self._feeder = threading.Thread(target=self.remote.start, name="plan-feeder", daemon=True)
         self._feeder.start()
@@ -272,6 +273,7 @@ class ProcessPlanner(BackgroundPlanner):
             stream = self.stream
             stream.replanned_chunks, stream.over_tolerance_chunks, stream.worst_deviation_m = message["counters"]
             self.received_chunks += 1
+            self.child_held_rows = int(message["held_rows"])
         self._committed_chunks += 1
 
     def _run(self) -> None:
@@ -281,11 +283,13 @@ class ProcessPlanner(BackgroundPlanner):
             self.remote.close()
 
     def status_values(self) -> dict[str, str]:
-        """The thread's status and where the chunks are planned (``plan_process``: a pid, or why not)."""
+        """The thread's status, where the chunks are planned (``plan_process``: a pid, or why not) and the rows the
+        child's plan held at its last chunk."""
         values = super().status_values()
         remote = self.remote
         values["plan_process"] = (f"pid {remote.pid}" if remote.ready.is_set() else
                                   f"not used: {remote.failure}" if remote.failure else "starting")
+        values["plan_process_held_rows"] = str(self.child_held_rows)
         return values
 
 

@@ -161,10 +161,11 @@ def gcode(program: Program) -> str:
     return "\n".join(lines + ["M30", "%", ""])
 
 
-def graph_run(program: Program, run_dir: Path, window: int = WINDOW, jerk: bool = False) -> dict[str, Any]:
+def graph_run(program: Program, run_dir: Path, window: int = WINDOW, jerk: bool = False,
+              planner: str = "process") -> dict[str, Any]:
     """``program`` through the composed node graph in real time at T = 1 ms with a look-ahead of ``window``
-    planned segments (with ``jerk``, the jerk bench's limit on every axis: the default ``fir`` streams); the
-    plant's late commands and mean tick period."""
+    planned segments (with ``jerk``, the jerk bench's limit on every axis: the default ``fir`` streams), streamed
+    by ``planner`` (the interpolator's ``stream_planner``); the plant's late commands and mean tick period."""
     from cnc_tools.runs.graph import run_graph  # the node graph's runner: only this part of the bench needs it
     from cnc_tools.runs.scenario import build_scenario
 
@@ -173,7 +174,7 @@ def graph_run(program: Program, run_dir: Path, window: int = WINDOW, jerk: bool 
     raw = read_yaml_mapping(project_root() / "scenarios" / "paper000_circle_high.yaml", "scenario file")
     raw.update({"name": "dense_cam", "sample_time_s": TICK_S, "mode": "realtime", "paper": None,
                 "program": {"axes": ["x", "y"], "gcode_file": "dense.ngc"},
-                "interpolator": {"look_ahead_segments": window},
+                "interpolator": {"look_ahead_segments": window, "stream_planner": planner},
                 "feed_override": {"max_ratio": 1.0, "schedule": [[0.0, 1.0]]}})
     if jerk:
         raw["limits"] = {**raw["limits"], "max_jerk_mm_s3": MAX_JERK_M_S3 * 1e3}
@@ -183,8 +184,8 @@ def graph_run(program: Program, run_dir: Path, window: int = WINDOW, jerk: bool 
     ticks = int(result.summary.get("ticks", 0))
     late = int(result.summary.get("late_commands", 0))
     simulated_s = float(result.summary.get("simulated_time_s", 0.0))
-    return {"graph_window": window, "graph_jerk": jerk, "graph_status": result.summary.get("status"),
-            "graph_ticks": ticks,
+    return {"graph_window": window, "graph_jerk": jerk, "graph_planner": planner,
+            "graph_status": result.summary.get("status"), "graph_ticks": ticks,
             "graph_simulated_s": simulated_s,
             "graph_mean_period_s": simulated_s / max(ticks, 1), "graph_late_commands": late,
             "graph_late_share": late / max(ticks * 2, 1), "graph_faults": result.faults,
@@ -199,15 +200,18 @@ def _plan_figures(bag: Path | None) -> dict[str, Any]:
 
     statuses = [] if bag is None else [s.values for s in read_statuses(bag)[1] if s.message == PLAN_STATUS]
     held = [int(v["plan_held_rows"]) for v in statuses]
+    child = [int(v["plan_process_held_rows"]) for v in statuses if int(v.get("plan_process_held_rows", "0"))]
     return {"graph_planner_waits": int(statuses[-1]["planner_waits"]) if statuses else None,
-            "graph_held_rows": (held[0], max(held), held[-1]) if held else None}
+            "graph_held_rows": (held[0], max(held), held[-1]) if held else None,
+            "graph_child_held_rows": (child[0], max(child), child[-1]) if child else None}
 
 
 def _graph_label(run: dict[str, Any]) -> str:
     """A graph run's row label: streamed (with the jerk limit: fir) or planned whole."""
     if run["graph_window"] != WINDOW:
         return "planned whole before the run"
-    return f"streamed, window {WINDOW}" + (", jerk limit (fir)" if run["graph_jerk"] else "")
+    return (f"streamed, window {WINDOW}" + (", jerk limit (fir)" if run["graph_jerk"] else "")
+            + f", planned in a {run['graph_planner']}")
 
 
 def dense_cam(options: argparse.Namespace) -> dict[str, Any]:
@@ -217,7 +221,8 @@ def dense_cam(options: argparse.Namespace) -> dict[str, Any]:
     program = dense_spiral(segments)
     f = stream_run(program)
     print(f"dense CAM: {f['segments']} segments of {FEED_M_S * TICK_S * 1e6:.1f} um at 1300 mm/min, T = 1 ms on "
-          f"the wall clock, window {WINDOW}, planned in a thread ahead of the tool (first chunk "
+          f"the wall clock, window {WINDOW}, planned ahead of the tool in a {bench_config().stream_planner} "
+          f"(first chunk "
           f"{f['plan_cpu_s']:.3f} s CPU); load {f['load_1min']:.1f}")
     print(format_table(
         ["ticks", "tick p50 us", "p99.9 us", "max us", f"> {TICK_BUDGET_S * 1e3:g} ms", "waited for plan",
@@ -248,15 +253,18 @@ def dense_cam(options: argparse.Namespace) -> dict[str, Any]:
     run_dir = Path(getattr(options, "out", None) or project_root() / "bags" / "bench" / "blending" / timestamp())
     runs = [graph_run(program, run_dir / "dense_cam_stream"),
             graph_run(program, run_dir / "dense_cam_stream_jerk", jerk=True),
+            graph_run(program, run_dir / "dense_cam_stream_jerk_thread", jerk=True, planner="thread"),
             graph_run(program, run_dir / "dense_cam_whole", 10**9)]
     print(format_table(["composed graph (loop), real time, T = 1 ms", "status", "ticks", "simulated s",
                         "mean period ms", "late commands", "late share", "waited for plan",
-                        "held rows first/max/last", "load (1 min)", "0 late from planning", "1 kHz held"],
+                        "held rows first/max/last", "child's rows first/max/last", "load (1 min)",
+                        "0 late from planning", "1 kHz held"],
                        [[_graph_label(g), g["graph_status"], g["graph_ticks"],
                          round(g["graph_simulated_s"], 2), round(g["graph_mean_period_s"] * 1e3, 3),
                          g["graph_late_commands"], round(g["graph_late_share"], 5),
                          "-" if g["graph_planner_waits"] is None else g["graph_planner_waits"],
                          "-" if g["graph_held_rows"] is None else "/".join(map(str, g["graph_held_rows"])),
+                         "-" if g["graph_child_held_rows"] is None else "/".join(map(str, g["graph_child_held_rows"])),
                          round(g["graph_load_1min"], 1),
                          goal_text(g["graph_status"] == "finished" and not g["graph_planner_waits"]),
                          goal_text(g["graph_status"] == "finished" and g["graph_late_commands"] == 0

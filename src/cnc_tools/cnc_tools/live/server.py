@@ -16,7 +16,7 @@ from __future__ import annotations
 import ipaddress
 import json
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, TextIO
 
@@ -143,6 +143,11 @@ class LiveServer:
             channel = getattr(channels, f"{kind}Channel")(topic, context=self.context)
             self.channels[topic] = channel
         return channel
+
+    def subscribed(self, topics: Iterable[str]) -> bool:
+        """Whether a client's subscription to each of ``topics`` (those with a channel) has reached the server: a
+        message sent before then goes to no one."""
+        return all(self.channels[topic].has_sinks() for topic in topics if topic in self.channels)
 
     def close(self) -> None:
         """Stop the server (clients are disconnected, the port is freed)."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import threading
+import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -17,12 +18,15 @@ from typing import Any
 from cnc_contour_control.core.errors import CncError
 from cnc_tools.live.client import LiveClient, Received
 from cnc_tools.live.options import engine_live
+from cnc_tools.live.server import LiveServer
 from cnc_tools.run_record import RunRecord
 from cnc_tools.runs.backends import run_on_engine
 from cnc_tools.runs.scenario import Scenario
 
 #: Seconds the server stays up after the run, for the last windows to leave.
 LINGER_S = 0.5
+#: How often the collector looks whether the server has its subscriptions, s.
+SUBSCRIBE_POLL_S = 0.005
 
 
 @dataclass(frozen=True)
@@ -46,14 +50,21 @@ def live_args(rate: float = 1.0, port: int = 0) -> argparse.Namespace:
 
 class _Collector:
     """A client subscribed to those of ``topics`` the run offers (all when empty), collecting in a thread until the
-    server closes."""
+    server closes. It returns once ``server`` has every subscription: the run's first tick may follow at once."""
 
-    def __init__(self, url: str, topics: Sequence[str], timeout_s: float) -> None:
-        self.client, self.timeout_s = LiveClient(url), timeout_s
+    def __init__(self, server: LiveServer, topics: Sequence[str], timeout_s: float) -> None:
+        self.client, self.timeout_s = LiveClient(server.url), timeout_s
         try:
             self.client.wait_channels(("/cnc/joint_states",))  # a run's channels are offered at once
             self.channels = dict(self.client.channels)
-            self.client.subscribe([t for t in topics if t in self.channels] if topics else sorted(self.channels))
+            chosen = [t for t in topics if t in self.channels] if topics else sorted(self.channels)
+            self.client.subscribe(chosen)
+            deadline = time.monotonic() + timeout_s
+            while not server.subscribed(chosen):
+                if time.monotonic() > deadline:
+                    raise CncError(f"the live server did not take the subscriptions to {len(chosen)} channels "
+                                   f"within {timeout_s} s")
+                time.sleep(SUBSCRIBE_POLL_S)
         except BaseException:
             self.client.close()
             raise
@@ -79,7 +90,7 @@ def watch_graph_run(scenario: Scenario, run_dir: Path, topics: Sequence[str], ti
     namespace = run_namespace()
     with graph_live(live_args(), namespace, scenario) as live:
         assert live.feed is not None  # --live is set
-        collector = _Collector(live.feed.server.url, topics, timeout_s)
+        collector = _Collector(live.feed.server, topics, timeout_s)
         try:
             result = run_graph(scenario, run_dir, record=True, namespace=namespace,
                                extra_subscribers=live.extra_subscribers, timeout_s=timeout_s)
@@ -97,8 +108,8 @@ def watch_engine_run(scenario: Scenario, run_dir: Path, topics: Sequence[str], r
                      timeout_s: float = 120.0) -> Watched:
     """Run ``scenario`` on the engine with --live into ``run_dir``, watched on ``topics`` (all when empty)."""
     with engine_live(live_args(rate), scenario) as live:
-        url = live["on_tick"].feed.server.url  # type: ignore[attr-defined]  # the observer is an EngineLive
-        collector = _Collector(url, topics, timeout_s)
+        server = live["on_tick"].feed.server  # type: ignore[attr-defined]  # the observer is an EngineLive
+        collector = _Collector(server, topics, timeout_s)
         try:
             record = run_on_engine(scenario, run_dir, **live)
         except BaseException:
