@@ -124,7 +124,9 @@ def chunk_deviation_m(kept: Phases, new: Phases, segments: Any, source: Any, pro
     first = np.maximum(sources[:points.shape[0]] - 1, 0)
     last_source = sources[n - 1:]
     distance = np.full(points.shape[0], np.inf)
-    for j in range(int(first.min(initial=0)), int(last_source.max(initial=-1)) + 1):
+    if not points.shape[0]:
+        return 0.0
+    for j in range(int(first.min()), int(last_source.max()) + 1):  # the chunk's programmed segments only
         rows = slice(int(np.searchsorted(last_source, j, side="left")), int(np.searchsorted(first, j, side="right")))
         if rows.start < rows.stop:
             near = programmed.segments[j].nearest(points[rows])[0]

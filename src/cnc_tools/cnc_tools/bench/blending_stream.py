@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from cnc_contour_control.core.config import read_yaml_mapping
-from cnc_contour_control.core.errors import ConfigError
+from cnc_contour_control.core.errors import CncError, ConfigError
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
 from cnc_contour_control.motion.geometry import Program
 from cnc_tools.analysis.tables import format_table, goal_text
@@ -180,7 +180,14 @@ def graph_run(program: Program, run_dir: Path, window: int = WINDOW, jerk: bool 
         raw["limits"] = {**raw["limits"], "max_jerk_mm_s3": MAX_JERK_M_S3 * 1e3}
     raw["realtime"] = {"max_period_ratio": 0.0}  # measured here, not faulted on (see the module docstring)
     scenario = build_scenario({k: v for k, v in raw.items() if v is not None}, base_dir=run_dir)
-    result = run_graph(scenario, run_dir, record=True, compose="loop", timeout_s=3600.0)
+    try:
+        result = run_graph(scenario, run_dir, record=True, compose="loop", timeout_s=3600.0)
+    except CncError as err:  # a run that faults is a row that says so, not the bench's end
+        return {"graph_window": window, "graph_jerk": jerk, "graph_planner": planner, "graph_status": "fault",
+                "graph_ticks": 0, "graph_simulated_s": 0.0, "graph_mean_period_s": math.nan,
+                "graph_late_commands": 0, "graph_late_share": math.nan, "graph_faults": [str(err)],
+                "graph_load_1min": os.getloadavg()[0], "graph_planner_waits": None, "graph_held_rows": None,
+                "graph_child_held_rows": None}
     ticks = int(result.summary.get("ticks", 0))
     late = int(result.summary.get("late_commands", 0))
     simulated_s = float(result.summary.get("simulated_time_s", 0.0))
