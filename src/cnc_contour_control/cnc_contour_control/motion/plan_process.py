@@ -151,7 +151,12 @@ class PlannerProcess:
         """Start the child and send it the plan's settings and program (the feeder thread's work)."""
         try:
             self._launch()
-            self._feed()
+            try:
+                self._feed()
+            except OSError as err:  # the child ended while it was sent the program (its answer may say why)
+                self._receive()
+                raise FaultError(f"the planner process (pid {self.pid}) ended{self._exit_note()} while it was sent "
+                                 f"the program ({err})") from err
             reply = self._receive()
             if reply[0] != "ready":
                 raise FaultError(f"the planner process answered {reply[0]!r} instead of ready")
