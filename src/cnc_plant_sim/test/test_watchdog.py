@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from cnc_contour_control.core.errors import ConfigError, FaultError
@@ -107,6 +107,7 @@ def test_ticks_that_do_not_keep_the_period_fault_though_every_command_came() -> 
 @settings(max_examples=60, deadline=None)
 @given(st.lists(st.floats(0.5, 4.0), min_size=2, max_size=40), st.integers(2, 12),
        st.sampled_from([0.0, 1.5, 2.0, 3.0]))
+@example(periods=[1.0, 1.5], window=2, ratio=1.5)  # a mean of exactly 1.5 T: faulted when compared in float s
 def test_the_period_faults_exactly_when_a_windows_mean_exceeds_the_ratio(periods: list[float], window: int,
                                                                          ratio: float) -> None:
     """Generated tick periods (in sample times): a fault iff some full window's mean period exceeds the ratio."""

@@ -152,8 +152,9 @@ class CommandWatchdog:
         if self.sample_time_s is None or ratio == 0.0 or len(self._window) < max(window, 2):
             return
         start_ns, end_ns = self._window[0][0], self._window[-1][0]
-        mean_s = (end_ns - start_ns) * 1e-9 / (len(self._window) - 1)
-        if mean_s > ratio * self.sample_time_s:
+        mean_ns = (end_ns - start_ns) / (len(self._window) - 1)  # in ns: a mean of exactly ratio x T is no fault
+        mean_s = mean_ns * 1e-9
+        if mean_ns > ratio * round(self.sample_time_s * 1e9):
             raise FaultError(f"plant: ticks from t = {start_ns * 1e-9:.3f} s to {end_ns * 1e-9:.3f} s came every "
                              f"{mean_s * 1e3:.3f} ms on average, {mean_s / self.sample_time_s:.2f} x sample_time_s "
                              f"{self.sample_time_s * 1e3:g} ms: late beyond max_period_ratio {ratio:g} "
