@@ -26,6 +26,12 @@ from collections.abc import Generator
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
+
+#: A falsified property prints the blob that replays its case exactly (numpy's repr of an array rounds to 8
+#: digits, so the printed example alone may not fail again).
+settings.register_profile("cnc", print_blob=True)
+settings.load_profile("cnc")
 
 #: The Fast DDS segments present when the session began (the controller's; None in a worker).
 SEGMENTS_BEFORE = pytest.StashKey[set]()

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from cnc_contour_control.core.stop_signals import STACK_DUMP_SIGNAL
 from cnc_contour_control.testing import stop_processes, wait_until
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -79,6 +80,24 @@ def _start_group(tmp_path: Path, params: Path) -> dict[str, subprocess.Popen[byt
     return processes
 
 
+def _exit_codes(processes: dict[str, subprocess.Popen[bytes]], tmp_path: Path) -> dict[str, int]:
+    """Each node's exit code within EXIT_WAIT_S; a node still running then prints its threads' stacks
+    (:data:`~cnc_contour_control.core.stop_signals.STACK_DUMP_SIGNAL`) into its log, and the failure shows them."""
+    deadline_s = time.monotonic() + EXIT_WAIT_S
+    wait_until(lambda: all(p.poll() is not None for p in processes.values()) or time.monotonic() > deadline_s,
+               EXIT_WAIT_S, "the nodes to end")
+    stuck = {name: tmp_path / f"{name}.log" for name, p in processes.items() if p.poll() is None}
+    for name in stuck:
+        processes[name].send_signal(STACK_DUMP_SIGNAL)
+    dumped_by_s = time.monotonic() + 10.0  # the stacks are written from the signal handler, at once
+    while stuck and time.monotonic() < dumped_by_s and not all(
+            "most recent call first" in log.read_text(errors="replace") for log in stuck.values()):
+        time.sleep(0.1)
+    assert not stuck, (f"not ended {EXIT_WAIT_S:.0f} s after the signal: {list(stuck)}; their logs:\n"
+                       + "\n".join(f"--- {name}\n{log.read_text(errors='replace')}" for name, log in stuck.items()))
+    return {name: int(process.returncode) for name, process in processes.items()}
+
+
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM], ids=lambda s: signal.Signals(s).name)
 def test_a_signal_to_the_by_hand_graph_mid_run_ends_every_node_cleanly(tmp_path: Path, sig: int) -> None:
     processes = _start_group(tmp_path, _params_file(tmp_path))
@@ -88,9 +107,7 @@ def test_a_signal_to_the_by_hand_graph_mid_run_ends_every_node_cleanly(tmp_path:
         exited = {name: p.returncode for name, p in processes.items() if p.poll() is not None}
         assert not exited, f"every node runs until the signal; exited: {exited}"
         os.killpg(processes["recorder"].pid, sig)
-        deadline_s = time.monotonic() + EXIT_WAIT_S
-        codes = {name: process.wait(timeout=max(0.0, deadline_s - time.monotonic()))
-                 for name, process in processes.items()}
+        codes = _exit_codes(processes, tmp_path)
     finally:
         stop_processes(processes.values())
     logs = {name: (tmp_path / f"{name}.log").read_text() for name in NODES}

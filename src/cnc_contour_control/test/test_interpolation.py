@@ -23,8 +23,32 @@ def line_program(length_m: float, feed_m_s: float) -> Program:
     return Program("line", ("x", "y"), (LineSegment([0.0, 0.0], [length_m, 0.0], feed_m_s),))
 
 
+def kink_steps_m_s(interpolator: Interpolator) -> np.ndarray:
+    """Per axis, the largest velocity step at a junction passed at speed (m/s): ``v * |T_after - T_before|``.
+
+    A turn under ``corner_angle_tolerance_deg`` is passed without a stop and steps the axis velocities by at most
+    ``v * angle`` (:mod:`~cnc_contour_control.motion.interpolation`); the FIR jerk filter spreads that step over
+    its window within the limits (its kink reserve), so there it is no allowance (zero).
+    """
+    segments = interpolator.program.segments
+    steps = np.zeros(len(interpolator.limits.max_velocity_m_s))
+    if interpolator.jerk_filter is not None:
+        return steps
+    tolerance_rad = math.radians(interpolator.config.corner_angle_tolerance_deg)
+    for before, after, speed in zip(segments[:-1], segments[1:], interpolator.junction_speeds_m_s[1:-1].tolist()):
+        turn = after.tangent(np.array([0.0]))[0] - before.tangent(np.array([before.length_m]))[0]
+        # the documented bound: |T_after - T_before| = 2 sin(angle / 2) <= angle <= the tolerance
+        assert speed == 0.0 or float(np.linalg.norm(turn)) <= tolerance_rad * (1 + 1e-9) + 1e-15
+        steps = np.maximum(steps, speed * np.abs(turn))
+    return steps
+
+
 def check_limits(interpolator: Interpolator, dt_s: float = 2e-4, rtol: float = 1e-7) -> None:
-    """Analytic and finite-difference axis velocity and acceleration stay within the limits."""
+    """Analytic and finite-difference axis velocity and acceleration stay within the limits.
+
+    The finite-difference acceleration may exceed them by a sub-tolerance kink's velocity step over one sample
+    (:func:`kink_steps_m_s`), and by 1e-6 m/s² of rounding.
+    """
     times = np.arange(-3 * dt_s, interpolator.duration_s + 3 * dt_s, dt_s)
     trajectory = interpolator.sample_array(times)
     v_max = np.asarray(interpolator.limits.max_velocity_m_s)
@@ -34,7 +58,8 @@ def check_limits(interpolator: Interpolator, dt_s: float = 2e-4, rtol: float = 1
     assert np.all(np.abs(trajectory.velocity_m_s) <= v_max * (1 + rtol))
     assert np.all(np.abs(trajectory.acceleration_m_s2) <= a_max * (1 + rtol))
     assert np.all(np.abs(velocity_fd) <= v_max * (1 + rtol) + 1e-9)
-    assert np.all(np.abs(acceleration_fd) <= a_max * (1 + rtol) + 1e-6)
+    excess = np.max(np.abs(acceleration_fd) - a_max * (1 + rtol), axis=0)
+    assert np.all(excess <= 1e-6 + kink_steps_m_s(interpolator) / dt_s), f"excess over the limits {excess} m/s²"
 
 
 def test_long_line_is_a_trapezoid() -> None:
@@ -136,6 +161,25 @@ def test_corner_tolerance_decides_what_is_tangent() -> None:
     assert Interpolator(program, LIMITS_2).junction_speeds_m_s[1] == 0.0
     loose = Interpolator(program, LIMITS_2, InterpolatorConfig(corner_angle_tolerance_deg=1.0))
     assert loose.junction_speeds_m_s[1] == pytest.approx(0.01)
+
+
+def test_a_turn_under_the_corner_tolerance_steps_the_axis_velocities_by_v_times_the_turn() -> None:
+    """The step :func:`check_limits` allows (:func:`kink_steps_m_s`) is the one the samples show, at most v * angle.
+
+    Generated polylines found it (a 0.2 mm line and a 3.9 mm line turning by 0.12 µrad, at 0.5 mm of tolerance):
+    the step over 1 ms exceeded the 1e-6 m/s² of rounding the check allowed."""
+    heading, turn = 0.23, 1e-6  # rad; the default tolerance is 1e-4 deg = 1.75 µrad
+    corner = 0.004 * np.array([math.cos(heading), math.sin(heading)])
+    end = corner + 0.004 * np.array([math.cos(heading + turn), math.sin(heading + turn)])
+    program = Program("kink", ("x", "y"), (LineSegment([0.0, 0.0], corner, 0.02), LineSegment(corner, end, 0.02)))
+    interpolator = Interpolator(program, AxisLimits((0.035, 0.035), (0.5, 0.125)))
+    speed = float(interpolator.junction_speeds_m_s[1])
+    at_s = float(interpolator._phases.start_s[np.flatnonzero(interpolator._phases.segment == 1)[0]])
+    before, after = (interpolator.sample(at_s + d).velocity_m_s for d in (-1e-12, 1e-12))
+    steps = kink_steps_m_s(interpolator)
+    assert speed > 0.0 and np.all(steps <= speed * turn)
+    assert_allclose(np.abs(after - before), steps, rtol=1e-3, atol=1e-15)
+    check_limits(interpolator, dt_s=1e-3, rtol=1e-9)
 
 
 @pytest.mark.parametrize("section", [

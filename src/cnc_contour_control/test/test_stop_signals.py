@@ -3,9 +3,11 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
+import sys
 import threading
 
-from cnc_contour_control.core.stop_signals import NODE_STOP_SIGNALS, StopSignals
+from cnc_contour_control.core.stop_signals import NODE_STOP_SIGNALS, STACK_DUMP_SIGNAL, StopSignals
 
 
 def test_a_signal_is_noted_the_first_counts_and_the_handler_comes_back() -> None:
@@ -39,3 +41,26 @@ def test_outside_the_main_thread_nothing_is_installed() -> None:
     worker.start()
     worker.join()
     assert not found[0].installed and StopSignals.active is None
+
+
+def test_a_process_in_the_block_prints_its_stacks_on_the_dump_signal_and_goes_on() -> None:
+    """SIGUSR1 prints every thread's stack to stderr (what a node that does not stop is doing); SIGINT still stops."""
+    code = ("import sys, time\n"
+            "from cnc_contour_control.core.stop_signals import StopSignals\n"
+            "with StopSignals() as stop:\n"
+            "    print('in', flush=True)\n"
+            "    while not stop.requested:\n"
+            "        time.sleep(0.01)\n"
+            "print('stopped', flush=True)\n")
+    child = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout is not None and child.stdout.readline() == "in\n"
+        child.send_signal(STACK_DUMP_SIGNAL)
+        child.send_signal(signal.SIGINT)
+        out, err = child.communicate(timeout=60)
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert child.returncode == 0 and out == "stopped\n", (out, err)
+    assert "most recent call first" in err and 'File "<string>"' in err, err

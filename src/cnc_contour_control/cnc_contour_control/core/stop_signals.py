@@ -9,9 +9,14 @@ acted on where stopping is safe: a node's spin loop at its next turn
 at its next poll (:func:`cnc_tools.runs.lifetime.check_stop`). The first signal
 counts; later ones while stopping are ignored. Outside the main thread, where
 Python cannot install handlers, the block installs nothing.
+
+A node that does not stop can say where it is: :data:`STACK_DUMP_SIGNAL` (SIGUSR1) prints every thread's stack
+to its stderr (:func:`faulthandler.register`, installed by :meth:`StopSignals.__enter__` in the main thread and
+kept to the process's end, when a stuck exit is what it shows), ``kill -USR1 <pid>``.
 """
 from __future__ import annotations
 
+import faulthandler
 import signal
 import threading
 from collections.abc import Sequence
@@ -20,6 +25,8 @@ from typing import Any, ClassVar
 
 #: What stops a node: Ctrl-C, and the SIGTERM of its runner, of launch or of its dying parent.
 NODE_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+#: What makes a process inside a ``with StopSignals()`` block print every thread's stack to stderr and go on.
+STACK_DUMP_SIGNAL = signal.SIGUSR1
 
 
 class StopSignals:
@@ -44,6 +51,7 @@ class StopSignals:
     def __enter__(self) -> StopSignals:
         if self.installed:
             self._previous = {signum: signal.signal(signum, self._note) for signum in self.signals}
+            faulthandler.register(STACK_DUMP_SIGNAL, all_threads=True)
             self._outer, StopSignals.active = StopSignals.active, self
         return self
 
