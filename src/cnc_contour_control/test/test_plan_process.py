@@ -13,6 +13,7 @@ import pickle
 import signal
 from collections.abc import Iterator
 from typing import Any
+from unittest import mock
 
 import numpy as np
 import pytest
@@ -20,7 +21,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from cnc_contour_control.core.errors import FaultError, ProgramError
-from cnc_contour_control.motion import plan_process, plan_stream
+from cnc_contour_control.motion import plan_background, plan_process, plan_stream
 from cnc_contour_control.motion.arc import ArcSegment
 from cnc_contour_control.motion.axis_limits import AxisLimits
 from cnc_contour_control.motion.feed_override import LiveReference, OverrideConfig
@@ -153,3 +154,38 @@ def test_segments_cross_bit_for_bit(original: list[Any]) -> None:
             else:
                 assert other == value and type(other) is type(value), name
         assert np.array_equal(a.point(a.length_m / 3), b.point(b.length_m / 3))
+
+
+@st.composite
+def contours(draw: st.DrawFn) -> Program:
+    """60-120 connected lines and arcs in xy: random lengths (0.2-2 mm), turns (some over the stop angle), feeds."""
+    position, heading, out = np.zeros(2), 0.0, list[Any]()
+    for _ in range(draw(st.integers(60, 120))):
+        heading += draw(st.floats(-2.5, 2.5) | st.just(0.0))
+        feed = draw(st.floats(0.01, 0.033))
+        if draw(st.integers(0, 3)) > 0:
+            out.append(LineSegment(position, position + draw(st.floats(2e-4, 2e-3)) * np.array(
+                [math.cos(heading), math.sin(heading)]), feed))
+        else:
+            radius, sweep, side = draw(st.floats(3e-4, 3e-3)), draw(st.floats(0.1, 2.5)), draw(st.sampled_from([1, -1]))
+            center = position + side * radius * np.array([-math.sin(heading), math.cos(heading)])
+            angle = math.atan2(*(position - center)[::-1]) + side * sweep
+            out.append(ArcSegment(position, center + radius * np.array([math.cos(angle), math.sin(angle)]), center,
+                                  side < 0, (0, 1), feed))
+            heading += side * sweep
+        position = out[-1].end_m
+    return Program("generated", ("x", "y"), tuple(out))
+
+
+@settings(max_examples=4, deadline=None)
+@given(contours())
+def test_on_generated_contours_the_child_plans_what_the_thread_plans(program: Program) -> None:
+    """With a lead of 0.1 s the thread here plans little before the child is ready (a short program's whole plan
+    within the 2 s lead would end the child before it was used)."""
+    with mock.patch.object(plan_background, "FIR_LEAD_S", 0.1):
+        by_process, by_thread = live(program, "process"), live(program, "thread")
+    process_samples = np.array([s.position_m for s in run(by_process)])
+    thread_samples = np.array([s.position_m for s in run(by_thread)])
+    assert process_samples.shape == thread_samples.shape
+    np.testing.assert_allclose(process_samples, thread_samples, rtol=0.0, atol=1e-12)
+    assert isinstance(by_process.planner, plan_process.ProcessPlanner) and by_process.planner.received_chunks > 0
