@@ -1,11 +1,14 @@
 """StopSignals: a signal inside the block is noted, not acted on; the previous handlers come back after it."""
 from __future__ import annotations
 
+import io
 import os
 import signal
 import subprocess
 import sys
 import threading
+
+import pytest
 
 from cnc_contour_control.core.stop_signals import NODE_STOP_SIGNALS, STACK_DUMP_SIGNAL, StopSignals
 
@@ -64,3 +67,11 @@ def test_a_process_in_the_block_prints_its_stacks_on_the_dump_signal_and_goes_on
             child.wait()
     assert child.returncode == 0 and out == "stopped\n", (out, err)
     assert "most recent call first" in err and 'File "<string>"' in err, err
+
+
+def test_the_block_works_where_stderr_is_no_file(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The runner enters the block in-process, under a capture whose ``sys.stderr`` has no descriptor."""
+    monkeypatch.setattr(sys, "stderr", io.StringIO())
+    with StopSignals() as stop:
+        os.kill(os.getpid(), signal.SIGTERM)
+    assert stop.signum == signal.SIGTERM

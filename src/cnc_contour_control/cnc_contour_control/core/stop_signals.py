@@ -27,6 +27,8 @@ from typing import Any, ClassVar
 NODE_STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 #: What makes a process inside a ``with StopSignals()`` block print every thread's stack to stderr and go on.
 STACK_DUMP_SIGNAL = signal.SIGUSR1
+#: Where the stacks go: the process's descriptor 2 (``sys.stderr`` may be an object without one, as under capture).
+STDERR_FD = 2
 
 
 class StopSignals:
@@ -51,7 +53,7 @@ class StopSignals:
     def __enter__(self) -> StopSignals:
         if self.installed:
             self._previous = {signum: signal.signal(signum, self._note) for signum in self.signals}
-            faulthandler.register(STACK_DUMP_SIGNAL, all_threads=True)
+            faulthandler.register(STACK_DUMP_SIGNAL, file=STDERR_FD, all_threads=True)
             self._outer, StopSignals.active = StopSignals.active, self
         return self
 
