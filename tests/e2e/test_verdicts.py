@@ -183,21 +183,38 @@ class _StopWhenRunning:
                 os.kill(self.pid, signal.SIGCONT)
 
 
+#: Runs of the stall test whose graph did not keep real time up to the stall (the machine's load, not the suite).
+STALL_ATTEMPTS = 3
+
+
 def test_a_servo_stalled_for_a_second_in_real_time_faults_the_run_on_its_window(tmp_path: Path) -> None:
     """A 1 s stall in a 20 s run is 5 % of the run's commands (under max_late_share 0.25) but every command of one
-    axis in a 100-tick window: the run faults naming the axis, not "no fault"."""
+    axis in a 100-tick window: the run faults naming the axis, not "no fault".
+
+    The stall needs a graph that keeps real time for ``MIN_TICKS`` ticks first. Beside CPU-bound processes it may
+    not (78 of the first 200 commands late once): such a run must fault on its late commands, a true verdict, and
+    the test runs the graph again, up to STALL_ATTEMPTS times. The run's share is judged from tick 1000, after the
+    stall's window, so that the stall's window is what trips."""
     # the following-error trip off: the resumed servo's error after a 1 s stall would trip it (exit 3) before
     # or after the window's fault, a race; this test is about the window
     scenario = load_scenario(CIRCLE, {"duration_s": 20.0, "mode": "realtime",
+                                      "realtime": {"late_share_min_ticks": 1000},
                                       "servo": {"min_ferror_m": 0.0, "ferror_m": 0.0}})
-    # 0.9 s: the resumed servo's first joint state is then under its 1 s future-stamp bound (a 1 s stop raced the
-    # servo's own exit 3 against the plant's window fault); the window still sees 90 of 100 commands late
-    stopper = _StopWhenRunning(tmp_path, "servo_x", 0.9)
-    try:
-        result = run_graph(scenario, tmp_path, record=False, on_poll=stopper, timeout_s=120.0)
-    finally:
-        stopper.resume()
-    assert stopper.pid is not None, "the servo was stopped mid-run"
+    unheld: list[str] = []
+    for attempt in range(STALL_ATTEMPTS):
+        # 0.9 s: the resumed servo's first joint state is then under its 1 s future-stamp bound (a 1 s stop raced
+        # the servo's own exit 3 against the plant's window fault); the window still sees 90 of 100 commands late
+        run_dir = tmp_path / f"attempt{attempt}"
+        stopper = _StopWhenRunning(run_dir, "servo_x", 0.9)
+        try:
+            result = run_graph(scenario, run_dir, record=False, on_poll=stopper, timeout_s=120.0)
+        finally:
+            stopper.resume()
+        if stopper.pid is not None:
+            break
+        assert result.summary["status"] == "faulted" and "late" in result.faults[0], result.summary
+        unheld.append(result.faults[0])
+    assert stopper.pid is not None, f"no real time up to the stall in {STALL_ATTEMPTS} runs: {unheld}"
     assert result.summary["status"] == "faulted", result.summary
     assert "of axis x's 100 commands" in result.faults[0] and "max_late_share_window" in result.faults[0], \
         result.faults
