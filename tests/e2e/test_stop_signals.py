@@ -8,6 +8,7 @@ mid-run, and a composed host (``--compose all``) is stopped by the runner.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import re
@@ -84,8 +85,9 @@ def _exit_codes(processes: dict[str, subprocess.Popen[bytes]], tmp_path: Path) -
     """Each node's exit code within EXIT_WAIT_S; a node still running then prints its threads' stacks
     (:data:`~cnc_contour_control.core.stop_signals.STACK_DUMP_SIGNAL`) into its log, and the failure shows them."""
     deadline_s = time.monotonic() + EXIT_WAIT_S
-    wait_until(lambda: all(p.poll() is not None for p in processes.values()) or time.monotonic() > deadline_s,
-               EXIT_WAIT_S, "the nodes to end")
+    for process in processes.values():
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            process.wait(timeout=max(0.0, deadline_s - time.monotonic()))
     stuck = {name: tmp_path / f"{name}.log" for name, p in processes.items() if p.poll() is None}
     for name in stuck:
         processes[name].send_signal(STACK_DUMP_SIGNAL)

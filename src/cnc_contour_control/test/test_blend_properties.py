@@ -42,6 +42,7 @@ TIME_RTOL = 1e-12
 
 lengths_m = st.floats(2e-4, 6e-3)
 turns_rad = st.floats(-math.pi + 0.01, math.pi - 0.01)
+programmed_feed = st.just(FEED_M_S)
 
 
 def _line_program(points_m: list[np.ndarray]) -> Program:
@@ -73,21 +74,24 @@ def zigzags(draw: st.DrawFn) -> Program:
 
 
 @st.composite
-def arc_chains(draw: st.DrawFn) -> Program:
-    """Lines and arcs (radius 0.3-5 mm, sweep up to 170°, either direction) in xy, joined at random corners."""
+def arc_chains(draw: st.DrawFn, min_size: int = 2, max_size: int = 8,
+               feeds_m_s: st.SearchStrategy[float] = programmed_feed) -> Program:
+    """Lines and arcs (radius 0.3-5 mm, sweep up to 170°, either direction) in xy, joined at random corners
+    (``min_size``-``max_size`` segments, each with a feed drawn from ``feeds_m_s``)."""
     position, heading, segments = np.zeros(2), 0.0, list[Segment]()
-    for is_arc, turn in draw(st.lists(st.tuples(st.booleans(), turns_rad), min_size=2, max_size=8)):
+    for is_arc, turn in draw(st.lists(st.tuples(st.booleans(), turns_rad), min_size=min_size, max_size=max_size)):
         heading += turn
+        feed = draw(feeds_m_s)
         if not is_arc:
             end = position + draw(lengths_m) * np.array([math.cos(heading), math.sin(heading)])
-            segments.append(LineSegment(position, end, FEED_M_S))
+            segments.append(LineSegment(position, end, feed))
         else:
             radius, sweep = draw(st.floats(3e-4, 5e-3)), draw(st.floats(0.1, math.radians(170)))
             side = draw(st.sampled_from([1.0, -1.0]))
             center = position + side * radius * np.array([-math.sin(heading), math.cos(heading)])
             angle = math.atan2(*(position - center)[::-1]) + side * sweep
             end = center + radius * np.array([math.cos(angle), math.sin(angle)])
-            segments.append(ArcSegment(position, end, center, side < 0.0, (0, 1), FEED_M_S))
+            segments.append(ArcSegment(position, end, center, side < 0.0, (0, 1), feed))
             heading += side * sweep
         position = segments[-1].end_m
     return Program("generated", ("x", "y"), tuple(segments))

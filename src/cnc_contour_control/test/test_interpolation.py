@@ -15,6 +15,7 @@ from cnc_contour_control.motion.geometry import ArcSegment, LineSegment, Program
 from cnc_contour_control.motion.interpolation import Interpolator
 from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.program import load_program
+from cnc_contour_control.motion.segment_tangents import end_tangents
 
 LIMITS_2 = AxisLimits((0.035, 0.035), (0.5, 0.5))
 
@@ -30,17 +31,16 @@ def kink_steps_m_s(interpolator: Interpolator) -> np.ndarray:
     ``v * angle`` (:mod:`~cnc_contour_control.motion.interpolation`); the FIR jerk filter spreads that step over
     its window within the limits (its kink reserve), so there it is no allowance (zero).
     """
-    segments = interpolator.program.segments
-    steps = np.zeros(len(interpolator.limits.max_velocity_m_s))
-    if interpolator.jerk_filter is not None:
-        return steps
+    n_axes = len(interpolator.limits.max_velocity_m_s)
+    if interpolator.jerk_filter is not None or len(interpolator.program.segments) < 2:
+        return np.zeros(n_axes)
+    start, end = end_tangents(interpolator.program.segments)
+    turn = start[1:] - end[:-1]
+    speed = interpolator.junction_speeds_m_s[1:-1]
+    # the documented bound: |T_after - T_before| = 2 sin(angle / 2) <= angle <= the tolerance
     tolerance_rad = math.radians(interpolator.config.corner_angle_tolerance_deg)
-    for before, after, speed in zip(segments[:-1], segments[1:], interpolator.junction_speeds_m_s[1:-1].tolist()):
-        turn = after.tangent(np.array([0.0]))[0] - before.tangent(np.array([before.length_m]))[0]
-        # the documented bound: |T_after - T_before| = 2 sin(angle / 2) <= angle <= the tolerance
-        assert speed == 0.0 or float(np.linalg.norm(turn)) <= tolerance_rad * (1 + 1e-9) + 1e-15
-        steps = np.maximum(steps, speed * np.abs(turn))
-    return steps
+    assert np.all(np.linalg.norm(turn[speed > 0.0], axis=1) <= tolerance_rad * (1 + 1e-9) + 1e-15)
+    return np.max(speed[:, None] * np.abs(turn), axis=0)
 
 
 def check_limits(interpolator: Interpolator, dt_s: float = 2e-4, rtol: float = 1e-7) -> None:

@@ -28,7 +28,7 @@ from cnc_contour_control.motion.feed_override import LiveReference, OverrideConf
 from cnc_contour_control.motion.geometry import LineSegment, Program
 from cnc_contour_control.motion.interpolator_config import InterpolatorConfig
 from cnc_contour_control.motion.segment_codec import decode_segments, encode_segments
-from cnc_contour_control.testing import WAIT_FLOOR_S
+from cnc_contour_control.testing import WAIT_FLOOR_S, sibling_module
 
 LIMITS = AxisLimits((2000 / 60000,) * 2, (0.25, 0.25), (10.0, 10.0))
 FIR = InterpolatorConfig(path_tolerance_mm=0.01, clamp_feed=True, jerk_mode="fir", look_ahead_segments=6)
@@ -156,29 +156,12 @@ def test_segments_cross_bit_for_bit(original: list[Any]) -> None:
         assert np.array_equal(a.point(a.length_m / 3), b.point(b.length_m / 3))
 
 
-@st.composite
-def contours(draw: st.DrawFn) -> Program:
-    """60-120 connected lines and arcs in xy: random lengths (0.2-2 mm), turns (some over the stop angle), feeds."""
-    position, heading, out = np.zeros(2), 0.0, list[Any]()
-    for _ in range(draw(st.integers(60, 120))):
-        heading += draw(st.floats(-2.5, 2.5) | st.just(0.0))
-        feed = draw(st.floats(0.01, 0.033))
-        if draw(st.integers(0, 3)) > 0:
-            out.append(LineSegment(position, position + draw(st.floats(2e-4, 2e-3)) * np.array(
-                [math.cos(heading), math.sin(heading)]), feed))
-        else:
-            radius, sweep, side = draw(st.floats(3e-4, 3e-3)), draw(st.floats(0.1, 2.5)), draw(st.sampled_from([1, -1]))
-            center = position + side * radius * np.array([-math.sin(heading), math.cos(heading)])
-            angle = math.atan2(*(position - center)[::-1]) + side * sweep
-            out.append(ArcSegment(position, center + radius * np.array([math.cos(angle), math.sin(angle)]), center,
-                                  side < 0, (0, 1), feed))
-            heading += side * sweep
-        position = out[-1].end_m
-    return Program("generated", ("x", "y"), tuple(out))
+#: Lines and arcs in xy from the blend properties' generator, 40-80 of them with random feeds.
+contours = sibling_module(__file__, "test_blend_properties").arc_chains(40, 80, st.floats(0.01, 0.033))
 
 
 @settings(max_examples=4, deadline=None)
-@given(contours())
+@given(contours)
 def test_on_generated_contours_the_child_plans_what_the_thread_plans(program: Program) -> None:
     """With a lead of 0.1 s the thread here plans little before the child is ready (a short program's whole plan
     within the 2 s lead would end the child before it was used)."""
