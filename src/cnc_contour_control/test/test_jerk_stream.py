@@ -66,11 +66,38 @@ def polylines(draw: st.DrawFn) -> Program:
 KINK_POINTS = [[0.001953125 * k, 0.0] for k in range(22)] + [
     [0.04141951837709553, 0.0006290266654255336], [0.0424747962964563, 0.002272524696618335],
     [0.04353007421581707, 0.003916022727811136], [0.044585352135177836, 0.005559520759003937]]
+#: A generated polyline whose whole plan keeps the program as written (22 segments, 3.168 s) where the stream
+#: blends it (28, 3.178 s): the samples differ by up to 0.32 mm, each within the limits and P.
+AS_WRITTEN_POINTS = [
+    [0.0, 0.0],
+    [0.001953125, 0.0],
+    [0.00390625, 0.0],
+    [0.005859375, 0.0],
+    [0.008361557203559349, 0.0],
+    [0.010700491803806795, 0.0],
+    [0.013487982117835336, 0.0],
+    [0.015858983399651305, 0.0],
+    [0.016875899298516562, 0.0],
+    [0.01834047253449863, 0.0],
+    [0.018903576969942836, 0.0016947020321305334],
+    [0.01797296268180909, 0.0028473865894657205],
+    [0.018815104316181486, 0.004609627984190515],
+    [0.019524534908316755, 0.006094162063872485],
+    [0.0208229642515248, 0.007303774243492607],
+    [0.020474827424084387, 0.009225621795980765],
+    [0.018669549340817857, 0.009971053421082976],
+    [0.016864271257551328, 0.010716485046185187],
+    [0.015058993174284798, 0.011461916671287398],
+    [0.013253715091018269, 0.012207348296389609],
+    [0.011448437007751739, 0.01295277992149182],
+    [0.00964315892448521, 0.01369821154659403],
+    [0.00783788084121868, 0.014443643171696241]]
 
 
 @SETTINGS
 @given(program=polylines(), tolerance_mm=st.sampled_from([0.005, 0.02]))
 @example(program=_polyline(np.array(KINK_POINTS), 0.03125), tolerance_mm=0.005)
+@example(program=_polyline(np.array(AS_WRITTEN_POINTS), 0.015625), tolerance_mm=0.02)
 def test_streamed_fir_holds_the_limits_and_p_on_every_sample(program: Program, tolerance_mm: float) -> None:
     config = InterpolatorConfig(path_tolerance_mm=tolerance_mm, clamp_feed=True, jerk_mode="fir",
                                 look_ahead_segments=WINDOW)
@@ -90,7 +117,11 @@ def test_streamed_fir_holds_the_limits_and_p_on_every_sample(program: Program, t
     np.testing.assert_allclose(trajectory.position_m[-1], whole.sample(times[-1]).position_m, rtol=0, atol=1e-12)
     np.testing.assert_allclose(trajectory.position_m[-1], program.end_m, rtol=0, atol=1e-12)
     stream = streamed._stream
-    if stream.replanned_chunks == 0 and whole.jerk_filter == streamed.jerk_filter and whole.jerk_mode_used == "fir":
+    # the whole plan keeps the program as written where that is quicker than its blends (a global choice, which a
+    # stream, chunk by chunk, cannot make): only the same planned path has the same samples
+    same_path = len(streamed.program.segments) == len(whole.program.segments)
+    if stream.replanned_chunks == 0 and whole.jerk_filter == streamed.jerk_filter and whole.jerk_mode_used == "fir" \
+            and same_path:
         expected = whole.sample_array(times)  # the same caps: the same samples
         np.testing.assert_allclose(trajectory.position_m, expected.position_m, rtol=0, atol=1e-12)
         assert streamed.duration_s == np.float64(whole.duration_s) or abs(streamed.duration_s - whole.duration_s) < 1e-9
